@@ -1,0 +1,92 @@
+"""The object on the plate: a thin disc described by the paper's parameters (SI units)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+#: The paper's ratio of kinetic to static friction, mu_k = BETA * mu_s (Section 3.2).
+BETA = 0.53
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    """A thin circular deformable object.
+
+    Attributes:
+        omega_n: first-order natural angular frequency in free bending, rad/s.
+        alpha: friction angle between plate and object, rad; mu_s = tan(alpha).
+        mass: total mass, kg.
+        diameter: disc diameter, m.
+        beta: mu_k / mu_s (the paper: 0.53).
+        name: a label for reports.
+    """
+
+    omega_n: float = 10 * math.pi
+    alpha: float = math.radians(36.9)
+    mass: float = 0.0136
+    diameter: float = 0.080
+    beta: float = BETA
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        checks = {
+            "omega_n (rad/s)": (self.omega_n, 0.0, 1e4),
+            "alpha (rad)": (self.alpha, 0.0, math.pi / 2),
+            "mass (kg)": (self.mass, 0.0, 10.0),
+            "diameter (m)": (self.diameter, 0.0, 1.0),
+            "beta": (self.beta, 0.0, 1.0),
+        }
+        for label, (value, lo, hi) in checks.items():
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and lo < value < hi + 1e-12):
+                raise ValueError(f"ObjectSpec {label} = {value!r} is outside the allowed range ({lo}, {hi}]")
+
+    @property
+    def mu_s(self) -> float:
+        """Static friction coefficient, tan(alpha)."""
+        return math.tan(self.alpha)
+
+    @property
+    def mu_k(self) -> float:
+        """Kinetic friction coefficient, beta * mu_s."""
+        return self.beta * self.mu_s
+
+    @property
+    def radius(self) -> float:
+        return self.diameter / 2
+
+    @classmethod
+    def from_paper(
+        cls, omega_n_pi: float, alpha_deg: float, mass_g: float = 13.6, diameter_mm: float = 80.0, name: str = ""
+    ) -> ObjectSpec:
+        """Build from the paper's units: omega_n in units of pi rad/s, alpha in degrees, grams, millimetres."""
+        return cls(
+            omega_n=omega_n_pi * math.pi,
+            alpha=math.radians(alpha_deg),
+            mass=mass_g * 1e-3,
+            diameter=diameter_mm * 1e-3,
+            name=name,
+        )
+
+    def with_(self, **changes: float | str) -> ObjectSpec:
+        """A copy with some fields changed."""
+        return replace(self, **changes)
+
+
+#: The paper's objects (Section 6.2). Only the cheese slice has published omega_n and alpha (10pi, 36.9 deg).
+#: The dumpling skin "has a similar natural bending frequency" to the cheese: 10pi assumed. The cheese with lead
+#: balls has the cheese's stiffness and 39.5/13.6 of its mass: omega_n = 10pi * sqrt(13.6/39.5) ~ 5.87pi assumed.
+#: Their friction angles are not published: the cheese's 36.9 deg is assumed for all three.
+PRESETS: dict[str, ObjectSpec] = {
+    "cheese": ObjectSpec.from_paper(10.0, 36.9, 13.6, name="cheese"),
+    "dumpling": ObjectSpec.from_paper(10.0, 36.9, 6.9, name="dumpling"),
+    "cheese_lead": ObjectSpec.from_paper(10.0 * math.sqrt(13.6 / 39.5), 36.9, 39.5, name="cheese_lead"),
+}
+
+
+def preset(name: str) -> ObjectSpec:
+    """Look up a preset object by name (``cheese``, ``dumpling``, ``cheese_lead``)."""
+    try:
+        return PRESETS[name]
+    except KeyError:
+        raise ValueError(f"unknown object preset {name!r}; choose one of {sorted(PRESETS)}") from None

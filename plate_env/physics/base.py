@@ -1,0 +1,125 @@
+"""The one small interface every physics backend implements, and the values that cross it."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from plate_env.motion import PlateMotion
+from plate_env.objects import ObjectSpec
+
+# Reasons a probe ends unstable.
+OVERTURNED = "overturned"  #: the disc turned upside down
+SLIPPED = "slipped"  #: its centre moved more than ``slip_limit`` from the plate centre (plate frame)
+NON_FINITE = "non_finite"  #: NaN or inf in the state (e.g. too large a time step)
+RUNAWAY = "runaway_energy"  #: a node moved faster than the plate could ever make it (energy from nowhere)
+LEFT_PLATE = "left_plate"  #: the disc flew far above the plate or sank through it
+FOLDED = "folded"  #: the disc folded onto itself
+REASONS = (OVERTURNED, SLIPPED, NON_FINITE, RUNAWAY, LEFT_PLATE, FOLDED)
+
+#: The paper's instability test: centre more than 10 mm from the plate centre.
+SLIP_LIMIT_M = 0.010
+
+
+@dataclass(frozen=True)
+class ProbeSpec:
+    """One probe: an object on a plate moving one way, measured over a window.
+
+    The plate ramps up over ``motion.ramp_s``, the disc settles for ``settle_s`` more, then omega_B is measured
+    over ``measure_s`` rounded to whole plate periods (at least 2). Times in seconds.
+    ``record_trace`` keeps the yaw trace in the result (for camera models and plots).
+    """
+
+    obj: ObjectSpec
+    motion: PlateMotion
+    settle_s: float = 0.8
+    measure_s: float = 1.5
+    record_trace: bool = False
+
+    def __post_init__(self) -> None:
+        for label, value in (("settle_s", self.settle_s), ("measure_s", self.measure_s)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and 0.0 <= value <= 600.0):
+                raise ValueError(f"ProbeSpec {label} = {value!r} is outside the allowed range [0, 600] s")
+        if self.motion.freq_hz <= 0:
+            raise ValueError(f"a probe needs a plate frequency > 0 Hz, got {self.motion.freq_hz!r}")
+
+    @property
+    def measure_start_s(self) -> float:
+        return self.motion.ramp_s + self.settle_s
+
+    @property
+    def n_periods(self) -> int:
+        return max(2, int(round(self.measure_s * self.motion.freq_hz)))
+
+    @property
+    def duration_s(self) -> float:
+        """Simulated seconds the probe needs: ramp + settle + whole measurement periods."""
+        return self.measure_start_s + self.n_periods / self.motion.freq_hz
+
+
+@dataclass(frozen=True)
+class YawTrace:
+    """The disc's unwrapped yaw about the plate normal (rad) and its centre in the plate frame (m) over time (s)."""
+
+    t: np.ndarray
+    yaw: np.ndarray
+    centre_u: np.ndarray
+    centre_v: np.ndarray
+
+
+@dataclass(frozen=True)
+class ProbeResult:
+    """What a probe measured.
+
+    ``omega_b_deg_s`` is signed (counter-clockwise about the plate normal positive) and averaged over whole
+    plate periods of the measurement window; ``stderr_deg_s`` is its standard error from batch means. For an
+    unstable probe both describe the whole periods completed before the failure (0.0 if there were none) and
+    must not be fitted; ``reason`` says what went wrong. No field is ever NaN.
+    """
+
+    spec: ProbeSpec
+    omega_b_deg_s: float
+    stderr_deg_s: float
+    unstable: bool
+    reason: str | None
+    sim_s: float
+    wall_s: float
+    periods_measured: int
+    trace: YawTrace | None = field(default=None, compare=False, repr=False)
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary in edge units."""
+        return {
+            "f_p_hz": self.spec.motion.freq_hz,
+            "a_p_deg": math.degrees(self.spec.motion.amp_rad),
+            "b_p_mm": self.spec.motion.b_p * 1e3,
+            "omega_n_rad_s": self.spec.obj.omega_n,
+            "alpha_deg": math.degrees(self.spec.obj.alpha),
+            "mass_g": self.spec.obj.mass * 1e3,
+            "omega_b_deg_s": self.omega_b_deg_s,
+            "stderr_deg_s": self.stderr_deg_s,
+            "unstable": self.unstable,
+            "reason": self.reason,
+            "sim_s": self.sim_s,
+            "wall_s": self.wall_s,
+            "periods_measured": self.periods_measured,
+        }
+
+
+@runtime_checkable
+class Physics(Protocol):
+    """A physics backend: runs probes, nothing else."""
+
+    name: str
+
+    def run(self, probes: Sequence[ProbeSpec], progress: bool = False) -> list[ProbeResult]:
+        """Simulate every probe (batched where the backend can) and return one result per probe, in order."""
+        ...
+
+    def close(self) -> None:
+        """Release resources (processes, clients). Safe to call twice."""
+        ...
