@@ -106,7 +106,6 @@ class TileLinkPhysics:
 
     def run_arrays(self, probes: Sequence[ProbeSpec]) -> dict[str, np.ndarray]:
         """Run the kernel on a batch and return its raw arrays (parameters, traces, status, records)."""
-        from plate_env.physics.tilelink import kernels as kn
 
         prm = np.stack([self._param_vector(s) for s in probes])
         geom = _pointmass_params(probes[0].obj, self.config).geom

@@ -1,0 +1,3 @@
+from plate_env.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,164 @@
+"""``plate-env`` command line: probe, sweep. ``--json`` on every command prints one JSON document."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+
+import numpy as np
+
+from plate_env.motion import PlateMotion
+from plate_env.objects import ObjectSpec, preset
+from plate_env.physics import PHYSICS_NAMES, ProbeSpec, make_physics
+from plate_env.units import format_omega_pi, parse_omega_n
+
+
+class CliError(Exception):
+    """A user error: printed as one line, exit code 2."""
+
+
+def parse_freqs(text: str) -> np.ndarray:
+    """``"10:40:1"`` (start:stop:step, inclusive) or ``"12,18,25"`` -> frequencies in Hz."""
+    try:
+        if ":" in text:
+            parts = [float(p) for p in text.split(":")]
+            if len(parts) != 3:
+                raise ValueError
+            start, stop, step = parts
+            if not (step > 0 and stop >= start):
+                raise ValueError
+            freqs = np.arange(start, stop + step * 1e-6, step)
+        else:
+            freqs = np.array([float(p) for p in text.split(",") if p.strip()])
+    except ValueError:
+        raise CliError(f"--freqs {text!r}: expected start:stop:step (e.g. 10:40:1) or a list like 12,18,25") from None
+    if freqs.size == 0 or not np.all(np.isfinite(freqs)) or np.any(freqs <= 0) or np.any(freqs > 200):
+        raise CliError(f"--freqs {text!r}: frequencies must lie in (0, 200] Hz")
+    if freqs.size > 2000:
+        raise CliError(f"--freqs {text!r}: {freqs.size} probes; at most 2000 per sweep")
+    return freqs
+
+
+def _object(args: argparse.Namespace) -> ObjectSpec:
+    base = preset(args.object) if args.object else ObjectSpec(name="custom")
+    changes: dict = {}
+    if args.omega_n is not None:
+        changes["omega_n"] = parse_omega_n(args.omega_n)
+    if args.alpha is not None:
+        changes["alpha"] = math.radians(args.alpha)
+    if args.mass_g is not None:
+        changes["mass"] = args.mass_g * 1e-3
+    return base.with_(**changes) if changes else base
+
+
+def _physics(args: argparse.Namespace):
+    options: dict = {}
+    if args.dt is not None:
+        options["dt"] = args.dt
+    if args.physics == "tilelink" and args.model:
+        options["model"] = args.model
+    return make_physics(args.physics, **options)
+
+
+def _spec(args: argparse.Namespace, obj: ObjectSpec, freq: float) -> ProbeSpec:
+    motion = PlateMotion.from_paper(f_p_hz=freq, a_p_deg=args.amp, b_p_mm=args.bp)
+    return ProbeSpec(obj=obj, motion=motion, settle_s=args.settle, measure_s=args.measure)
+
+
+def _add_common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
+    p.add_argument("--model", default=None, help="tilelink model (pointmass)")
+    p.add_argument("--object", default=None, help="preset object: cheese, dumpling, cheese_lead")
+    p.add_argument("--omega-n", default=None, help="bending natural frequency, rad/s or e.g. 10pi")
+    p.add_argument("--alpha", type=float, default=None, help="friction angle, degrees")
+    p.add_argument("--mass-g", type=float, default=None, help="object mass, grams")
+    p.add_argument("--amp", type=float, default=3.0, help="plate angular amplitude A_p, degrees")
+    p.add_argument("--bp", type=float, default=3.0, help="plate linear amplitude B_p, mm")
+    p.add_argument("--settle", type=float, default=ProbeSpec.settle_s, help="settling time after the ramp, s")
+    p.add_argument("--measure", type=float, default=ProbeSpec.measure_s, help="measurement window, s")
+    p.add_argument("--dt", type=float, default=None, help="time step, s (backend default if omitted)")
+    p.add_argument("--json", action="store_true", help="print one JSON document")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="plate-env", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("probe", help="run one probe and print omega_B")
+    _add_common(p)
+    p.add_argument("--freq", type=float, required=True, help="plate frequency f_p, Hz")
+    s = sub.add_parser("sweep", help="run a batched frequency sweep")
+    _add_common(s)
+    s.add_argument("--freqs", default="10:40:1", help="start:stop:step or a comma list, Hz")
+    s.add_argument("--plot", default=None, help="write a PNG of omega_B vs f_p")
+    s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return parser
+
+
+def _cmd_probe(args: argparse.Namespace) -> int:
+    obj = _object(args)
+    physics = _physics(args)
+    try:
+        result = physics.run([_spec(args, obj, args.freq)])[0]
+    finally:
+        physics.close()
+    if args.json:
+        print(json.dumps({"physics": args.physics, "object": obj.name, **result.to_dict()}))
+    else:
+        state = f"UNSTABLE ({result.reason})" if result.unstable else "stable"
+        print(f"{args.physics}: omega_n={format_omega_pi(obj.omega_n)} rad/s alpha={math.degrees(obj.alpha):.1f} deg "
+              f"f_p={args.freq:g} Hz A_p={args.amp:g} deg B_p={args.bp:g} mm")
+        print(f"omega_B = {result.omega_b_deg_s:.1f} +- {result.stderr_deg_s:.1f} deg/s  [{state}]  "
+              f"{result.periods_measured} periods, {result.sim_s:.2f} s simulated in {result.wall_s:.3f} s")
+    return 0
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    obj = _object(args)
+    freqs = parse_freqs(args.freqs)
+    physics = _physics(args)
+    try:
+        results = physics.run([_spec(args, obj, f) for f in freqs],
+                              progress=not (args.json or args.no_progress))
+    finally:
+        physics.close()
+    if args.plot:
+        from plate_env.plotting import plot_sweep
+
+        plot_sweep(results, args.plot, title=f"{args.physics}: omega_n={format_omega_pi(obj.omega_n)} rad/s, "
+                   f"alpha={math.degrees(obj.alpha):.1f} deg, A_p={args.amp:g} deg")
+    if args.json:
+        print(json.dumps({"physics": args.physics, "object": obj.name, "probes": [r.to_dict() for r in results]}))
+    else:
+        print(f"{args.physics}: omega_n={format_omega_pi(obj.omega_n)} rad/s alpha={math.degrees(obj.alpha):.1f} deg "
+              f"A_p={args.amp:g} deg B_p={args.bp:g} mm")
+        print(f"{'f_p [Hz]':>9} {'omega_B [deg/s]':>16} {'stderr':>8}  state")
+        for r in results:
+            state = f"unstable: {r.reason}" if r.unstable else "stable"
+            print(f"{r.spec.motion.freq_hz:9.2f} {r.omega_b_deg_s:16.1f} {r.stderr_deg_s:8.1f}  {state}")
+        print(f"{sum(r.sim_s for r in results):.1f} s simulated in {sum(r.wall_s for r in results):.2f} s wall")
+        if args.plot:
+            print(f"plot: {args.plot}")
+    return 0
+
+
+COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return COMMANDS[args.command](args)
+    except (CliError, ValueError) as exc:
+        print(f"plate-env {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"plate-env {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,86 @@
+"""Specs, plate motion and unit handling."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import plate_env as pe
+from plate_env.motion import plate_state
+from plate_env.units import parse_omega_n
+
+
+def test_import_is_light():
+    import subprocess
+    import sys
+
+    code = "import sys, plate_env; print(any(m in sys.modules for m in ('numba', 'pybullet', 'torch', 'matplotlib')))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
+
+
+@pytest.mark.parametrize("text, value", [("10pi", 10 * math.pi), ("3.5π", 3.5 * math.pi), ("pi", math.pi),
+                                         ("31.4", 31.4), ("1e1pi", 10 * math.pi)])
+def test_parse_omega_n(text, value):
+    assert parse_omega_n(text) == pytest.approx(value)
+
+
+@pytest.mark.parametrize("text", ["abc", "-3pi", "nan", "0", "inf"])
+def test_parse_omega_n_rejects(text):
+    with pytest.raises(ValueError, match="omega_n"):
+        parse_omega_n(text)
+
+
+def test_object_spec_friction_and_presets():
+    cheese = pe.preset("cheese")
+    assert cheese.omega_n == pytest.approx(10 * math.pi)
+    assert cheese.mu_s == pytest.approx(math.tan(math.radians(36.9)))
+    assert cheese.mu_k == pytest.approx(0.53 * cheese.mu_s)
+    assert pe.preset("dumpling").mass == pytest.approx(6.9e-3)
+    assert pe.preset("cheese_lead").mass == pytest.approx(39.5e-3)
+    with pytest.raises(ValueError, match="unknown object preset"):
+        pe.preset("pizza")
+
+
+@pytest.mark.parametrize("field, value", [("omega_n", float("nan")), ("alpha", -0.1), ("mass", 0.0)])
+def test_object_spec_rejects_bad_values(field, value):
+    with pytest.raises(ValueError, match="outside the allowed range"):
+        pe.ObjectSpec(**{field: value})
+
+
+def test_plate_motion_rejects_nan():
+    with pytest.raises(ValueError, match="f_p"):
+        pe.PlateMotion(freq_hz=float("nan"), amp_rad=0.05)
+
+
+def test_plate_motion_follows_eqs_1_2_and_ramp_is_smooth():
+    m = pe.PlateMotion.from_paper(f_p_hz=25, a_p_deg=3, b_p_mm=3, ramp_s=0.2)
+    # after the ramp: Theta = -A sin(2 pi f t), X = B sin(2 pi f t)
+    t = 0.31
+    th, th_dot, x, x_dot = m.state(t)
+    w = 2 * math.pi * 25
+    assert th == pytest.approx(-math.radians(3) * math.sin(w * t))
+    assert x == pytest.approx(3e-3 * math.sin(w * t))
+    assert th_dot == pytest.approx(-math.radians(3) * w * math.cos(w * t))
+    # starts at rest, and the analytic velocities are the derivatives of the positions everywhere
+    assert m.state(0.0) == pytest.approx((0.0, 0.0, 0.0, 0.0))
+    ts = np.linspace(0.0, 0.4, 4001)
+    states = np.array([plate_state(tt, 25.0, math.radians(3), 3e-3, 0.2) for tt in ts])
+    num = np.gradient(states[:, [0, 2]], ts, axis=0)
+    assert np.allclose(num[1:-1], states[1:-1][:, [1, 3]], atol=2e-3 * np.abs(states[:, [1, 3]]).max())
+
+
+def test_probe_spec_windows():
+    spec = pe.ProbeSpec(pe.preset("cheese"), pe.PlateMotion.from_paper(25, 3), settle_s=0.5, measure_s=1.0)
+    assert spec.n_periods == 25
+    assert spec.duration_s == pytest.approx(0.2 + 0.5 + 1.0)
+    assert pe.ProbeSpec(pe.preset("cheese"), pe.PlateMotion.from_paper(1, 3), measure_s=0.1).n_periods == 2
+    with pytest.raises(ValueError, match="measure_s"):
+        pe.ProbeSpec(pe.preset("cheese"), pe.PlateMotion.from_paper(25, 3), measure_s=float("nan"))
+
+
+def test_unknown_physics_is_named():
+    with pytest.raises(ValueError, match="unknown physics 'bullet'"):
+        pe.make_physics("bullet")

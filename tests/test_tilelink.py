@@ -1,0 +1,101 @@
+"""The paper's tile-link model (point-mass reduction): geometry, modal omega_n, behaviour, robustness."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import plate_env as pe
+from plate_env.physics.tilelink.geometry import disc_geometry
+from plate_env.physics.tilelink.pointmass import build_params, modal
+
+
+def probe(obj, f_p_hz, a_p_deg=3.0, b_p_mm=3.0, **kw):
+    return pe.ProbeSpec(obj, pe.PlateMotion.from_paper(f_p_hz, a_p_deg, b_p_mm), **kw)
+
+
+def test_geometry_52_tiles_88_joints():
+    g = disc_geometry(0.08)
+    assert g.n_nodes == 52
+    assert len(g.links) == 88
+    assert sorted(np.bincount(np.round(g.rest[:, 1] * 1000).astype(int) + 35)[::10].tolist()) == sorted(
+        [4, 6, 8, 8, 8, 8, 6, 4])
+    assert np.all(np.hypot(g.rest[:, 0], g.rest[:, 1]) <= 0.04 + 1e-12)
+
+
+@pytest.mark.parametrize("omega_n_pi", [1.4, 3.5, 10.0, 23.0, 33.0, 40.0, 50.0])
+def test_modal_omega_n_hit_within_half_percent(omega_n_pi):
+    obj = pe.ObjectSpec.from_paper(omega_n_pi, 36.9)
+    params = build_params(obj)
+    result = modal(obj, params.k_bending)
+    assert result.n_zero == 7  # 6 rigid motions + the free twist
+    assert result.omega_bending == pytest.approx(obj.omega_n, rel=5e-3)
+
+
+def test_still_plate_leaves_disc_still(tilelink, cheese):
+    r = tilelink.run([probe(cheese, 25.0, a_p_deg=0.0, b_p_mm=0.0, record_trace=True)])[0]
+    assert not r.unstable
+    assert abs(r.omega_b_deg_s) < 0.01
+    assert np.max(np.abs(r.trace.centre_u)) < 1e-6 and np.max(np.abs(r.trace.centre_v)) < 1e-6
+
+
+def test_rotation_sign_flips_with_bp(tilelink, cheese):
+    pos, neg = tilelink.run([probe(cheese, 24.0, b_p_mm=3.0), probe(cheese, 24.0, b_p_mm=-3.0)])
+    assert not pos.unstable and not neg.unstable
+    assert pos.omega_b_deg_s > 100  # counter-clockwise for A_p * B_p > 0 in our convention
+    assert neg.omega_b_deg_s < -100
+    assert pos.omega_b_deg_s == pytest.approx(-neg.omega_b_deg_s, rel=0.05)
+
+
+def test_resonance_like_rise(tilelink, cheese):
+    low, peak = tilelink.run([probe(cheese, 12.0), probe(cheese, 25.0)])
+    assert not peak.unstable
+    assert peak.omega_b_deg_s > 3 * low.omega_b_deg_s > 0
+
+
+def test_batch_equals_single_runs(tilelink):
+    probes = [probe(pe.ObjectSpec.from_paper(w, a), f) for w, a, f in
+              ((3.5, 36.9, 20.0), (10.0, 45.0, 25.0), (33.0, 56.3, 27.0), (23.0, 36.9, 36.0))]
+    batch = tilelink.run(probes)
+    singles = [tilelink.run([p])[0] for p in probes]
+    for b, s in zip(batch, singles, strict=True):
+        assert (b.omega_b_deg_s, b.stderr_deg_s, b.unstable, b.reason, b.sim_s) == (
+            s.omega_b_deg_s, s.stderr_deg_s, s.unstable, s.reason, s.sim_s)
+
+
+def test_huge_dt_is_reported_unstable_not_nan(cheese):
+    physics = pe.make_physics("tilelink", dt=5e-3)
+    r = physics.run([probe(cheese, 25.0)])[0]
+    assert r.unstable and r.reason in ("non_finite", "runaway_energy", "left_plate", "overturned")
+    assert math.isfinite(r.omega_b_deg_s) and math.isfinite(r.stderr_deg_s)
+
+
+def test_injected_nan_is_reported_non_finite(tilelink, cheese):
+    from plate_env.physics.tilelink import kernels as kn
+    from plate_env.physics.tilelink.backend import _ainv, _pointmass_params
+
+    spec = probe(cheese, 25.0)
+    prm = tilelink._param_vector(spec)[None, :]
+    prm[0, kn.P_KB] = float("nan")
+    params = _pointmass_params(cheese, tilelink.config)
+    raw = tilelink.run_param_arrays(prm, _ainv(cheese, tilelink.config, tilelink.dt)[None], params.geom.rest[None],
+                                    params.geom)
+    assert raw["status"][0] == kn.NON_FINITE
+    result = tilelink._result(spec, raw, 0, 0.0)
+    assert result.unstable and result.reason == "non_finite"
+    assert result.omega_b_deg_s == 0.0
+
+
+def test_bad_time_step_rejected():
+    with pytest.raises(ValueError, match="time step"):
+        pe.make_physics("tilelink", dt=float("nan"))
+    with pytest.raises(ValueError, match="unknown tilelink model"):
+        pe.make_physics("tilelink", model="fem")
+
+
+def test_same_input_same_numbers(tilelink, cheese):
+    a = tilelink.run([probe(cheese, 22.0)])[0]
+    b = tilelink.run([probe(cheese, 22.0)])[0]
+    assert a.omega_b_deg_s == b.omega_b_deg_s
