@@ -18,7 +18,9 @@ import math
 from dataclasses import dataclass
 
 
-def plate_state(t: float, freq_hz: float, amp_rad: float, b_p: float, ramp_s: float) -> tuple[float, float, float, float]:
+def plate_state(
+    t: float, freq_hz: float, amp_rad: float, b_p: float, ramp_s: float
+) -> tuple[float, float, float, float]:
     """Plate kinematics at time ``t`` (s): ``(Theta [rad], dTheta/dt [rad/s], X [m], dX/dt [m/s])``.
 
     Plain scalar arithmetic so that numba can compile this very function for the physics kernels.

@@ -50,7 +50,7 @@ class PointMassParams:
 
 
 def linear_stiffness(geom: DiscGeometry, k_bending: float, k_inplane: float, laplacian: np.ndarray) -> np.ndarray:
-    """Stiffness matrix (3N x 3N, dof order node-major x, y, z) of the free disc linearised about its flat rest state."""
+    """Stiffness (3N x 3N, dofs node-major x, y, z) of the free disc linearised about its flat rest state, N/m."""
     n = geom.n_nodes
     stiff = np.kron(laplacian * k_bending, np.eye(3))
     pairs = np.vstack([geom.links, geom.diagonals])
