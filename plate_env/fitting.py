@@ -1,0 +1,187 @@
+"""The paper's Lorentzian fit, Eq. (9): omega_B(f_p) = omega_max / (1 + ((f_p - f0) / b)^2). Pure functions.
+
+Units at this edge: f_p, f0 and b in Hz; omega_B and omega_max in deg/s (as probes report them).
+
+Fit window. In the paper's model omega_B rises to a first hump, dips, and (in our simulations) climbs again at
+high f_p while more and more probes end unstable. Only the first hump tracks omega_n (physics-facts note), so the
+default window is ``"first_hump"``: stable probes in frequency order up to and including the first one that falls
+more than ``drop`` (5 %) below the running maximum. ``"all"`` uses every stable probe.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.optimize
+
+WINDOWS = ("first_hump", "all")
+#: A stable probe this far below the running maximum ends the first hump.
+DEFAULT_DROP = 0.05
+
+
+def lorentzian(f_hz: np.ndarray | float, omega_max: float, f0: float, b: float) -> np.ndarray | float:
+    """Eq. (9): ``omega_max / (1 + ((f - f0)/b)^2)``."""
+    return omega_max / (1.0 + ((np.asarray(f_hz) - f0) / b) ** 2)
+
+
+@dataclass(frozen=True)
+class LorentzFit:
+    """Result of a Lorentzian fit. ``ok`` False means "cannot fit" and ``reason`` says why; then the numbers are 0.
+
+    ``stderr`` and ``cov`` are for (omega_max [deg/s], f0 [Hz], b [Hz]), scaled by the reduced chi-square as
+    lmfit does by default. ``used`` marks the probes in the fit window (input order).
+    """
+
+    ok: bool
+    reason: str | None
+    omega_max: float = 0.0
+    f0: float = 0.0
+    b: float = 0.0
+    stderr: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    cov: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)), compare=False, repr=False)
+    r2: float = 0.0
+    residuals: np.ndarray = field(default_factory=lambda: np.zeros(0), compare=False, repr=False)
+    n_used: int = 0
+    n_unstable: int = 0
+    used: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool), compare=False, repr=False)
+    sign: float = 1.0
+
+    @property
+    def f0_stderr(self) -> float:
+        return self.stderr[1]
+
+    def predict(self, f_hz: np.ndarray | float) -> np.ndarray | float:
+        return self.sign * lorentzian(f_hz, self.omega_max, self.f0, self.b)
+
+    def to_dict(self) -> dict:
+        return {"ok": self.ok, "reason": self.reason, "omega_max_deg_s": self.omega_max, "f0_hz": self.f0,
+                "b_hz": self.b, "omega_max_stderr_deg_s": self.stderr[0], "f0_stderr_hz": self.stderr[1],
+                "b_stderr_hz": self.stderr[2], "r2": self.r2, "n_used": self.n_used, "n_unstable": self.n_unstable}
+
+
+def first_hump_mask(f_hz: np.ndarray, omega: np.ndarray, usable: np.ndarray, drop: float = DEFAULT_DROP) -> np.ndarray:
+    """Probes of the first hump: usable probes in frequency order up to the first that falls ``drop`` below the
+    running maximum (that probe included, it pins the falling side)."""
+    mask = np.zeros(len(f_hz), dtype=bool)
+    running = -math.inf
+    for i in np.argsort(f_hz, kind="stable"):
+        if not usable[i]:
+            continue
+        mask[i] = True
+        if omega[i] < (1.0 - drop) * running:
+            break
+        running = max(running, omega[i])
+    return mask
+
+
+def fit_lorentzian(f_hz, omega_deg_s, stderr_deg_s=None, unstable=None, window: str = "first_hump",
+                   drop: float = DEFAULT_DROP) -> LorentzFit:
+    """Fit Eq. (9) by Levenberg-Marquardt (``scipy.optimize.least_squares(method="lm")``).
+
+    Unstable and non-finite probes are excluded and counted. Positivity of omega_max and b is kept by fitting
+    their logarithms; starting values come from the data (highest probe, half-height width). Weighted by
+    ``1/stderr`` when standard errors are given (zero or missing ones get the median of the others).
+    Returns ``LorentzFit(ok=False, reason=...)`` instead of raising when the data cannot support three parameters.
+    """
+    if window not in WINDOWS:
+        raise ValueError(f"unknown fit window {window!r}; choose one of {WINDOWS}")
+    f = np.asarray(f_hz, dtype=float).ravel()
+    w = np.asarray(omega_deg_s, dtype=float).ravel()
+    if f.shape != w.shape:
+        raise ValueError(f"f_p has {f.size} values but omega_B has {w.size}")
+    bad = np.zeros(f.size, dtype=bool) if unstable is None else np.asarray(unstable, dtype=bool).ravel()
+    if bad.shape != f.shape:
+        raise ValueError(f"unstable has {bad.size} flags for {f.size} probes")
+    if stderr_deg_s is None:
+        se = np.ones_like(f)
+        weighted = False
+    else:
+        se = np.asarray(stderr_deg_s, dtype=float).ravel()
+        if se.shape != f.shape:
+            raise ValueError(f"stderr has {se.size} values for {f.size} probes")
+        weighted = True
+    n_unstable = int(bad.sum())
+    usable = ~bad & np.isfinite(f) & np.isfinite(w)
+    sign = 1.0 if np.sum(w[usable]) >= 0 else -1.0
+    wa = sign * w
+    used = first_hump_mask(f, wa, usable, drop) if window == "first_hump" else usable.copy()
+
+    def fail(reason: str) -> LorentzFit:
+        return LorentzFit(ok=False, reason=reason, n_used=int(used.sum()), n_unstable=n_unstable, used=used,
+                          sign=sign)
+
+    n = int(used.sum())
+    if n < 4:
+        return fail(f"{n} usable probes in the fit window; a 3-parameter fit with uncertainties needs at least 4")
+    fu, wu = f[used], wa[used]
+    if weighted:
+        s = se[used].copy()
+        good = np.isfinite(s) & (s > 0)
+        fill = float(np.median(s[good])) if good.any() else 1.0
+        s[~good] = fill
+        s = np.maximum(s, 1e-3 * max(fill, 1e-12))
+    else:
+        s = np.ones(n)
+    span = float(fu.max() - fu.min())
+    if span <= 0:
+        return fail("all probes share one frequency")
+    if wu.max() <= 0 or (wu.max() - wu.min()) <= 1e-9 * max(abs(wu.max()), 1.0):
+        return fail("omega_B is flat or not positive: no peak to fit")
+    # data-driven start: the highest probe, and the half-height width measured on the data
+    k = int(np.argmax(wu))
+    f0_start = float(fu[k])
+    half = wu >= 0.5 * wu[k]
+    width = float(fu[half].max() - fu[half].min()) / 2
+    b_start = max(width, span / 4, 0.5)
+    starts = [(wu[k], f0_start, b_start), (wu[k] * 1.2, f0_start + span / 4, b_start * 1.5),
+              (wu[k] * 1.2, f0_start - span / 4, b_start * 1.5)]
+
+    def resid(p):
+        return (math.exp(p[0]) / (1.0 + ((fu - p[1]) / math.exp(p[2])) ** 2) - wu) / s
+
+    best = None
+    for a0, f00, b0 in starts:
+        try:
+            sol = scipy.optimize.least_squares(resid, [math.log(a0), f00, math.log(b0)], method="lm",
+                                               x_scale=[1.0, max(span, 1.0), 1.0], max_nfev=4000)
+        except (ValueError, FloatingPointError):
+            continue
+        if np.all(np.isfinite(sol.x)) and (best is None or sol.cost < best.cost):
+            best = sol
+    if best is None:
+        return fail("the least-squares fit did not converge")
+    omega_max, f0, b = math.exp(best.x[0]), float(best.x[1]), math.exp(best.x[2])
+    if b > 20 * span or abs(f0 - fu.mean()) > 20 * span:
+        return fail(f"no peak: the fit ran away (b = {b:.3g} Hz, f0 = {f0:.3g} Hz over a {span:.3g} Hz window)")
+    # covariance in natural parameters from the Jacobian of the weighted residuals
+    x = 1.0 + ((fu - f0) / b) ** 2
+    jac = np.column_stack([1.0 / x, omega_max * 2 * (fu - f0) / (b * b * x * x),
+                           omega_max * 2 * (fu - f0) ** 2 / (b ** 3 * x * x)]) / s[:, None]
+    res = (omega_max / x - wu)
+    dof = n - 3
+    chi2 = float(np.sum((res / s) ** 2))
+    try:
+        cov = np.linalg.inv(jac.T @ jac)
+    except np.linalg.LinAlgError:
+        return fail("singular fit: the data do not constrain all three parameters")
+    if dof > 0:
+        cov = cov * (chi2 / dof)
+    else:
+        return fail("no degrees of freedom left for uncertainties")
+    errs = np.sqrt(np.clip(np.diag(cov), 0, None))
+    if not np.all(np.isfinite(errs)) or not np.all(np.isfinite(cov)):
+        return fail("non-finite parameter uncertainties")
+    ss_tot = float(np.sum((wu - wu.mean()) ** 2))
+    r2 = 1.0 - float(np.sum(res ** 2)) / ss_tot if ss_tot > 0 else 0.0
+    return LorentzFit(ok=True, reason=None, omega_max=omega_max, f0=f0, b=b, stderr=tuple(float(e) for e in errs),
+                      cov=cov, r2=r2, residuals=sign * res, n_used=n, n_unstable=n_unstable, used=used, sign=sign)
+
+
+def fit_results(results, window: str = "first_hump", weighted: bool = True) -> LorentzFit:
+    """Fit a list of ProbeResults (one plate amplitude)."""
+    f = [r.spec.motion.freq_hz for r in results]
+    w = [r.omega_b_deg_s for r in results]
+    se = [r.stderr_deg_s for r in results] if weighted else None
+    return fit_lorentzian(f, w, se, [r.unstable for r in results], window=window)
