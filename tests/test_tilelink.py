@@ -99,3 +99,20 @@ def test_same_input_same_numbers(tilelink, cheese):
     a = tilelink.run([probe(cheese, 22.0)])[0]
     b = tilelink.run([probe(cheese, 22.0)])[0]
     assert a.omega_b_deg_s == b.omega_b_deg_s
+
+
+def test_first_hump_peak_in_band_and_not_falling_with_omega_n(tilelink):
+    from plate_env.fitting import first_hump_mask
+
+    freqs = np.arange(14.0, 35.0, 1.0)
+    peaks = []
+    for w in (3.5, 10.0, 23.0, 33.0):
+        obj = pe.ObjectSpec.from_paper(w, 36.9)
+        res = tilelink.run([probe(obj, f) for f in freqs])
+        om = np.array([r.omega_b_deg_s for r in res])
+        mask = first_hump_mask(freqs, om, np.array([not r.unstable for r in res]))
+        k = int(np.argmax(np.where(mask, om, -np.inf)))
+        assert om[k] > 3 * om[0]  # resonance-like rise from 14 Hz
+        peaks.append(freqs[k])
+    assert all(20.0 <= p <= 32.0 for p in peaks), peaks
+    assert all(b >= a for a, b in zip(peaks, peaks[1:], strict=False)), peaks
