@@ -62,7 +62,7 @@ def main() -> None:
              for k in range(32)]
     r1, _ = rtf(base, one, args.repeats)
     r32, bad = rtf(base, batch, args.repeats)
-    emit("## Real-time factor (dt = %g s, median of %d)" % (base.dt, args.repeats))
+    emit(f"## Real-time factor (dt = {base.dt:g} s, median of {args.repeats})")
     emit("")
     emit("| probes | real-time factor (aggregate) | unstable |")
     emit("|---|---|---|")
