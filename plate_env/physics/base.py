@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -30,7 +30,8 @@ class ProbeSpec:
     """One probe: an object on a plate moving one way, measured over a window.
 
     The plate ramps up over ``motion.ramp_s``, the disc settles for ``settle_s`` more, then omega_B is measured
-    over ``measure_s`` rounded to whole plate periods (at least 2). Times in seconds. The defaults (0.5 s, 1.0 s)
+    over ``measure_s`` rounded to whole plate periods (at least 2). Times in seconds. The disc starts flat at
+    rest, turned by ``initial_yaw`` (rad) and shifted by ``initial_offset`` (u, v in m, plate frame). The defaults (0.5 s, 1.0 s)
     agree with 3 s + 6 s windows within 0.1 % median / 0.3 % max (``experiments/bench_physics.py``).
     ``record_trace`` keeps the yaw trace in the result (for camera models and plots).
     """
@@ -40,11 +41,26 @@ class ProbeSpec:
     settle_s: float = 0.5
     measure_s: float = 1.0
     record_trace: bool = False
+    initial_yaw: float = 0.0
+    initial_offset: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
         for label, value in (("settle_s", self.settle_s), ("measure_s", self.measure_s)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and 0.0 <= value <= 600.0):
                 raise ValueError(f"ProbeSpec {label} = {value!r} is outside the allowed range [0, 600] s")
+        if not (math.isfinite(self.initial_yaw) and abs(self.initial_yaw) <= 2 * math.pi):
+            raise ValueError(f"ProbeSpec initial_yaw = {self.initial_yaw!r} rad is outside [-2pi, 2pi]")
+        if len(self.initial_offset) != 2 or not all(
+                math.isfinite(x) and abs(x) <= SLIP_LIMIT_M for x in self.initial_offset):
+            raise ValueError(f"ProbeSpec initial_offset = {self.initial_offset!r} m must be two values within "
+                             f"+-{SLIP_LIMIT_M} m")
+
+    def perturbed(self, rng: np.random.Generator, offset_std: float = 1e-3) -> ProbeSpec:
+        """The same probe repeated as a real experiment would be: the disc placed at a random yaw (uniform over
+        the tile grid's quarter-turn symmetry) and a random offset (normal, ``offset_std`` m per axis, clipped)."""
+        offset = np.clip(rng.normal(0.0, offset_std, 2), -0.5 * SLIP_LIMIT_M, 0.5 * SLIP_LIMIT_M)
+        return replace(self, initial_yaw=float(rng.uniform(0.0, math.pi / 2)),
+                       initial_offset=(float(offset[0]), float(offset[1])))
         if self.motion.freq_hz <= 0:
             raise ValueError(f"a probe needs a plate frequency > 0 Hz, got {self.motion.freq_hz!r}")
 

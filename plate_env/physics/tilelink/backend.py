@@ -102,6 +102,8 @@ class TileLinkPhysics:
         prm[kn.P_DEPTH0] = contact.rest_depth(params.node_mass * contact.GRAVITY)
         prm[kn.P_NSTEPS] = math.ceil(spec.duration_s / self.dt - 1e-9)
         prm[kn.P_RECEVERY] = max(1, round(RECORD_INTERVAL_S / self.dt))
+        prm[kn.P_YAW0] = spec.initial_yaw
+        prm[kn.P_U0], prm[kn.P_V0] = spec.initial_offset
         return prm
 
     def run_arrays(self, probes: Sequence[ProbeSpec]) -> dict[str, np.ndarray]:

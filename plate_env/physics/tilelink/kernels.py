@@ -25,8 +25,8 @@ OK, OVERTURNED, SLIPPED, NON_FINITE, RUNAWAY, LEFT_PLATE, FOLDED = 0, 1, 2, 3, 4
 
 # Layout of the per-probe parameter vector.
 (P_MASS, P_KB, P_KIN, P_CIN, P_MUS, P_MUK, P_DT, P_FREQ, P_AMP, P_BP, P_RAMP, P_VLIM, P_SLIP, P_KC, P_CC,
- P_VT, P_G, P_DEPTH0, P_NSTEPS, P_RECEVERY) = range(20)
-N_PARAMS = 20
+ P_VT, P_G, P_DEPTH0, P_NSTEPS, P_RECEVERY, P_YAW0, P_U0, P_V0) = range(23)
+N_PARAMS = 23
 
 #: fastmath without the no-NaN/no-inf assumptions, so blow-ups are still detected.
 FAST = {"reassoc", "contract", "arcp", "nsz", "afn"}
@@ -107,11 +107,13 @@ def pointmass_probe(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out,
     v = np.zeros((n, 3))
     f = np.empty((n, 3))
     vs = np.empty((n, 3))
+    cy = math.cos(prm[P_YAW0])
+    sy = math.sin(prm[P_YAW0])
     for i in range(n):
-        x[i, 0] = rest[i, 0]
-        x[i, 1] = rest[i, 1]
+        x[i, 0] = prm[P_U0] + cy * rest[i, 0] - sy * rest[i, 1]
+        x[i, 1] = prm[P_V0] + sy * rest[i, 0] + cy * rest[i, 1]
         x[i, 2] = -prm[P_DEPTH0]
-    yaw = 0.0
+    yaw = prm[P_YAW0]
     n_rec = 0
     status = OK
     for step in range(n_steps + 1):

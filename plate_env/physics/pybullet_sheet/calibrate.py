@@ -1,0 +1,149 @@
+"""omega_n of the PyBullet sheet, measured by a virtual test, and the stiffness -> omega_n calibration.
+
+The virtual test ("hang and release", free-free saddle ring-down):
+
+1. Build the sheet alone (no plate) in a weak gravity ``g_hang = min(9.81, 0.03 k) m/s^2`` (k in N/m) and hold
+   the rim nodes within 0.2 rad of azimuth 0 and pi (both layers) with world anchors for 0.4 s: the sheet sags
+   into a shape dominated by the two-nodal-diameter "saddle" bending mode, a few tenths of a millimetre deep
+   (the weak gravity keeps the test linear; at 9.81 m/s^2 soft sheets took a permanent set and did not ring).
+2. Remove the anchors and switch gravity off: the free sheet rings in free-free bending.
+3. Project the node heights (minus their mean) on the saddle pattern ``(r/R)^2 cos 2 phi`` every 2 steps and
+   take the frequency from the zero crossings of that coordinate (minus its mean) over ``T = max(1 s, 5/f_guess)``.
+
+That frequency times 2 pi is the sheet's omega_n: the lowest free bending mode of a free disc is the saddle
+mode, as in the tile-link model's modal analysis. ``resetMeshData`` is NOT used to impose a deflection: with it
+the sheet stayed deflected and did not ring (it appears to reset more than positions).
+
+Calibration: ``k_elastic`` (``springElasticStiffness``, N/m, all tetrahedron edges) is the stiffness knob; the
+measured omega_n follows ``sqrt(k)`` closely (a linear spring network with fixed masses), so the table holds
+measured (k, omega_n) pairs and is interpolated linearly in (log k, log omega_n).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+
+from plate_env.objects import ObjectSpec
+from plate_env.physics.pybullet_sheet.scene import Client, SheetConfig, SheetScene
+
+#: Stiffness grid (N/m) of the stored calibration table.
+K_GRID = (0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 400.0)
+TABLE_FILE = "pybullet_calibration.json"
+
+
+def ringdown_omega_n(client: Client, obj: ObjectSpec, k_elastic: float, config: SheetConfig,
+                     hang_s: float = 0.4) -> float:
+    """The sheet's first free bending angular frequency (rad/s) by the hang-and-release test; NaN if it fails."""
+    g_hang = min(9.81, 0.03 * k_elastic)
+    scene = SheetScene(client, obj, k_elastic, config, gravity=g_hang, with_plate=False)
+    p, cid = client.p, client.cid
+    x0 = scene.mesh.nodes
+    r = np.hypot(x0[:, 0], x0[:, 1])
+    phi = np.arctan2(x0[:, 1], x0[:, 0])
+    rim = r > 0.95 * r.max()
+    hold = np.where(rim & ((np.abs(phi) < 0.2) | (np.abs(np.abs(phi) - math.pi) < 0.2)))[0]
+    anchors = [p.createSoftBodyAnchor(scene.body, int(i), -1, -1, physicsClientId=cid) for i in hold]
+    dt = config.dt
+    for _ in range(int(round(hang_s / dt))):
+        scene.step()
+    for a in anchors:
+        p.removeConstraint(a, physicsClientId=cid)
+    p.setGravity(0.0, 0.0, 0.0, physicsClientId=cid)
+    f_guess = 1.3 * math.sqrt(max(k_elastic, 1e-6))  # Hz, rough sqrt(k) law of the default mesh
+    dur = max(1.0, 5.0 / f_guess)
+    w = (r / r.max()) ** 2 * np.cos(2.0 * phi)
+    every = 2
+    q = []
+    for i in range(int(round(dur / dt))):
+        scene.step()
+        if i % every == 0:
+            z = scene.positions()[:, 2]
+            q.append(float(((z - z.mean()) * w).sum() / (w * w).sum()))
+    q_arr = np.asarray(q)
+    if not np.isfinite(q_arr).all():
+        return math.nan
+    return 2.0 * math.pi * zero_crossing_frequency(q_arr - q_arr.mean(), every * dt)
+
+
+def zero_crossing_frequency(y: np.ndarray, dt: float) -> float:
+    """Frequency (Hz) from the linearly interpolated zero crossings of ``y`` sampled every ``dt`` s; NaN if < 3."""
+    s = np.signbit(y)
+    idx = np.where(s[1:] != s[:-1])[0]
+    if len(idx) < 3:
+        return math.nan
+    tc = (idx + y[idx] / (y[idx] - y[idx + 1])) * dt
+    return float((len(tc) - 1) / (2.0 * (tc[-1] - tc[0])))
+
+
+def _config_key(config: SheetConfig) -> dict:
+    d = asdict(config)
+    return {k: d[k] for k in ("n_layer", "thickness", "dt", "margin", "damping_time", "bending_ratio")}
+
+
+def measure_table(config: SheetConfig, obj: ObjectSpec | None = None,
+                  k_grid: tuple[float, ...] = K_GRID) -> dict:
+    """Measure omega_n (rad/s) at each stiffness of ``k_grid`` for ``obj``'s mass and diameter."""
+    obj = obj or ObjectSpec()
+    client = Client()
+    try:
+        omegas = [ringdown_omega_n(client, obj, k, config) for k in k_grid]
+    finally:
+        client.close()
+    return {"config": _config_key(config), "mass": obj.mass, "diameter": obj.diameter,
+            "k_elastic": list(k_grid), "omega_n": omegas}
+
+
+def stored_table() -> dict | None:
+    """The calibration table shipped in ``plate_env/data`` (None if absent)."""
+    try:
+        text = resources.files("plate_env.data").joinpath(TABLE_FILE).read_text()
+    except (FileNotFoundError, ModuleNotFoundError):
+        return None
+    return json.loads(text)
+
+
+@lru_cache(maxsize=32)
+def _table_for(config: SheetConfig, mass: float, diameter: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    tab = stored_table()
+    if not (tab and tab["config"] == _config_key(config) and tab["mass"] == mass and tab["diameter"] == diameter):
+        tab = measure_table(config, ObjectSpec(mass=mass, diameter=diameter))
+    pairs = [(k, w) for k, w in zip(tab["k_elastic"], tab["omega_n"], strict=True) if math.isfinite(w)]
+    return tuple(k for k, _ in pairs), tuple(w for _, w in pairs)
+
+
+def k_for_omega_n(obj: ObjectSpec, config: SheetConfig) -> float:
+    """``springElasticStiffness`` (N/m) that gives ``obj.omega_n``: log-log interpolation of the table.
+
+    The stored table matches the default config and the paper's cheese (13.6 g, 80 mm); for another mass,
+    diameter or config a table is measured once per process (about 10 ring-downs). Outside the table the
+    ``sqrt(k)`` law extrapolates from the nearest end.
+    """
+    ks, ws = _table_for(config, obj.mass, obj.diameter)
+    lk, lw = np.log(ks), np.log(ws)
+    target = math.log(obj.omega_n)
+    if target <= lw[0]:
+        return float(math.exp(lk[0] + 2.0 * (target - lw[0])))
+    if target >= lw[-1]:
+        return float(math.exp(lk[-1] + 2.0 * (target - lw[-1])))
+    return float(math.exp(np.interp(target, lw, lk)))
+
+
+def main() -> None:
+    """Measure the default table and write it to ``plate_env/data/pybullet_calibration.json``."""
+    from pathlib import Path
+
+    tab = measure_table(SheetConfig())
+    out = Path(__file__).resolve().parents[2] / "data" / TABLE_FILE
+    out.write_text(json.dumps(tab, indent=1) + "\n")
+    for k, w in zip(tab["k_elastic"], tab["omega_n"], strict=True):
+        print(f"k = {k:8.2f} N/m  omega_n = {w:8.2f} rad/s = {w / math.pi:6.2f} pi")
+
+
+if __name__ == "__main__":
+    main()
