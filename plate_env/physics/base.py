@@ -23,6 +23,8 @@ REASONS = (OVERTURNED, SLIPPED, NON_FINITE, RUNAWAY, LEFT_PLATE, FOLDED)
 
 #: The paper's instability test: centre more than 10 mm from the plate centre.
 SLIP_LIMIT_M = 0.010
+#: Default placement error (std per axis) of a repeated probe, m.
+PLACEMENT_STD_M = 2e-4
 
 
 @dataclass(frozen=True)
@@ -56,9 +58,13 @@ class ProbeSpec:
             raise ValueError(f"ProbeSpec initial_offset = {self.initial_offset!r} m must be two values within "
                              f"+-{SLIP_LIMIT_M} m")
 
-    def perturbed(self, rng: np.random.Generator, offset_std: float = 1e-3) -> ProbeSpec:
+    def perturbed(self, rng: np.random.Generator, offset_std: float = PLACEMENT_STD_M) -> ProbeSpec:
         """The same probe repeated as a real experiment would be: the disc placed at a random yaw (uniform over
-        the tile grid's quarter-turn symmetry) and a random offset (normal, ``offset_std`` m per axis, clipped)."""
+        the tile grid's quarter-turn symmetry) and a random offset (normal, ``offset_std`` m per axis, clipped).
+
+        The tile-link disc's centred position is an unstable equilibrium at most frequencies: the share of
+        probes that slip 10 mm (A_p = 3 deg, 14-26 Hz, 15pi) was 0/48 centred, 11/48 with 0.2 mm and 36/48 with
+        1 mm placement error. The default 0.2 mm is a careful robot placement."""
         offset = np.clip(rng.normal(0.0, offset_std, 2), -0.5 * SLIP_LIMIT_M, 0.5 * SLIP_LIMIT_M)
         return replace(self, initial_yaw=float(rng.uniform(0.0, math.pi / 2)),
                        initial_offset=(float(offset[0]), float(offset[1])))

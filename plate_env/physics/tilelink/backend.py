@@ -23,13 +23,12 @@ from plate_env.physics.base import (
     ProbeSpec,
     YawTrace,
 )
-from plate_env.physics.tilelink import contact
+from plate_env.physics.tilelink.params import P_CIN, P_KB, P_KIN, P_NSTEPS, P_RECEVERY, common_vector
 from plate_env.physics.tilelink.pointmass import PointMassConfig, build_params, implicit_damping_matrix
+from plate_env.physics.tilelink.rigid import RigidTileConfig
 
-MODELS = ("pointmass",)
+MODELS = ("pointmass", "rigid")
 _REASONS = {1: OVERTURNED, 2: SLIPPED, 3: NON_FINITE, 4: RUNAWAY, 5: LEFT_PLATE, 6: FOLDED}
-#: Yaw and centre are recorded about every millisecond of simulated time.
-RECORD_INTERVAL_S = 1e-3
 #: Probes per kernel call when a progress bar is shown.
 PROGRESS_CHUNK = 8
 
@@ -48,7 +47,8 @@ class TileLinkPhysics:
     """The paper's tile-link model.
 
     Args:
-        model: ``"pointmass"`` (the fast point-mass reduction).
+        model: ``"pointmass"`` (the fast point-mass reduction, default) or ``"rigid"`` (52 rigid tiles, the
+            faithful version; ~10x slower, see ``experiments/bench_models.py``).
         dt: time step, s. The default 2e-4 s keeps omega_B within 1 % of the dt -> 0 value
             (``experiments/bench_physics.py``).
         slip_limit: centre displacement (m, plate frame) beyond which a probe is unstable (the paper: 10 mm).
@@ -56,7 +56,7 @@ class TileLinkPhysics:
     """
 
     def __init__(self, model: str = "pointmass", dt: float = 2e-4, slip_limit: float = SLIP_LIMIT_M,
-                 config: PointMassConfig | None = None) -> None:
+                 config: PointMassConfig | None = None, rigid_config: RigidTileConfig | None = None) -> None:
         if model not in MODELS:
             raise ValueError(f"unknown tilelink model {model!r}; choose one of {MODELS}")
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and 0.0 < dt <= 0.01):
@@ -68,6 +68,7 @@ class TileLinkPhysics:
         self.dt = float(dt)
         self.slip_limit = float(slip_limit)
         self.config = config or PointMassConfig()
+        self.rigid_config = rigid_config or RigidTileConfig()
 
     def __repr__(self) -> str:
         return f"TileLinkPhysics(model={self.model!r}, dt={self.dt:g})"
@@ -77,33 +78,11 @@ class TileLinkPhysics:
 
     # ------------------------------------------------------------------ arrays
     def _param_vector(self, spec: ProbeSpec) -> np.ndarray:
-        from plate_env.physics.tilelink import kernels as kn
-
-        obj, mot = spec.obj, spec.motion
-        params = _pointmass_params(obj, self.config)
-        prm = np.zeros(kn.N_PARAMS)
-        prm[kn.P_MASS] = params.node_mass
-        prm[kn.P_KB] = params.k_bending
-        prm[kn.P_KIN] = params.k_inplane
-        prm[kn.P_CIN] = params.c_inplane
-        prm[kn.P_MUS] = obj.mu_s
-        prm[kn.P_MUK] = obj.mu_k
-        prm[kn.P_DT] = self.dt
-        prm[kn.P_FREQ] = mot.freq_hz
-        prm[kn.P_AMP] = mot.amp_rad
-        prm[kn.P_BP] = mot.b_p
-        prm[kn.P_RAMP] = mot.ramp_s
-        prm[kn.P_VLIM] = 3.0 * mot.peak_speed(obj.radius) + 1.0
-        prm[kn.P_SLIP] = self.slip_limit
-        prm[kn.P_KC] = contact.K_CONTACT
-        prm[kn.P_CC] = contact.C_CONTACT
-        prm[kn.P_VT] = contact.V_TRANSITION
-        prm[kn.P_G] = contact.GRAVITY
-        prm[kn.P_DEPTH0] = contact.rest_depth(params.node_mass * contact.GRAVITY)
-        prm[kn.P_NSTEPS] = math.ceil(spec.duration_s / self.dt - 1e-9)
-        prm[kn.P_RECEVERY] = max(1, round(RECORD_INTERVAL_S / self.dt))
-        prm[kn.P_YAW0] = spec.initial_yaw
-        prm[kn.P_U0], prm[kn.P_V0] = spec.initial_offset
+        params = _pointmass_params(spec.obj, self.config)
+        prm = common_vector(spec, self.dt, self.slip_limit, params.node_mass)
+        prm[P_KB] = params.k_bending
+        prm[P_KIN] = params.k_inplane
+        prm[P_CIN] = params.c_inplane
         return prm
 
     def run_arrays(self, probes: Sequence[ProbeSpec]) -> dict[str, np.ndarray]:
@@ -120,7 +99,7 @@ class TileLinkPhysics:
         """Run the point-mass kernel on prepared arrays (exposed for tests that inject bad states)."""
         from plate_env.physics.tilelink import kernels as kn
 
-        n_rec = (prm[:, kn.P_NSTEPS] // prm[:, kn.P_RECEVERY]).astype(np.int64) + 1
+        n_rec = (prm[:, P_NSTEPS] // prm[:, P_RECEVERY]).astype(np.int64) + 1
         size = (len(prm), int(n_rec.max()))
         yaw, cu, cv = np.zeros(size), np.zeros(size), np.zeros(size)
         status = np.zeros(len(prm), dtype=np.int64)
@@ -162,7 +141,7 @@ class TileLinkPhysics:
     def _result(self, spec: ProbeSpec, raw: dict[str, np.ndarray], b: int, wall: float) -> ProbeResult:
         from plate_env.physics.tilelink import kernels as kn
 
-        rec_dt = raw["prm"][b, kn.P_RECEVERY] * self.dt
+        rec_dt = raw["prm"][b, P_RECEVERY] * self.dt
         nrec = int(raw["nrec"][b])
         t = np.arange(nrec) * rec_dt
         yaw = raw["yaw"][b, :nrec]
@@ -174,7 +153,7 @@ class TileLinkPhysics:
             omega, se, used = measure_omega_b(t, yaw, spec.measure_start_s, period, spec.n_periods, t_end)
         else:
             omega, se, used = 0.0, 0.0, 0
-        sim_s = (nrec - 1) * rec_dt if unstable else raw["prm"][b, kn.P_NSTEPS] * self.dt
+        sim_s = (nrec - 1) * rec_dt if unstable else raw["prm"][b, P_NSTEPS] * self.dt
         trace = None
         if spec.record_trace:
             trace = YawTrace(t=t, yaw=yaw.copy(), centre_u=raw["cu"][b, :nrec].copy(),

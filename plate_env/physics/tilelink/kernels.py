@@ -15,6 +15,32 @@ import numpy as np
 from plate_env.motion import plate_state as _plate_state_py
 from plate_env.physics.tilelink.contact import friction_scale as _friction_scale_py
 from plate_env.physics.tilelink.contact import normal_force as _normal_force_py
+from plate_env.physics.tilelink.params import (  # noqa: F401 - re-exported for the kernels' users
+    N_PARAMS,
+    P_AMP,
+    P_BP,
+    P_CC,
+    P_CIN,
+    P_DEPTH0,
+    P_DT,
+    P_FREQ,
+    P_G,
+    P_KB,
+    P_KC,
+    P_KIN,
+    P_MASS,
+    P_MUK,
+    P_MUS,
+    P_NSTEPS,
+    P_RAMP,
+    P_RECEVERY,
+    P_SLIP,
+    P_U0,
+    P_V0,
+    P_VLIM,
+    P_VT,
+    P_YAW0,
+)
 
 plate_state = numba.njit(cache=True, inline="always")(_plate_state_py)
 normal_force = numba.njit(cache=True, inline="always")(_normal_force_py)
@@ -23,10 +49,6 @@ friction_scale = numba.njit(cache=True, inline="always")(_friction_scale_py)
 # Status codes (see plate_env.physics.base for the reasons' names).
 OK, OVERTURNED, SLIPPED, NON_FINITE, RUNAWAY, LEFT_PLATE, FOLDED = 0, 1, 2, 3, 4, 5, 6
 
-# Layout of the per-probe parameter vector.
-(P_MASS, P_KB, P_KIN, P_CIN, P_MUS, P_MUK, P_DT, P_FREQ, P_AMP, P_BP, P_RAMP, P_VLIM, P_SLIP, P_KC, P_CC,
- P_VT, P_G, P_DEPTH0, P_NSTEPS, P_RECEVERY, P_YAW0, P_U0, P_V0) = range(23)
-N_PARAMS = 23
 
 #: fastmath without the no-NaN/no-inf assumptions, so blow-ups are still detected.
 FAST = {"reassoc", "contract", "arcp", "nsz", "afn"}

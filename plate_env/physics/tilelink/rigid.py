@@ -63,7 +63,7 @@ class RigidTileConfig:
     zeta_bending: float = 0.1
     omega_rigid: float = 5000.0
     zeta_rigid: float = 1.0
-    iterations: int = 4
+    iterations: int = 2
     contact_points: int = 4
     fold_angle: float = math.radians(150.0)
     fold_tile_w: float = -0.2

@@ -1,0 +1,148 @@
+"""Point-mass vs rigid-tile tile-link models: first-hump Lorentzian fits, omega_B differences, speed.
+
+Sweeps the plate frequency f_p at A_p = 3 deg, B_p = 3 mm for several objects (omega_n, alpha), runs every probe
+with the point-mass model (``plate_env.make_physics("tilelink")``) and with the rigid-tile model
+(:func:`plate_env.physics.tilelink.rigid_kernels.run_rigid_arrays`), fits Eq. (9) of the paper to the stable
+probes up to the first dip after the first hump, and writes ``experiments/results/bench_models.md``.
+
+Usage: ``python experiments/bench_models.py [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import curve_fit
+
+import plate_env as pe
+from plate_env.measure import measure_omega_b
+from plate_env.physics.base import ProbeSpec
+from plate_env.physics.tilelink import rigid_kernels as rk
+
+RESULTS = Path(__file__).resolve().parent / "results" / "bench_models.md"
+PAPER = {(10.0, 36.9): (25.1, 5.1, 598.7), (33.0, 36.9): (28.2, 5.8, 746.9), (10.0, 56.3): (24.6, 5.8, 520.9)}
+
+
+def lorentz(f: np.ndarray, w_max: float, f0: float, b: float) -> np.ndarray:
+    """Eq. (9): omega_B(f_p) = w_max / (1 + ((f_p - f0) / b)^2); deg/s, Hz."""
+    return w_max / (1.0 + ((f - f0) / b) ** 2)
+
+
+def first_hump(freqs: np.ndarray, omegas: np.ndarray, unstable: np.ndarray) -> np.ndarray:
+    """Indices of the stable probes from the lowest f_p up to the first dip after the first hump.
+
+    Stops at the first unstable probe. The hump's top is the first point higher than both neighbours (and
+    above 30 % of the stable maximum); the dip is the first point after it lower than its successor.
+    """
+    keep = []
+    top_seen = False
+    stable_max = max([abs(w) for w, u in zip(omegas, unstable, strict=True) if not u] or [1.0])
+    for i in range(len(freqs)):
+        if unstable[i]:
+            break
+        keep.append(i)
+        w = abs(omegas[i])
+        nxt = abs(omegas[i + 1]) if i + 1 < len(freqs) and not unstable[i + 1] else None
+        prv = abs(omegas[i - 1]) if i > 0 else 0.0
+        if not top_seen and nxt is not None and w > 0.3 * stable_max and w >= prv and w > nxt:
+            top_seen = True
+        elif top_seen and nxt is not None and w < nxt:
+            break
+    return np.asarray(keep, dtype=int)
+
+
+def fit(freqs: np.ndarray, omegas: np.ndarray, unstable: np.ndarray) -> tuple[float, float, float, int]:
+    """(f0 Hz, b Hz, omega_max deg/s, points used) of the first-hump fit; NaNs if it fails."""
+    idx = first_hump(freqs, omegas, unstable)
+    if len(idx) < 4:
+        return math.nan, math.nan, math.nan, len(idx)
+    f, w = freqs[idx], np.abs(omegas[idx])
+    p0 = (w.max(), f[np.argmax(w)], 5.0)
+    try:
+        p, _ = curve_fit(lorentz, f, w, p0=p0, maxfev=20000)
+    except RuntimeError:
+        return math.nan, math.nan, math.nan, len(idx)
+    return float(p[1]), float(abs(p[2])), float(p[0]), len(idx)
+
+
+def rigid_results(probes: list[ProbeSpec], dt: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """omega_B (deg/s) and instability flags of the rigid model, and the batch wall time (s)."""
+    out = rk.run_rigid_arrays(probes, dt=dt)
+    rec = out["prm"][0, rk.P_RECEVERY] * dt
+    omegas, unstable = [], []
+    for b, s in enumerate(probes):
+        n = int(out["nrec"][b])
+        st = int(out["status"][b])
+        t = np.arange(n) * rec
+        w, _, _ = measure_omega_b(t, out["yaw"][b, :n], s.measure_start_s, 1.0 / s.motion.freq_hz, s.n_periods,
+                                  n * rec if st else None)
+        omegas.append(math.degrees(w))
+        unstable.append(st != 0)
+    return np.asarray(omegas), np.asarray(unstable), float(out["wall_s"])
+
+
+def main() -> None:
+    """Run the sweeps and write the markdown report."""
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--quick", action="store_true", help="coarser sweep and two objects")
+    ap.add_argument("--dt", type=float, default=rk.DEFAULT_DT, help="rigid model time step, s")
+    args = ap.parse_args()
+    freqs = np.arange(14.0, 35.0, 2.0 if args.quick else 1.0)
+    objects = [(10.0, 36.9), (33.0, 36.9), (10.0, 56.3)]
+    if not args.quick:
+        objects += [(20.0, 36.9), (50.0, 36.9)]
+    pm = pe.make_physics("tilelink")
+    lines = ["# Point-mass vs rigid-tile tile-link models", "",
+             f"A_p = 3 deg, B_p = 3 mm, ramp 0.2 s, settle 0.8 s, measure 1.5 s; rigid dt = {args.dt:g} s, "
+             f"point-mass dt = {pm.dt:g} s. First-hump fit of Eq. (9) (stable probes up to the first dip).", "",
+             "| omega_n (pi rad/s) | alpha (deg) | model | f0 (Hz) | b (Hz) | omega_max (deg/s) | points | "
+             "paper f0/b/max | wall s (batch) | RT aggregate |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    sweeps = []
+    f0s: dict[str, list[tuple[float, float]]] = {"pointmass": [], "rigid": []}
+    for wn, alpha in objects:
+        obj = pe.ObjectSpec.from_paper(wn, alpha)
+        probes = [ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(float(f), 3.0, 3.0)) for f in freqs]
+        sim_s = sum(p.duration_s for p in probes)
+        t0 = time.perf_counter()
+        res = pm.run(probes)
+        wall_pm = time.perf_counter() - t0
+        w_pm = np.array([r.omega_b_deg_s for r in res])
+        u_pm = np.array([r.unstable for r in res])
+        w_rg, u_rg, wall_rg = rigid_results(probes, args.dt)
+        sweeps.append((wn, alpha, w_pm, u_pm, w_rg, u_rg))
+        paper = PAPER.get((wn, alpha))
+        ptxt = "/".join(f"{x:g}" for x in paper) if paper else "-"
+        for name, w, u, wall in (("pointmass", w_pm, u_pm, wall_pm), ("rigid", w_rg, u_rg, wall_rg)):
+            f0, b, wmax, npts = fit(freqs, w, u)
+            if alpha == 36.9 and math.isfinite(f0):
+                f0s[name].append((wn, f0))
+            lines.append(f"| {wn:g} | {alpha:g} | {name} | {f0:.1f} | {b:.1f} | {wmax:.0f} | {npts} | {ptxt} | "
+                         f"{wall:.1f} | {sim_s / wall:.0f} |")
+            print(lines[-1], flush=True)
+    lines += ["", "Slope of f0 against omega_n (alpha 36.9 deg), Hz per (pi rad/s):", ""]
+    for name, pts in f0s.items():
+        if len(pts) >= 2:
+            x, y = np.array(pts).T
+            pts_txt = ", ".join(f"{a:g}:{c:.1f}" for a, c in pts)
+            lines.append(f"- {name}: {np.polyfit(x, y, 1)[0]:.3f} (points {pts_txt})")
+    lines.append("- paper: (28.2 - 25.1) / 23 = 0.135")
+    lines += ["", "## omega_B per probe (deg/s; * = unstable)", ""]
+    lines.append("| omega_n | alpha | f_p | point-mass | rigid | rigid - point-mass |")
+    lines.append("|---|---|---|---|---|---|")
+    for wn, alpha, w_pm, u_pm, w_rg, u_rg in sweeps:
+        for k, f in enumerate(freqs):
+            lines.append(f"| {wn:g} | {alpha:g} | {f:g} | {w_pm[k]:.0f}{'*' if u_pm[k] else ''} | "
+                         f"{w_rg[k]:.0f}{'*' if u_rg[k] else ''} | {w_rg[k] - w_pm[k]:+.0f} |")
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    RESULTS.write_text("\n".join(lines) + "\n")
+    print("\n".join(lines[-8 - len(sweeps) * len(freqs):][:8]))
+    print(f"wrote {RESULTS}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,146 @@
+"""The response atlas: omega_B mean, spread and instability probability on a grid over (f_p, A_p, omega_n, alpha).
+
+Built by ``experiments/build_atlas.py`` from repeated probes of a real backend (each repeat places the disc at a
+random yaw and offset, as a real experiment would), shipped as package data (``.npz`` with provenance), and
+interpolated smoothly: monotone piecewise-cubic (PCHIP) along f_p, log omega_n and alpha, so that the surface
+passes exactly through the grid values without overshoot (instability probabilities stay in [0, 1]). Plate
+amplitudes are not interpolated: a query must use one of the atlas's amplitudes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Atlas:
+    """Tabulated response of one physics backend (arrays shaped (n_f, n_a, n_omega, n_alpha)).
+
+    Attributes:
+        f_hz: plate frequencies, Hz. a_p_deg: plate amplitudes, degrees. omega_n: rad/s (log-spaced).
+        alpha: friction angles, rad. mean, spread: omega_B mean over stable repeats and its spread (standard
+        deviation between repeats combined with their own standard errors), deg/s. p_unstable: share of
+        unstable repeats. n_repeats: repeats per grid point. provenance: how it was built.
+    """
+
+    physics: str
+    model: str
+    f_hz: np.ndarray
+    a_p_deg: np.ndarray
+    omega_n: np.ndarray
+    alpha: np.ndarray
+    mean: np.ndarray
+    spread: np.ndarray
+    p_unstable: np.ndarray
+    n_repeats: int
+    provenance: dict = field(default_factory=dict, compare=False)
+
+    def __hash__(self) -> int:
+        return id(self)
+
+    def __eq__(self, other: object) -> bool:
+        return self is other
+
+    def amp_index(self, a_p_deg: float) -> int:
+        idx = np.flatnonzero(np.isclose(self.a_p_deg, a_p_deg, atol=1e-6))
+        if idx.size == 0:
+            raise ValueError(f"A_p = {a_p_deg!r} deg is not in this atlas; its amplitudes are "
+                             f"{[float(a) for a in self.a_p_deg]} deg")
+        return int(idx[0])
+
+    def _interpolator(self, kind: str, amp: int):
+        return _interp(self, kind, amp)
+
+    def predict(self, f_hz, a_p_deg: float, omega_n, alpha) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(mean [deg/s], spread [deg/s], p_unstable) at the given points (broadcast), for one amplitude.
+
+        f_hz, omega_n (rad/s) and alpha (rad) are clipped to the atlas's ranges.
+        """
+        amp = self.amp_index(a_p_deg)
+        f, w, a = np.broadcast_arrays(np.asarray(f_hz, float), np.asarray(omega_n, float), np.asarray(alpha, float))
+        pts = np.stack([np.clip(f, self.f_hz[0], self.f_hz[-1]),
+                        np.clip(np.log(w), math.log(self.omega_n[0]), math.log(self.omega_n[-1])),
+                        np.clip(a, self.alpha[0], self.alpha[-1])], axis=-1)
+        flat = pts.reshape(-1, 3)
+        mean = self._interpolator("mean", amp)(flat).reshape(f.shape)
+        spread = np.maximum(self._interpolator("spread", amp)(flat), 0.0).reshape(f.shape)
+        pu = np.clip(self._interpolator("p_unstable", amp)(flat), 0.0, 1.0).reshape(f.shape)
+        return mean, spread, pu
+
+    # -------------------------------------------------------------- files
+    def save(self, path: str | Path) -> None:
+        np.savez_compressed(path, f_hz=self.f_hz, a_p_deg=self.a_p_deg, omega_n=self.omega_n, alpha=self.alpha,
+                            mean=self.mean.astype(np.float32), spread=self.spread.astype(np.float32),
+                            p_unstable=self.p_unstable.astype(np.float32),
+                            meta=np.array(json.dumps({"physics": self.physics, "model": self.model,
+                                                      "n_repeats": self.n_repeats, "provenance": self.provenance})))
+
+    @classmethod
+    def load(cls, path: str | Path) -> Atlas:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(str(z["meta"]))
+            return cls(physics=meta["physics"], model=meta["model"], f_hz=z["f_hz"], a_p_deg=z["a_p_deg"],
+                       omega_n=z["omega_n"], alpha=z["alpha"], mean=z["mean"].astype(float),
+                       spread=z["spread"].astype(float), p_unstable=z["p_unstable"].astype(float),
+                       n_repeats=int(meta["n_repeats"]), provenance=meta["provenance"])
+
+
+@lru_cache(maxsize=64)
+def _interp(atlas: Atlas, kind: str, amp: int):
+    from scipy.interpolate import RegularGridInterpolator
+
+    values = getattr(atlas, kind)[:, amp, :, :]
+    return RegularGridInterpolator((atlas.f_hz, np.log(atlas.omega_n), atlas.alpha), values, method="pchip")
+
+
+def atlas_file(physics: str, model: str) -> str:
+    return f"atlas_{physics}_{model}.npz"
+
+
+@lru_cache(maxsize=8)
+def load_atlas(physics: str = "tilelink", model: str = "pointmass") -> Atlas:
+    """The shipped atlas of a physics backend."""
+    ref = resources.files("plate_env") / "data" / atlas_file(physics, model)
+    if not ref.is_file():
+        raise ValueError(f"no atlas shipped for physics {physics!r} model {model!r} "
+                         f"(run experiments/build_atlas.py --physics {physics} --model {model})")
+    with resources.as_file(ref) as p:
+        return Atlas.load(p)
+
+
+def atlas_from_repeats(physics: str, model: str, f_hz, a_p_deg, omega_n, alpha, omega_b: np.ndarray,
+                       stderr: np.ndarray, unstable: np.ndarray, provenance: dict) -> Atlas:
+    """Reduce repeated probes, arrays shaped (n_f, n_a, n_omega, n_alpha, n_repeats), to an Atlas. Pure.
+
+    Grid points where every repeat was unstable get the mean of the nearest stable frequency at the same
+    (A_p, omega_n, alpha) (it is weighted by 1 - p_unstable = 0 in any likelihood) and the median spread.
+    """
+    stable = ~unstable
+    n_st = stable.sum(-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(n_st > 0, np.sum(np.where(stable, omega_b, 0.0), -1) / np.maximum(n_st, 1), np.nan)
+        dev = np.where(stable, (omega_b - mean[..., None]) ** 2, 0.0).sum(-1) / np.maximum(n_st - 1, 1)
+        se2 = np.sum(np.where(stable, stderr ** 2, 0.0), -1) / np.maximum(n_st, 1)
+    spread = np.sqrt(dev + se2)
+    spread = np.where(n_st > 0, spread, np.nan)
+    med = float(np.nanmedian(spread)) if np.isfinite(spread).any() else 1.0
+    spread = np.where(np.isfinite(spread), spread, med)
+    f = np.asarray(f_hz, float)
+    for idx in np.ndindex(mean.shape[1:]):
+        col = mean[(slice(None), *idx)]
+        ok = np.isfinite(col)
+        if ok.any() and not ok.all():
+            col[~ok] = np.interp(f[~ok], f[ok], col[ok])
+        elif not ok.any():
+            col[:] = 0.0
+    p_un = unstable.mean(-1)
+    return Atlas(physics=physics, model=model, f_hz=f, a_p_deg=np.asarray(a_p_deg, float),
+                 omega_n=np.asarray(omega_n, float), alpha=np.asarray(alpha, float), mean=mean, spread=spread,
+                 p_unstable=p_un, n_repeats=int(omega_b.shape[-1]), provenance=provenance)

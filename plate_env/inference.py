@@ -1,0 +1,114 @@
+"""Model-based inference (beyond the paper): a grid posterior over (omega_n, alpha) with the atlas as forward model.
+
+Likelihood of one probe at (f_p, A_p) for an object (omega_n, alpha), with atlas mean mu, spread s and instability
+probability p:
+    stable probe with omega_B = y +- e:  (1 - p) * Normal(y; mu, s^2 + e^2 + sigma_model^2)
+    unstable probe:                      p
+with p clipped to [P_MIN, 1 - P_MIN] (no single probe can rule an object out on stability alone) and
+``sigma_model`` (deg/s) covering the atlas's interpolation error against live probes. The prior is uniform in
+log omega_n over the atlas's range and uniform in alpha. Works with any set of probes: mixed amplitudes,
+one-sided data, curves without a Lorentzian peak.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from plate_env.atlas import Atlas, load_atlas
+from plate_env.probes import ProbeTable
+
+P_MIN = 0.02
+#: Default model error of the atlas, deg/s (measured against live probes by experiments/build_atlas.py).
+SIGMA_MODEL = 15.0
+
+
+@dataclass(frozen=True)
+class Posterior:
+    """A normalised posterior on a grid: ``prob[i, j]`` for ``omega_n[i]`` (rad/s) and ``alpha[j]`` (rad)."""
+
+    omega_n: np.ndarray
+    alpha: np.ndarray
+    prob: np.ndarray
+
+    def marginal_omega(self) -> np.ndarray:
+        return self.prob.sum(1)
+
+    def marginal_alpha(self) -> np.ndarray:
+        return self.prob.sum(0)
+
+    @staticmethod
+    def _stats(x: np.ndarray, p: np.ndarray) -> tuple[float, float, tuple[float, float], tuple[float, float]]:
+        mean = float(np.sum(p * x))
+        std = float(math.sqrt(max(np.sum(p * (x - mean) ** 2), 0.0)))
+        cdf = np.cumsum(p)
+        cdf = cdf / cdf[-1]
+
+        def q(level: float) -> float:
+            return float(np.interp(level, cdf, x))
+
+        return mean, std, (q(0.16), q(0.84)), (q(0.025), q(0.975))
+
+    def omega_stats(self):
+        """(mean, std, 68 % interval, 95 % interval) of omega_n, rad/s."""
+        return self._stats(self.omega_n, self.marginal_omega())
+
+    def alpha_stats(self):
+        """(mean, std, 68 % interval, 95 % interval) of alpha, rad."""
+        return self._stats(self.alpha, self.marginal_alpha())
+
+
+def posterior_grid(atlas: Atlas, n_omega: int = 161, n_alpha: int = 31) -> tuple[np.ndarray, np.ndarray]:
+    """The posterior's grid: log-spaced omega_n and uniform alpha over the atlas's ranges."""
+    w = np.geomspace(atlas.omega_n[0], atlas.omega_n[-1], n_omega)
+    a = np.linspace(atlas.alpha[0], atlas.alpha[-1], n_alpha)
+    return w, a
+
+
+def log_likelihood(atlas: Atlas, table: ProbeTable, omega_n: np.ndarray, alpha: np.ndarray,
+                   sigma_model: float = SIGMA_MODEL) -> np.ndarray:
+    """Sum of the probes' log-likelihoods on the grid ``omega_n x alpha`` (shape (n_omega, n_alpha))."""
+    ww, aa = np.meshgrid(omega_n, alpha, indexing="ij")
+    total = np.zeros(ww.shape)
+    for k in range(len(table)):
+        mu, s, p = atlas.predict(table.f_p_hz[k], float(table.a_p_deg[k]), ww, aa)
+        p = np.clip(p, P_MIN, 1.0 - P_MIN)
+        if table.unstable[k]:
+            total += np.log(p)
+        else:
+            var = s ** 2 + table.stderr_deg_s[k] ** 2 + sigma_model ** 2
+            total += np.log1p(-p) - 0.5 * (table.omega_b_deg_s[k] - mu) ** 2 / var - 0.5 * np.log(2 * np.pi * var)
+    return total
+
+
+def posterior(atlas: Atlas, table: ProbeTable, sigma_model: float = SIGMA_MODEL, n_omega: int = 161,
+              n_alpha: int = 31) -> Posterior:
+    """The grid posterior over (omega_n, alpha) given the probes (a flat prior when there are none)."""
+    w, a = posterior_grid(atlas, n_omega, n_alpha)
+    logp = log_likelihood(atlas, table, w, a, sigma_model)
+    logp -= logp.max()
+    prob = np.exp(logp)
+    return Posterior(omega_n=w, alpha=a, prob=prob / prob.sum())
+
+
+def identify_atlas(table: ProbeTable, physics: str = "tilelink", model: str = "pointmass", atlas: Atlas | None = None,
+                   sigma_model: float = SIGMA_MODEL):
+    """Estimate omega_n and alpha as posterior means, with posterior std and credible intervals."""
+    from plate_env.identify import Estimate
+
+    atlas = atlas if atlas is not None else load_atlas(physics, model)
+    n_un = int(table.unstable.sum())
+    try:
+        for amp in table.amplitudes():
+            atlas.amp_index(amp)
+    except ValueError as exc:
+        return Estimate(ok=False, method="atlas", reason=str(exc), n_probes=len(table), n_unstable=n_un)
+    if len(table) == 0:
+        return Estimate(ok=False, method="atlas", reason="no probes", n_probes=0)
+    post = posterior(atlas, table, sigma_model)
+    wm, ws, w68, w95 = post.omega_stats()
+    am, asd, _, _ = post.alpha_stats()
+    return Estimate(ok=True, method="atlas", omega_n=wm, omega_n_stderr=ws, omega_n_ci68=w68, omega_n_ci95=w95,
+                    alpha=am, alpha_stderr=asd, n_probes=len(table), n_unstable=n_un, posterior=post)

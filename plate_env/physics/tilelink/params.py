@@ -1,0 +1,53 @@
+"""The per-probe parameter vector shared by every tile-link kernel (no numba here).
+
+The first ``N_PARAMS`` entries mean the same for every model: the plate motion, the contact law, the object's
+friction, the time step, the instability limits, the record cadence and the initial placement. A model appends
+its own entries after them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from plate_env.physics.base import ProbeSpec
+from plate_env.physics.tilelink import contact
+
+(P_MASS, P_KB, P_KIN, P_CIN, P_MUS, P_MUK, P_DT, P_FREQ, P_AMP, P_BP, P_RAMP, P_VLIM, P_SLIP, P_KC, P_CC,
+ P_VT, P_G, P_DEPTH0, P_NSTEPS, P_RECEVERY, P_YAW0, P_U0, P_V0) = range(23)
+N_PARAMS = 23
+
+#: Yaw and centre are recorded about every millisecond of simulated time.
+RECORD_INTERVAL_S = 1e-3
+
+
+def common_vector(spec: ProbeSpec, dt: float, slip_limit: float, node_mass: float, size: int = N_PARAMS,
+                  contact_weight: float = 1.0) -> np.ndarray:
+    """A parameter vector of ``size`` entries with the shared ones filled (SI units).
+
+    ``node_mass``: mass of one node/tile (kg), sets the rest penetration under gravity; ``contact_weight``: the
+    share of the paper's per-link contact law carried by one contact point (1 for a node, 1/4 for a tile corner).
+    """
+    obj, mot = spec.obj, spec.motion
+    prm = np.zeros(size)
+    prm[P_MASS] = node_mass
+    prm[P_MUS] = obj.mu_s
+    prm[P_MUK] = obj.mu_k
+    prm[P_DT] = dt
+    prm[P_FREQ] = mot.freq_hz
+    prm[P_AMP] = mot.amp_rad
+    prm[P_BP] = mot.b_p
+    prm[P_RAMP] = mot.ramp_s
+    prm[P_VLIM] = 3.0 * mot.peak_speed(obj.radius) + 1.0
+    prm[P_SLIP] = slip_limit
+    prm[P_KC] = contact.K_CONTACT
+    prm[P_CC] = contact.C_CONTACT
+    prm[P_VT] = contact.V_TRANSITION
+    prm[P_G] = contact.GRAVITY
+    prm[P_DEPTH0] = contact.rest_depth(node_mass * contact.GRAVITY * contact_weight, contact.K_CONTACT * contact_weight)
+    prm[P_NSTEPS] = math.ceil(spec.duration_s / dt - 1e-9)
+    prm[P_RECEVERY] = max(1, round(RECORD_INTERVAL_S / dt))
+    prm[P_YAW0] = spec.initial_yaw
+    prm[P_U0], prm[P_V0] = spec.initial_offset
+    return prm

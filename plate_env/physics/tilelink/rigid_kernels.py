@@ -1,0 +1,667 @@
+"""numba kernels for the rigid-tile model (:mod:`plate_env.physics.tilelink.rigid`): a probe's whole time loop.
+
+Integrator (one step of ``dt`` s, semi-implicit):
+
+1. gravity and the gyroscopic torque ``-w x (I w)`` update each tile's velocity and angular velocity;
+2. the joint rows' accumulated impulses of the previous step are applied again (warm start);
+3. plate contact at every tile corner: the shared Eqs. (3)-(4) law (:func:`contact.normal_force` with its
+   implicit damper in the corner's effective mass, :func:`contact.friction_scale` stick/slip), impulses acting
+   on the tile's translation and rotation;
+4. ``iterations`` block Gauss-Seidel sweeps over the 88 joints: every row (compression, rigid edge/normal
+   translation, bending, rigid rotation about the normal) is a spring-damper integrated implicitly (backward
+   Euler "soft constraint": ``J v' + k C / (dt k + c) + P / (dt (dt k + c)) = 0``), the 3 translation rows and
+   the 2 rotation rows of a joint solved together. Stiff rows therefore do not bound the step;
+5. positions and unit quaternions advance with the new velocities.
+
+Checks every record (~1 ms): the point-mass model's :func:`kernels.check_state` (NaN, speed limit, overturned,
+left plate, slipped), FOLDED (a joint bent beyond ``fold_angle`` or a tile upside down) and RUNAWAY by energy: the
+disc's kinetic + gravitational + joint-elastic + contact-elastic energy may not exceed its start value plus the
+work the plate has done on it (contact impulses times the plate's surface velocity) beyond a tolerance.
+
+Importing this module imports numba; the first call compiles (cached on disk afterwards). Batches run one probe
+per thread (``prange``) with the same arithmetic as a single run, so batch and single results are identical.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from functools import lru_cache
+
+import numba
+import numpy as np
+
+from plate_env.physics.base import ProbeSpec
+from plate_env.physics.tilelink import contact
+from plate_env.physics.tilelink import kernels as kn
+from plate_env.physics.tilelink.kernels import (
+    FAST,
+    FOLDED,
+    OK,
+    P_AMP,
+    P_BP,
+    P_CC,
+    P_CIN,
+    P_DEPTH0,
+    P_DT,
+    P_FREQ,
+    P_G,
+    P_KB,
+    P_KC,
+    P_KIN,
+    P_MASS,
+    P_MUK,
+    P_MUS,
+    P_NSTEPS,
+    P_RAMP,
+    P_RECEVERY,
+    P_VT,
+    RUNAWAY,
+    check_state,
+    friction_scale,
+    normal_force,
+    observe,
+    plate_state,
+)
+from plate_env.physics.tilelink.params import P_U0, P_V0, P_YAW0, common_vector
+from plate_env.physics.tilelink.rigid import RigidTileConfig, RigidTileParams, build_params
+
+# Extra entries of the rigid parameter vector (after the point-mass layout, whose meaning they share:
+# P_MASS tile mass, P_KB bending k_b, P_KIN/P_CIN compression row).
+(R_H, R_IXX, R_IZZ, R_CB, R_KT2, R_CT2, R_KN, R_CN, R_KRN, R_CRN, R_NITER, R_FOLD, R_FOLDW, R_EREL, R_EABS,
+ R_CORNERW) = range(kn.N_PARAMS, kn.N_PARAMS + 16)
+N_RIGID_PARAMS = kn.N_PARAMS + 16
+
+#: Default time step, s (omega_B within 1 % of the dt -> 0 value; see experiments/bench_models.py).
+DEFAULT_DT = 2e-4
+
+
+@numba.njit(cache=True, inline="always")
+def _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, ux, uy, uz):
+    """``I_world^-1 u`` of a thin symmetric plate with unit normal n: ``u / I_xx + (1/I_zz - 1/I_xx)(n.u) n``."""
+    s = dinv * (nx * ux + ny * uy + nz * uz)
+    return ux * ixx_inv + s * nx, uy * ixx_inv + s * ny, uz * ixx_inv + s * nz
+
+
+@numba.njit(cache=True, fastmath=FAST)
+def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag):
+    """Simulate one rigid-tile probe; fills the traces and ``diag`` and returns (status, records written).
+
+    ``diag``: [max (E - E0 - W_plate) in J, max |bending angle| in rad, plate work W in J, final E - E0 in J].
+    """
+    n = rest.shape[0]
+    nj = links.shape[0]
+    m = prm[P_MASS]
+    inv_m = 1.0 / m
+    dt = prm[P_DT]
+    grav = prm[P_G]
+    h = prm[R_H]
+    ixx = prm[R_IXX]
+    izz = prm[R_IZZ]
+    ixx_inv = 1.0 / ixx
+    dinv = 1.0 / izz - 1.0 / ixx
+    n_iter = int(prm[R_NITER])
+    n_steps = int(prm[P_NSTEPS])
+    rec_every = int(prm[P_RECEVERY])
+    kc = prm[P_KC] * prm[R_CORNERW]
+    cc = prm[P_CC] * prm[R_CORNERW]
+    mus = prm[P_MUS]
+    muk = prm[P_MUK]
+    vt = prm[P_VT]
+    fold = prm[R_FOLD]
+    foldw = prm[R_FOLDW]
+    # row stiffness / damping: 0 compression, 1 edge, 2 normal, 3 bending, 4 rotation about n
+    rk = np.empty(5)
+    rc = np.empty(5)
+    rk[0] = prm[P_KIN]
+    rc[0] = prm[P_CIN]
+    rk[1] = prm[R_KT2]
+    rc[1] = prm[R_CT2]
+    rk[2] = prm[R_KN]
+    rc[2] = prm[R_CN]
+    rk[3] = prm[P_KB]
+    rc[3] = prm[R_CB]
+    rk[4] = prm[R_KRN]
+    rc[4] = prm[R_CRN]
+    gam = np.empty(5)
+    kfac = np.empty(5)
+    for r in range(5):
+        den = dt * rk[r] + rc[r]
+        gam[r] = 1.0 / (dt * den)
+        kfac[r] = rk[r] / den
+    hh = 0.5 * h
+
+    x = np.empty((n, 3))
+    v = np.zeros((n, 3))
+    q = np.zeros((n, 4))
+    w = np.zeros((n, 3))
+    ax = np.empty((n, 9))  # tile axes in world: e1 (0:3), e2 (3:6), normal (6:9)
+    # per-joint data of the current step
+    jra = np.empty((nj, 3))
+    jrb = np.empty((nj, 3))
+    jfr = np.empty((nj, 9))  # t1, t2, n
+    jkt = np.empty((nj, 6))  # inverse of the 3x3 translation block (xx, xy, xz, yy, yz, zz)
+    jkr = np.empty((nj, 3))  # inverse of the 2x2 rotation block
+    jb = np.empty((nj, 5))  # bias k C / (dt k + c)
+    jc = np.zeros((nj, 5))  # position errors C
+    pacc = np.zeros((nj, 5))  # accumulated impulses (warm start)
+    ctile = np.empty(4 * n, dtype=np.int64)  # active corner contacts: tile index
+    cdat = np.empty((4 * n, 7))  # lever arm r (3), depth a, plate surface velocity u (3)
+    cimp = np.empty((4 * n, 3))  # accumulated contact impulse in this step
+    cy = math.cos(prm[P_YAW0])
+    sy = math.sin(prm[P_YAW0])
+    for i in range(n):
+        x[i, 0] = prm[P_U0] + cy * rest[i, 0] - sy * rest[i, 1]
+        x[i, 1] = prm[P_V0] + sy * rest[i, 0] + cy * rest[i, 1]
+        x[i, 2] = -prm[P_DEPTH0]
+        q[i, 0] = math.cos(0.5 * prm[P_YAW0])
+        q[i, 3] = math.sin(0.5 * prm[P_YAW0])
+    yaw = prm[P_YAW0]
+    n_rec = 0
+    status = OK
+    work = 0.0
+    work_abs = 0.0
+    e0 = 0.0
+    excess_max = -1e300
+    bend_max = 0.0
+    e_last = 0.0
+    for step in range(n_steps + 1):
+        t = step * dt
+        th, th_dot, xp, xp_dot = plate_state(t, prm[P_FREQ], prm[P_AMP], prm[P_BP], prm[P_RAMP])
+        s_th = math.sin(th)
+        c_th = math.cos(th)
+        # tile axes from the quaternions
+        for i in range(n):
+            qw, qx, qy, qz = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+            ax[i, 0] = 1.0 - 2.0 * (qy * qy + qz * qz)
+            ax[i, 1] = 2.0 * (qx * qy + qw * qz)
+            ax[i, 2] = 2.0 * (qx * qz - qw * qy)
+            ax[i, 3] = 2.0 * (qx * qy - qw * qz)
+            ax[i, 4] = 1.0 - 2.0 * (qx * qx + qz * qz)
+            ax[i, 5] = 2.0 * (qy * qz + qw * qx)
+            ax[i, 6] = 2.0 * (qx * qz + qw * qy)
+            ax[i, 7] = 2.0 * (qy * qz - qw * qx)
+            ax[i, 8] = 1.0 - 2.0 * (qx * qx + qy * qy)
+        if step % rec_every == 0:
+            vmax2 = 0.0
+            e_kin = 0.0
+            tile_w_min = 1.0
+            for i in range(n):
+                sp = v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2
+                if not (sp <= vmax2):
+                    vmax2 = sp
+                nx, ny, nz = ax[i, 6], ax[i, 7], ax[i, 8]
+                wn = nx * w[i, 0] + ny * w[i, 1] + nz * w[i, 2]
+                e_kin += 0.5 * m * sp + 0.5 * (ixx * (w[i, 0] ** 2 + w[i, 1] ** 2 + w[i, 2] ** 2)
+                                               + (izz - ixx) * wn * wn) + m * grav * x[i, 2]
+                tw = -ny * s_th + nz * c_th
+                if tw < tile_w_min:
+                    tile_w_min = tw
+                # contact spring energy at the corners: k/3.2 a^3.2
+                for cnr in range(4):
+                    sa = hh if (cnr == 0 or cnr == 3) else -hh
+                    sb = hh if cnr < 2 else -hh
+                    py = x[i, 1] + sa * ax[i, 1] + sb * ax[i, 4]
+                    pz = x[i, 2] + sa * ax[i, 2] + sb * ax[i, 5]
+                    wc = -py * s_th + pz * c_th
+                    if wc < 0.0:
+                        e_kin += kc / (1.0 + contact.CONTACT_EXPONENT) * math.exp(
+                            (1.0 + contact.CONTACT_EXPONENT) * math.log(-wc))
+            for j in range(nj):
+                for r in range(5):
+                    e_kin += 0.5 * rk[r] * jc[j, r] * jc[j, r]
+            if step == 0:
+                e0 = e_kin
+            excess = e_kin - e0 - work
+            e_last = e_kin - e0
+            if excess > excess_max:
+                excess_max = excess
+            cu, cv, cw, yaw, nw = observe(x, rest, cells, xp, s_th, c_th, yaw)
+            status = check_state(cu, cv, cw, nw, vmax2, prm)
+            if status == OK and (bend_max > fold or tile_w_min < foldw):
+                status = FOLDED
+            if status == OK and not (excess <= prm[R_EREL] * work_abs + prm[R_EABS]):
+                status = RUNAWAY
+            if status != OK:
+                break
+            yaw_out[n_rec] = yaw
+            cu_out[n_rec] = cu
+            cv_out[n_rec] = cv
+            n_rec += 1
+        if step == n_steps:
+            break
+        # 1. gravity and gyroscopic torque (explicit)
+        for i in range(n):
+            v[i, 2] -= dt * grav
+            nx, ny, nz = ax[i, 6], ax[i, 7], ax[i, 8]
+            wx, wy, wz = w[i, 0], w[i, 1], w[i, 2]
+            wn = nx * wx + ny * wy + nz * wz
+            # w x (I w) = (I_zz - I_xx)(n.w)(w x n)
+            g = (izz - ixx) * wn
+            tx = -g * (wy * nz - wz * ny)
+            ty = -g * (wz * nx - wx * nz)
+            tz = -g * (wx * ny - wy * nx)
+            dx, dy, dz = _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, tx, ty, tz)
+            w[i, 0] += dt * dx
+            w[i, 1] += dt * dy
+            w[i, 2] += dt * dz
+        # 2. joint set-up for this step and warm start
+        for j in range(nj):
+            a = links[j, 0]
+            b = links[j, 1]
+            o = 3 * link_dir[j]
+            e1ax, e1ay, e1az = ax[a, o], ax[a, o + 1], ax[a, o + 2]
+            e1bx, e1by, e1bz = ax[b, o], ax[b, o + 1], ax[b, o + 2]
+            rax, ray, raz = hh * e1ax, hh * e1ay, hh * e1az
+            rbx, rby, rbz = -hh * e1bx, -hh * e1by, -hh * e1bz
+            t1x, t1y, t1z = e1ax + e1bx, e1ay + e1by, e1az + e1bz
+            ln = math.sqrt(t1x * t1x + t1y * t1y + t1z * t1z)
+            t1x /= ln
+            t1y /= ln
+            t1z /= ln
+            nax, nay, naz = ax[a, 6], ax[a, 7], ax[a, 8]
+            nbx, nby, nbz = ax[b, 6], ax[b, 7], ax[b, 8]
+            nnx, nny, nnz = nax + nbx, nay + nby, naz + nbz
+            dd = nnx * t1x + nny * t1y + nnz * t1z
+            nnx -= dd * t1x
+            nny -= dd * t1y
+            nnz -= dd * t1z
+            ln = math.sqrt(nnx * nnx + nny * nny + nnz * nnz)
+            nnx /= ln
+            nny /= ln
+            nnz /= ln
+            t2x = nny * t1z - nnz * t1y
+            t2y = nnz * t1x - nnx * t1z
+            t2z = nnx * t1y - nny * t1x
+            jra[j, 0], jra[j, 1], jra[j, 2] = rax, ray, raz
+            jrb[j, 0], jrb[j, 1], jrb[j, 2] = rbx, rby, rbz
+            jfr[j, 0], jfr[j, 1], jfr[j, 2] = t1x, t1y, t1z
+            jfr[j, 3], jfr[j, 4], jfr[j, 5] = t2x, t2y, t2z
+            jfr[j, 6], jfr[j, 7], jfr[j, 8] = nnx, nny, nnz
+            # position errors
+            dx = x[b, 0] + rbx - x[a, 0] - rax
+            dy = x[b, 1] + rby - x[a, 1] - ray
+            dz = x[b, 2] + rbz - x[a, 2] - raz
+            jc[j, 0] = dx * t1x + dy * t1y + dz * t1z
+            jc[j, 1] = dx * t2x + dy * t2y + dz * t2z
+            jc[j, 2] = dx * nnx + dy * nny + dz * nnz
+            cx = nay * nbz - naz * nby
+            cy = naz * nbx - nax * nbz
+            cz = nax * nby - nay * nbx
+            bend = math.atan2(cx * t2x + cy * t2y + cz * t2z, nax * nbx + nay * nby + naz * nbz)
+            jc[j, 3] = bend
+            if abs(bend) > bend_max:
+                bend_max = abs(bend)
+            cx = e1ay * e1bz - e1az * e1by
+            cy = e1az * e1bx - e1ax * e1bz
+            cz = e1ax * e1by - e1ay * e1bx
+            jc[j, 4] = cx * nnx + cy * nny + cz * nnz
+            for r in range(5):
+                jb[j, r] = kfac[r] * jc[j, r]
+            # translation block K = (2/m) I + sum (r x e_i) . I^-1 (r x e_j), in the joint frame
+            k00 = 2.0 * inv_m + gam[0]
+            k11 = 2.0 * inv_m + gam[1]
+            k22 = 2.0 * inv_m + gam[2]
+            k01 = 0.0
+            k02 = 0.0
+            k12 = 0.0
+            for side in range(2):
+                if side == 0:
+                    rx, ry, rz = rax, ray, raz
+                    px, py, pz = nax, nay, naz
+                else:
+                    rx, ry, rz = rbx, rby, rbz
+                    px, py, pz = nbx, nby, nbz
+                u0x = ry * t1z - rz * t1y
+                u0y = rz * t1x - rx * t1z
+                u0z = rx * t1y - ry * t1x
+                u1x = ry * t2z - rz * t2y
+                u1y = rz * t2x - rx * t2z
+                u1z = rx * t2y - ry * t2x
+                u2x = ry * nnz - rz * nny
+                u2y = rz * nnx - rx * nnz
+                u2z = rx * nny - ry * nnx
+                i0x, i0y, i0z = _apply_inv_inertia(px, py, pz, ixx_inv, dinv, u0x, u0y, u0z)
+                i1x, i1y, i1z = _apply_inv_inertia(px, py, pz, ixx_inv, dinv, u1x, u1y, u1z)
+                i2x, i2y, i2z = _apply_inv_inertia(px, py, pz, ixx_inv, dinv, u2x, u2y, u2z)
+                k00 += u0x * i0x + u0y * i0y + u0z * i0z
+                k01 += u0x * i1x + u0y * i1y + u0z * i1z
+                k02 += u0x * i2x + u0y * i2y + u0z * i2z
+                k11 += u1x * i1x + u1y * i1y + u1z * i1z
+                k12 += u1x * i2x + u1y * i2y + u1z * i2z
+                k22 += u2x * i2x + u2y * i2y + u2z * i2z
+            c00 = k11 * k22 - k12 * k12
+            c01 = k02 * k12 - k01 * k22
+            c02 = k01 * k12 - k02 * k11
+            det = k00 * c00 + k01 * c01 + k02 * c02
+            idet = 1.0 / det
+            jkt[j, 0] = c00 * idet
+            jkt[j, 1] = c01 * idet
+            jkt[j, 2] = c02 * idet
+            jkt[j, 3] = (k00 * k22 - k02 * k02) * idet
+            jkt[j, 4] = (k01 * k02 - k00 * k12) * idet
+            jkt[j, 5] = (k00 * k11 - k01 * k01) * idet
+            # rotation block over (t2, n): e_i . (Ia^-1 + Ib^-1) e_j
+            a2x, a2y, a2z = _apply_inv_inertia(nax, nay, naz, ixx_inv, dinv, t2x, t2y, t2z)
+            b2x, b2y, b2z = _apply_inv_inertia(nbx, nby, nbz, ixx_inv, dinv, t2x, t2y, t2z)
+            a3x, a3y, a3z = _apply_inv_inertia(nax, nay, naz, ixx_inv, dinv, nnx, nny, nnz)
+            b3x, b3y, b3z = _apply_inv_inertia(nbx, nby, nbz, ixx_inv, dinv, nnx, nny, nnz)
+            r00 = t2x * (a2x + b2x) + t2y * (a2y + b2y) + t2z * (a2z + b2z) + gam[3]
+            r01 = t2x * (a3x + b3x) + t2y * (a3y + b3y) + t2z * (a3z + b3z)
+            r11 = nnx * (a3x + b3x) + nny * (a3y + b3y) + nnz * (a3z + b3z) + gam[4]
+            idet = 1.0 / (r00 * r11 - r01 * r01)
+            jkr[j, 0] = r11 * idet
+            jkr[j, 1] = -r01 * idet
+            jkr[j, 2] = r00 * idet
+            # warm start: apply last step's impulses
+            p0, p1, p2, p3, p4 = pacc[j, 0], pacc[j, 1], pacc[j, 2], pacc[j, 3], pacc[j, 4]
+            fx = p0 * t1x + p1 * t2x + p2 * nnx
+            fy = p0 * t1y + p1 * t2y + p2 * nny
+            fz = p0 * t1z + p1 * t2z + p2 * nnz
+            lx = p3 * t2x + p4 * nnx + (ray * fz - raz * fy)
+            ly = p3 * t2y + p4 * nny + (raz * fx - rax * fz)
+            lz = p3 * t2z + p4 * nnz + (rax * fy - ray * fx)
+            v[a, 0] -= fx * inv_m
+            v[a, 1] -= fy * inv_m
+            v[a, 2] -= fz * inv_m
+            dx, dy, dz = _apply_inv_inertia(nax, nay, naz, ixx_inv, dinv, lx, ly, lz)
+            w[a, 0] -= dx
+            w[a, 1] -= dy
+            w[a, 2] -= dz
+            lx = p3 * t2x + p4 * nnx + (rby * fz - rbz * fy)
+            ly = p3 * t2y + p4 * nny + (rbz * fx - rbx * fz)
+            lz = p3 * t2z + p4 * nnz + (rbx * fy - rby * fx)
+            v[b, 0] += fx * inv_m
+            v[b, 1] += fy * inv_m
+            v[b, 2] += fz * inv_m
+            dx, dy, dz = _apply_inv_inertia(nbx, nby, nbz, ixx_inv, dinv, lx, ly, lz)
+            w[b, 0] += dx
+            w[b, 1] += dy
+            w[b, 2] += dz
+        # 3. active plate contacts at the corners (geometry frozen for the step)
+        pnx = 0.0
+        pny = -s_th
+        pnz = c_th
+        n_act = 0
+        for i in range(n):
+            for cnr in range(4):
+                sa = hh if (cnr == 0 or cnr == 3) else -hh
+                sb = hh if cnr < 2 else -hh
+                rx = sa * ax[i, 0] + sb * ax[i, 3]
+                ry = sa * ax[i, 1] + sb * ax[i, 4]
+                rz = sa * ax[i, 2] + sb * ax[i, 5]
+                py = x[i, 1] + ry
+                pz = x[i, 2] + rz
+                wc = -py * s_th + pz * c_th
+                if wc >= 0.0:
+                    continue
+                ctile[n_act] = i
+                cdat[n_act, 0] = rx
+                cdat[n_act, 1] = ry
+                cdat[n_act, 2] = rz
+                cdat[n_act, 3] = -wc
+                cdat[n_act, 4] = xp_dot
+                cdat[n_act, 5] = -th_dot * pz
+                cdat[n_act, 6] = th_dot * py
+                cimp[n_act, 0] = 0.0
+                cimp[n_act, 1] = 0.0
+                cimp[n_act, 2] = 0.0
+                n_act += 1
+        # 4. Gauss-Seidel sweeps: contacts (the shared law, re-evaluated with the corner's own impulse removed),
+        #    then the joints (alternating direction to avoid an ordering bias)
+        for it in range(n_iter):
+            for k in range(n_act):
+                i = ctile[k]
+                nx, ny, nz = ax[i, 6], ax[i, 7], ax[i, 8]
+                rx, ry, rz = cdat[k, 0], cdat[k, 1], cdat[k, 2]
+                ux, uy, uz = cdat[k, 4], cdat[k, 5], cdat[k, 6]
+                # remove this corner's accumulated impulse from its tile
+                ox, oy, oz = cimp[k, 0], cimp[k, 1], cimp[k, 2]
+                v[i, 0] -= ox * inv_m
+                v[i, 1] -= oy * inv_m
+                v[i, 2] -= oz * inv_m
+                lx = ry * oz - rz * oy
+                ly = rz * ox - rx * oz
+                lz = rx * oy - ry * ox
+                dx, dy, dz = _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, lx, ly, lz)
+                w[i, 0] -= dx
+                w[i, 1] -= dy
+                w[i, 2] -= dz
+                vrx = v[i, 0] + w[i, 1] * rz - w[i, 2] * ry - ux
+                vry = v[i, 1] + w[i, 2] * rx - w[i, 0] * rz - uy
+                vrz = v[i, 2] + w[i, 0] * ry - w[i, 1] * rx - uz
+                vn = vrx * pnx + vry * pny + vrz * pnz
+                cx = ry * pnz - rz * pny
+                cy = rz * pnx - rx * pnz
+                cz = rx * pny - ry * pnx
+                ix, iy, iz = _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, cx, cy, cz)
+                kn_inv = inv_m + cx * ix + cy * iy + cz * iz
+                fn = normal_force(cdat[k, 3], vn, kc, cc, kn_inv, dt)
+                jx = 0.0
+                jy = 0.0
+                jz = 0.0
+                if fn > 0.0:
+                    pn = dt * fn
+                    tx = vrx - vn * pnx
+                    ty = vry - vn * pny
+                    tz = vrz - vn * pnz
+                    # the normal impulse's rotational part changes the tangential corner velocity too
+                    gx = iy * rz - iz * ry
+                    gy = iz * rx - ix * rz
+                    gz = ix * ry - iy * rx
+                    dvn = gx * pnx + gy * pny + gz * pnz
+                    tx += pn * (gx - dvn * pnx)
+                    ty += pn * (gy - dvn * pny)
+                    tz += pn * (gz - dvn * pnz)
+                    slip = math.sqrt(tx * tx + ty * ty + tz * tz)
+                    jx = pn * pnx
+                    jy = pn * pny
+                    jz = pn * pnz
+                    if slip > 0.0:
+                        ex, ey, ez = tx / slip, ty / slip, tz / slip
+                        cx2 = ry * ez - rz * ey
+                        cy2 = rz * ex - rx * ez
+                        cz2 = rx * ey - ry * ex
+                        jx2, jy2, jz2 = _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, cx2, cy2, cz2)
+                        kt_inv = inv_m + cx2 * jx2 + cy2 * jy2 + cz2 * jz2
+                        sc = friction_scale(slip, fn, mus, muk, vt, kt_inv, dt)
+                        pt = (1.0 - sc) * slip / kt_inv
+                        jx -= pt * ex
+                        jy -= pt * ey
+                        jz -= pt * ez
+                cimp[k, 0] = jx
+                cimp[k, 1] = jy
+                cimp[k, 2] = jz
+                v[i, 0] += jx * inv_m
+                v[i, 1] += jy * inv_m
+                v[i, 2] += jz * inv_m
+                lx = ry * jz - rz * jy
+                ly = rz * jx - rx * jz
+                lz = rx * jy - ry * jx
+                dx, dy, dz = _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, lx, ly, lz)
+                w[i, 0] += dx
+                w[i, 1] += dy
+                w[i, 2] += dz
+            for jj in range(nj):
+                j = jj if it % 2 == 0 else nj - 1 - jj
+                a = links[j, 0]
+                b = links[j, 1]
+                rax, ray, raz = jra[j, 0], jra[j, 1], jra[j, 2]
+                rbx, rby, rbz = jrb[j, 0], jrb[j, 1], jrb[j, 2]
+                t1x, t1y, t1z = jfr[j, 0], jfr[j, 1], jfr[j, 2]
+                t2x, t2y, t2z = jfr[j, 3], jfr[j, 4], jfr[j, 5]
+                nnx, nny, nnz = jfr[j, 6], jfr[j, 7], jfr[j, 8]
+                nax, nay, naz = ax[a, 6], ax[a, 7], ax[a, 8]
+                nbx, nby, nbz = ax[b, 6], ax[b, 7], ax[b, 8]
+                # translation rows
+                dvx = v[b, 0] + w[b, 1] * rbz - w[b, 2] * rby - v[a, 0] - w[a, 1] * raz + w[a, 2] * ray
+                dvy = v[b, 1] + w[b, 2] * rbx - w[b, 0] * rbz - v[a, 1] - w[a, 2] * rax + w[a, 0] * raz
+                dvz = v[b, 2] + w[b, 0] * rby - w[b, 1] * rbx - v[a, 2] - w[a, 0] * ray + w[a, 1] * rax
+                e0_ = dvx * t1x + dvy * t1y + dvz * t1z + jb[j, 0] + gam[0] * pacc[j, 0]
+                e1_ = dvx * t2x + dvy * t2y + dvz * t2z + jb[j, 1] + gam[1] * pacc[j, 1]
+                e2_ = dvx * nnx + dvy * nny + dvz * nnz + jb[j, 2] + gam[2] * pacc[j, 2]
+                d0 = -(jkt[j, 0] * e0_ + jkt[j, 1] * e1_ + jkt[j, 2] * e2_)
+                d1 = -(jkt[j, 1] * e0_ + jkt[j, 3] * e1_ + jkt[j, 4] * e2_)
+                d2 = -(jkt[j, 2] * e0_ + jkt[j, 4] * e1_ + jkt[j, 5] * e2_)
+                pacc[j, 0] += d0
+                pacc[j, 1] += d1
+                pacc[j, 2] += d2
+                # rotation rows (use angular velocities after the translation update below)
+                fx = d0 * t1x + d1 * t2x + d2 * nnx
+                fy = d0 * t1y + d1 * t2y + d2 * nny
+                fz = d0 * t1z + d1 * t2z + d2 * nnz
+                v[a, 0] -= fx * inv_m
+                v[a, 1] -= fy * inv_m
+                v[a, 2] -= fz * inv_m
+                v[b, 0] += fx * inv_m
+                v[b, 1] += fy * inv_m
+                v[b, 2] += fz * inv_m
+                lx = ray * fz - raz * fy
+                ly = raz * fx - rax * fz
+                lz = rax * fy - ray * fx
+                dx, dy, dz = _apply_inv_inertia(nax, nay, naz, ixx_inv, dinv, lx, ly, lz)
+                w[a, 0] -= dx
+                w[a, 1] -= dy
+                w[a, 2] -= dz
+                lx = rby * fz - rbz * fy
+                ly = rbz * fx - rbx * fz
+                lz = rbx * fy - rby * fx
+                dx, dy, dz = _apply_inv_inertia(nbx, nby, nbz, ixx_inv, dinv, lx, ly, lz)
+                w[b, 0] += dx
+                w[b, 1] += dy
+                w[b, 2] += dz
+                dwx = w[b, 0] - w[a, 0]
+                dwy = w[b, 1] - w[a, 1]
+                dwz = w[b, 2] - w[a, 2]
+                e3_ = dwx * t2x + dwy * t2y + dwz * t2z + jb[j, 3] + gam[3] * pacc[j, 3]
+                e4_ = dwx * nnx + dwy * nny + dwz * nnz + jb[j, 4] + gam[4] * pacc[j, 4]
+                d3 = -(jkr[j, 0] * e3_ + jkr[j, 1] * e4_)
+                d4 = -(jkr[j, 1] * e3_ + jkr[j, 2] * e4_)
+                pacc[j, 3] += d3
+                pacc[j, 4] += d4
+                lx = d3 * t2x + d4 * nnx
+                ly = d3 * t2y + d4 * nny
+                lz = d3 * t2z + d4 * nnz
+                dx, dy, dz = _apply_inv_inertia(nax, nay, naz, ixx_inv, dinv, lx, ly, lz)
+                w[a, 0] -= dx
+                w[a, 1] -= dy
+                w[a, 2] -= dz
+                dx, dy, dz = _apply_inv_inertia(nbx, nby, nbz, ixx_inv, dinv, lx, ly, lz)
+                w[b, 0] += dx
+                w[b, 1] += dy
+                w[b, 2] += dz
+        # plate work of this step's contact impulses
+        for k in range(n_act):
+            dw_ = cimp[k, 0] * cdat[k, 4] + cimp[k, 1] * cdat[k, 5] + cimp[k, 2] * cdat[k, 6]
+            work += dw_
+            work_abs += abs(dw_)
+        # 5. positions and orientations
+        for i in range(n):
+            x[i, 0] += dt * v[i, 0]
+            x[i, 1] += dt * v[i, 1]
+            x[i, 2] += dt * v[i, 2]
+            qw, qx, qy, qz = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+            wx, wy, wz = 0.5 * dt * w[i, 0], 0.5 * dt * w[i, 1], 0.5 * dt * w[i, 2]
+            nw_ = qw - wx * qx - wy * qy - wz * qz
+            nx_ = qx + wx * qw + wy * qz - wz * qy
+            ny_ = qy + wy * qw + wz * qx - wx * qz
+            nz_ = qz + wz * qw + wx * qy - wy * qx
+            ln = 1.0 / math.sqrt(nw_ * nw_ + nx_ * nx_ + ny_ * ny_ + nz_ * nz_)
+            q[i, 0] = nw_ * ln
+            q[i, 1] = nx_ * ln
+            q[i, 2] = ny_ * ln
+            q[i, 3] = nz_ * ln
+    diag[0] = excess_max
+    diag[1] = bend_max
+    diag[2] = work
+    diag[3] = e_last
+    return status, n_rec
+
+
+@numba.njit(cache=True, parallel=True)
+def rigid_batch_parallel(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag, status_out, nrec_out):
+    """Run a batch of probes over threads (one probe per iteration)."""
+    for b in numba.prange(prm.shape[0]):
+        s, r = rigid_probe(prm[b], rest[b], links, link_dir, cells, yaw_out[b], cu_out[b], cv_out[b], diag[b])
+        status_out[b] = s
+        nrec_out[b] = r
+
+
+@numba.njit(cache=True)
+def rigid_batch_serial(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag, status_out, nrec_out):
+    """The same batch on the calling thread (no threading overhead for single probes)."""
+    for b in range(prm.shape[0]):
+        s, r = rigid_probe(prm[b], rest[b], links, link_dir, cells, yaw_out[b], cu_out[b], cv_out[b], diag[b])
+        status_out[b] = s
+        nrec_out[b] = r
+
+
+@lru_cache(maxsize=256)
+def _params(obj, config: RigidTileConfig) -> RigidTileParams:
+    return build_params(obj, config)
+
+
+def param_vector(spec: ProbeSpec, dt: float, slip_limit: float,
+                 config: RigidTileConfig | None = None) -> np.ndarray:
+    """The rigid kernel's parameter vector (``N_RIGID_PARAMS``) for one probe; SI units."""
+    config = config or RigidTileConfig()
+    p = _params(spec.obj, config)
+    prm = common_vector(spec, dt, slip_limit, p.tile_mass, N_RIGID_PARAMS, contact_weight=0.25)
+    prm[P_KB] = p.k_bending
+    prm[P_KIN] = p.row_k[0]
+    prm[P_CIN] = p.row_c[0]
+    prm[R_H] = p.tile_size
+    prm[R_IXX] = p.inertia_xx
+    prm[R_IZZ] = p.inertia_zz
+    prm[R_CB] = p.row_c[3]
+    prm[R_KT2] = p.row_k[1]
+    prm[R_CT2] = p.row_c[1]
+    prm[R_KN] = p.row_k[2]
+    prm[R_CN] = p.row_c[2]
+    prm[R_KRN] = p.row_k[4]
+    prm[R_CRN] = p.row_c[4]
+    prm[R_NITER] = config.iterations
+    prm[R_FOLD] = config.fold_angle
+    prm[R_FOLDW] = config.fold_tile_w
+    prm[R_EREL] = config.energy_rel_tol
+    prm[R_EABS] = config.energy_abs_tol
+    prm[R_CORNERW] = 0.25
+    return prm
+
+
+def run_rigid_param_arrays(prm: np.ndarray, rest: np.ndarray, geom, parallel: bool | None = None
+                           ) -> dict[str, np.ndarray]:
+    """Run the rigid kernel on prepared arrays (exposed for tests that inject bad parameters)."""
+    n_rec = (prm[:, P_NSTEPS] // prm[:, P_RECEVERY]).astype(np.int64) + 1
+    size = (len(prm), int(n_rec.max()))
+    yaw, cu, cv = np.zeros(size), np.zeros(size), np.zeros(size)
+    status = np.zeros(len(prm), dtype=np.int64)
+    nrec = np.zeros(len(prm), dtype=np.int64)
+    diag = np.zeros((len(prm), 4))
+    if parallel is None:
+        parallel = len(prm) > 1
+    kernel = rigid_batch_parallel if parallel else rigid_batch_serial
+    kernel(prm, rest, geom.links, geom.link_dir, geom.cells, yaw, cu, cv, diag, status, nrec)
+    return {"prm": prm, "yaw": yaw, "cu": cu, "cv": cv, "status": status, "nrec": nrec, "diag": diag}
+
+
+def run_rigid_arrays(probes: Sequence[ProbeSpec], dt: float = DEFAULT_DT, slip_limit: float = 0.010,
+                     config: RigidTileConfig | None = None, parallel: bool | None = None
+                     ) -> dict[str, np.ndarray]:
+    """Run a batch of probes with the rigid-tile model.
+
+    Returns the keys of ``TileLinkPhysics.run_param_arrays`` ("prm" with ``P_NSTEPS``/``P_RECEVERY`` filled,
+    "yaw" rad, "cu"/"cv" m traces every ~1 ms, "status" codes of :mod:`kernels`, "nrec") plus "diag" (B, 4):
+    max energy excess over the plate's work (J), max |bending angle| (rad), plate work (J), final E - E0 (J),
+    and "wall_s", the kernel's wall time.
+    """
+    config = config or RigidTileConfig()
+    probes = list(probes)
+    prm = np.stack([param_vector(s, dt, slip_limit, config) for s in probes])
+    geom = _params(probes[0].obj, config).geom
+    rest = np.stack([_params(s.obj, config).geom.rest for s in probes])
+    t0 = time.perf_counter()
+    out = run_rigid_param_arrays(prm, rest, geom, parallel)
+    out["wall_s"] = np.array(time.perf_counter() - t0)
+    return out

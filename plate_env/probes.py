@@ -1,0 +1,122 @@
+"""A plain table of probe outcomes, the common input of fitting and identification (from results or a lab CSV)."""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from plate_env.physics.base import ProbeResult
+
+
+@dataclass(frozen=True)
+class ProbeTable:
+    """Probes in edge units: f_p (Hz), A_p (deg), omega_B and its standard error (deg/s), instability flags.
+
+    ``omega_b_deg_s`` is sign-normalised on construction from results (multiplied by sign(A_p * B_p)) so that
+    curves of either rotation direction compare with the calibration and atlas, which use A_p, B_p > 0.
+    """
+
+    f_p_hz: np.ndarray
+    a_p_deg: np.ndarray
+    omega_b_deg_s: np.ndarray
+    stderr_deg_s: np.ndarray
+    unstable: np.ndarray
+
+    def __post_init__(self) -> None:
+        n = len(self.f_p_hz)
+        for name in ("a_p_deg", "omega_b_deg_s", "stderr_deg_s", "unstable"):
+            if len(getattr(self, name)) != n:
+                raise ValueError(f"ProbeTable column {name} has {len(getattr(self, name))} rows, f_p_hz has {n}")
+
+    def __len__(self) -> int:
+        return len(self.f_p_hz)
+
+    @classmethod
+    def from_results(cls, results: Sequence[ProbeResult]) -> ProbeTable:
+        sign = [math.copysign(1.0, r.spec.motion.amp_rad * r.spec.motion.b_p or 1.0) for r in results]
+        return cls(f_p_hz=np.array([r.spec.motion.freq_hz for r in results], float),
+                   a_p_deg=np.array([math.degrees(r.spec.motion.amp_rad) for r in results], float),
+                   omega_b_deg_s=np.array([s * r.omega_b_deg_s for s, r in zip(sign, results, strict=True)], float),
+                   stderr_deg_s=np.array([r.stderr_deg_s for r in results], float),
+                   unstable=np.array([r.unstable for r in results], bool))
+
+    @classmethod
+    def from_arrays(cls, f_p_hz, a_p_deg, omega_b_deg_s, stderr_deg_s=None, unstable=None) -> ProbeTable:
+        f = np.atleast_1d(np.asarray(f_p_hz, float))
+        a = np.broadcast_to(np.asarray(a_p_deg, float), f.shape).copy()
+        w = np.atleast_1d(np.asarray(omega_b_deg_s, float))
+        se = np.zeros_like(f) if stderr_deg_s is None else np.atleast_1d(np.asarray(stderr_deg_s, float))
+        un = np.zeros(f.shape, bool) if unstable is None else np.atleast_1d(np.asarray(unstable, bool))
+        return cls(f, a, w, se, un)
+
+    def subset(self, mask: np.ndarray) -> ProbeTable:
+        return ProbeTable(self.f_p_hz[mask], self.a_p_deg[mask], self.omega_b_deg_s[mask], self.stderr_deg_s[mask],
+                          self.unstable[mask])
+
+    def amplitudes(self) -> list[float]:
+        return sorted({float(a) for a in np.round(self.a_p_deg, 6)})
+
+
+class CsvError(ValueError):
+    """A malformed lab CSV: the message names the line and column."""
+
+
+REQUIRED = ("f_p_hz", "omega_b_deg_s")
+OPTIONAL = ("stderr_deg_s", "a_p_deg", "unstable")
+
+
+def read_lab_csv(path: str | Path, a_p_deg: float | None = None) -> ProbeTable:
+    """Read a lab sweep: columns ``f_p_hz``, ``omega_b_deg_s``, optional ``stderr_deg_s``, ``a_p_deg``, ``unstable``.
+
+    ``a_p_deg`` (the ``--amp`` option) applies to rows without their own amplitude column. Raises CsvError naming
+    the line and column of the first bad value.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CsvError(f"{path}: cannot read: {exc}") from None
+    rows = list(csv.reader(line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")))
+    if not rows:
+        raise CsvError(f"{path}: empty file; expected a header with columns {', '.join(REQUIRED)}")
+    header = [h.strip() for h in rows[0]]
+    missing = [c for c in REQUIRED if c not in header]
+    if missing:
+        raise CsvError(f"{path}: line 1: missing column(s) {', '.join(missing)}; header is {header}")
+    unknown = [h for h in header if h not in REQUIRED + OPTIONAL]
+    if unknown:
+        raise CsvError(f"{path}: line 1: unknown column(s) {unknown}; allowed: {', '.join(REQUIRED + OPTIONAL)}")
+    if "a_p_deg" not in header and a_p_deg is None:
+        raise CsvError(f"{path}: no a_p_deg column: give the plate amplitude (--amp, degrees)")
+    cols: dict[str, list] = {h: [] for h in header}
+    for lineno, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise CsvError(f"{path}: line {lineno}: {len(row)} fields, the header has {len(header)}")
+        for h, cell in zip(header, row, strict=True):
+            cell = cell.strip()
+            if h == "unstable":
+                if cell.lower() not in ("0", "1", "true", "false", ""):
+                    raise CsvError(f"{path}: line {lineno}, column unstable: {cell!r} is not 0/1/true/false")
+                cols[h].append(cell.lower() in ("1", "true"))
+                continue
+            try:
+                value = float(cell)
+            except ValueError:
+                raise CsvError(f"{path}: line {lineno}, column {h}: {cell!r} is not a number") from None
+            limits = {"f_p_hz": (0.0, 200.0), "omega_b_deg_s": (-1e5, 1e5), "stderr_deg_s": (0.0, 1e5),
+                      "a_p_deg": (-45.0, 45.0)}[h]
+            if not (math.isfinite(value) and limits[0] <= value <= limits[1]) or (h == "f_p_hz" and value == 0):
+                raise CsvError(f"{path}: line {lineno}, column {h}: {cell!r} is outside the allowed range "
+                               f"{'(' if h == 'f_p_hz' else '['}{limits[0]:g}, {limits[1]:g}]")
+            cols[h].append(value)
+    n = len(rows) - 1
+    if n == 0:
+        raise CsvError(f"{path}: no data rows")
+    amp = cols["a_p_deg"] if "a_p_deg" in cols else [a_p_deg] * n
+    return ProbeTable.from_arrays(cols["f_p_hz"], amp, cols["omega_b_deg_s"], cols.get("stderr_deg_s"),
+                                  cols.get("unstable"))
