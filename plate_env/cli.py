@@ -1,4 +1,4 @@
-"""``plate-env`` command line: probe, sweep. ``--json`` on every command prints one JSON document."""
+"""``plate-env`` command line: probe, sweep, fit. ``--json`` on every command prints one JSON document."""
 
 from __future__ import annotations
 
@@ -94,6 +94,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--freqs", default="10:40:1", help="start:stop:step or a comma list, Hz")
     s.add_argument("--plot", default=None, help="write a PNG of omega_B vs f_p")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    f = sub.add_parser("fit", help="fit a lab sweep (CSV) and estimate omega_n")
+    f.add_argument("csv", help="CSV with columns f_p_hz, omega_b_deg_s[, stderr_deg_s, a_p_deg, unstable]")
+    f.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees")
+    f.add_argument("--physics", default="tilelink", help="whose calibration/atlas to use (tilelink, paper, ...)")
+    f.add_argument("--model", default=None, help="tilelink model of the calibration/atlas (pointmass)")
+    f.add_argument("--method", default="lorentz", choices=("lorentz", "atlas"))
+    f.add_argument("--plot", default=None, help="write a PNG of data, fitted curve and posterior")
+    f.add_argument("--json", action="store_true", help="print one JSON document")
     return parser
 
 
@@ -144,7 +152,54 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep}
+def _fit_report(est, table) -> list[str]:
+    """An lmfit-like report of the per-amplitude Lorentzian fits."""
+    out = []
+    for amp, fit in est.fits.items():
+        out.append(f"[[Fit A_p = {amp:g} deg]]  (Eq. 9, Levenberg-Marquardt)")
+        if not fit.ok:
+            out.append(f"    cannot fit: {fit.reason}")
+            continue
+        out.append(f"    data points = {fit.n_used} used, {fit.n_unstable} unstable excluded")
+        out.append(f"    R-squared   = {fit.r2:.4f}")
+        for name, val, err, unit in (("omega_max", fit.omega_max, fit.stderr[0], "deg/s"),
+                                     ("f0", fit.f0, fit.stderr[1], "Hz"), ("b", fit.b, fit.stderr[2], "Hz")):
+            rel = f"({100 * err / abs(val):.2f}%)" if val else ""
+            out.append(f"    {name:10s}= {val:10.4g} +/- {err:.4g} {unit} {rel}")
+    return out
+
+
+def _cmd_fit(args: argparse.Namespace) -> int:
+    from plate_env.identify import identify
+    from plate_env.probes import read_lab_csv
+
+    table = read_lab_csv(args.csv, a_p_deg=args.amp)
+    model = args.model or "pointmass"
+    est = identify(table, method=args.method, physics=args.physics, model=model)
+    if args.plot:
+        from plate_env.plotting import plot_fit
+
+        plot_fit(table, est, args.plot)
+    if args.json:
+        print(json.dumps({"file": str(args.csv), "physics": args.physics, "model": model, **est.to_dict()}))
+        return 0 if est.ok else 1
+    for line in _fit_report(est, table):
+        print(line)
+    if est.ok:
+        lo, hi = est.omega_n_ci95
+        print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s "
+              f"({format_omega_pi(est.omega_n)}; 95 % interval {lo:.1f}-{hi:.1f} rad/s) by {est.method} "
+              f"on {args.physics}/{model}")
+        if est.alpha is not None:
+            print(f"alpha_hat   = {math.degrees(est.alpha):.1f} +- {math.degrees(est.alpha_stderr):.1f} deg")
+    else:
+        print(f"no estimate: {est.reason}")
+    if args.plot:
+        print(f"plot: {args.plot}")
+    return 0 if est.ok else 1
+
+
+COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep, "fit": _cmd_fit}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -152,7 +207,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return COMMANDS[args.command](args)
-    except (CliError, ValueError) as exc:
+    except (CliError, ValueError, OSError) as exc:
         print(f"plate-env {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -30,3 +30,44 @@ def plot_sweep(results: Sequence[ProbeResult], path: str, title: str = "") -> No
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_fit(table, est, path: str) -> None:
+    """Data, the fitted Lorentzian per amplitude (lorentz) and the omega_n estimate or posterior (atlas)."""
+    import math
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    for amp in table.amplitudes():
+        sel = np.isclose(table.a_p_deg, amp)
+        st = sel & ~table.unstable
+        ax.errorbar(table.f_p_hz[st], table.omega_b_deg_s[st], yerr=table.stderr_deg_s[st], fmt="o", ms=4,
+                    capsize=2, label=f"A_p = {amp:g} deg")
+        if (sel & table.unstable).any():
+            ax.plot(table.f_p_hz[sel & table.unstable], np.zeros((sel & table.unstable).sum()), "x", color="crimson")
+        fit = est.fits.get(amp)
+        if fit is not None and fit.ok:
+            ff = np.linspace(table.f_p_hz[sel].min(), table.f_p_hz[sel].max(), 200)
+            ax.plot(ff, fit.predict(ff), "-", label=f"Eq. 9: f0 = {fit.f0:.2f} Hz, R^2 = {fit.r2:.3f}")
+    ax.set_xlabel("$f_p$ [Hz]")
+    ax.set_ylabel(r"$\omega_B$ [deg/s]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    if est.posterior is not None:
+        post = est.posterior
+        ax2.plot(post.omega_n / math.pi, post.marginal_omega())
+        ax2.set_ylabel("posterior (marginal)")
+    if est.ok:
+        ax2.axvline(est.omega_n / math.pi, color="k", label=f"estimate {est.omega_n / math.pi:.2f} pi rad/s")
+        ax2.axvspan(est.omega_n_ci68[0] / math.pi, est.omega_n_ci68[1] / math.pi, alpha=0.2, label="68 %")
+    ax2.set_xlabel(r"$\omega_n$ [$\pi$ rad/s]")
+    ax2.grid(alpha=0.3)
+    ax2.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
