@@ -35,19 +35,21 @@ def lorentz(f: np.ndarray, w_max: float, f0: float, b: float) -> np.ndarray:
 def first_hump(freqs: np.ndarray, omegas: np.ndarray, unstable: np.ndarray) -> np.ndarray:
     """Indices of the stable probes from the lowest f_p up to the first dip after the first hump.
 
-    Stops at the first unstable probe. The hump's top is the first point higher than both neighbours (and
-    above 30 % of the stable maximum); the dip is the first point after it lower than its successor.
+    Unstable probes are left out; two unstable probes in a row end the window (1-Hz sweeps show isolated
+    flags well below the hump in both models). The hump's top is the first point higher than both neighbours
+    (and above 30 % of the stable maximum); the dip is the first point after it lower than its successor.
     """
     keep = []
     top_seen = False
     stable_max = max([abs(w) for w, u in zip(omegas, unstable, strict=True) if not u] or [1.0])
-    for i in range(len(freqs)):
-        if unstable[i]:
-            break
+    stable = [i for i in range(len(freqs)) if not unstable[i]]
+    for pos, i in enumerate(stable):
+        if i >= 2 and unstable[i - 1] and unstable[i - 2]:
+            break  # two unstable probes in a row end the window; a single one is skipped
         keep.append(i)
         w = abs(omegas[i])
-        nxt = abs(omegas[i + 1]) if i + 1 < len(freqs) and not unstable[i + 1] else None
-        prv = abs(omegas[i - 1]) if i > 0 else 0.0
+        nxt = abs(omegas[stable[pos + 1]]) if pos + 1 < len(stable) else None
+        prv = abs(omegas[keep[-2]]) if len(keep) > 1 else 0.0
         if not top_seen and nxt is not None and w > 0.3 * stable_max and w >= prv and w > nxt:
             top_seen = True
         elif top_seen and nxt is not None and w < nxt:
@@ -83,6 +85,45 @@ def rigid_results(probes: list[ProbeSpec], dt: float) -> tuple[np.ndarray, np.nd
         omegas.append(math.degrees(w))
         unstable.append(st != 0)
     return np.asarray(omegas), np.asarray(unstable), float(out["wall_s"])
+
+
+def extra_sections(dt: float) -> list[str]:
+    """Rigid model: dt convergence at 18/22/25 Hz (dt vs dt/4 with twice the sweeps), 12-deg fold behaviour."""
+    from plate_env.physics.tilelink import kernels as kn
+    from plate_env.physics.tilelink import rigid
+
+    obj = pe.ObjectSpec.from_paper(10.0, 36.9)
+    fs = (18.0, 22.0, 25.0)
+    probes = [ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(f, 3.0, 3.0), settle_s=0.6, measure_s=1.0)
+              for f in fs]
+    w_c, u_c, _ = rigid_results(probes, dt)
+    it = 2 * rigid.RigidTileConfig().iterations
+    out = rk.run_rigid_arrays(probes, dt=dt / 4, config=rigid.RigidTileConfig(iterations=it))
+    rec = out["prm"][0, rk.P_RECEVERY] * dt / 4
+    lines = ["", f"## Rigid model: dt convergence (10pi, 36.9 deg; dt = {dt:g} s vs {dt / 4:g} s, {it} sweeps)", "",
+             "| f_p | omega_B dt | omega_B dt/4 | difference |", "|---|---|---|---|"]
+    for b, s in enumerate(probes):
+        n = int(out["nrec"][b])
+        w, _, _ = measure_omega_b(np.arange(n) * rec, out["yaw"][b, :n], s.measure_start_s, 1.0 / s.motion.freq_hz,
+                                  s.n_periods, None)
+        wf = math.degrees(w)
+        lines.append(f"| {fs[b]:g} | {w_c[b]:.1f}{'*' if u_c[b] else ''} | {wf:.1f} | "
+                     f"{100 * (w_c[b] - wf) / wf:+.2f} % |")
+    names = {v: k for k, v in vars(kn).items() if k.isupper() and isinstance(v, int) and k in
+             ("OK", "OVERTURNED", "SLIPPED", "NON_FINITE", "RUNAWAY", "LEFT_PLATE", "FOLDED")}
+    lines += ["", "## Rigid model at A_p = 12 deg (B_p 3 mm, settle 0.8 s, measure 1.0 s)", "",
+              "| omega_n | f_p | status | t_end (s) | max bend (deg) | E excess / plate work |",
+              "|---|---|---|---|---|---|"]
+    specs = [ProbeSpec(obj=pe.ObjectSpec.from_paper(wn, 36.9), motion=pe.PlateMotion.from_paper(f, 12.0, 3.0),
+                       settle_s=0.8, measure_s=1.0) for wn in (3.0, 5.0, 10.0) for f in (12.0, 16.0)]
+    out = rk.run_rigid_arrays(specs, dt=dt)
+    rec = out["prm"][0, rk.P_RECEVERY] * dt
+    for b, s in enumerate(specs):
+        d = out["diag"][b]
+        lines.append(f"| {s.obj.omega_n / math.pi:.0f}pi | {s.motion.freq_hz:g} | "
+                     f"{names.get(int(out['status'][b]), '?')} | {int(out['nrec'][b]) * rec:.2f} | "
+                     f"{math.degrees(d[1]):.0f} | {d[0]:.2e} / {d[2]:.2e} |")
+    return lines
 
 
 def main() -> None:
@@ -138,6 +179,7 @@ def main() -> None:
         for k, f in enumerate(freqs):
             lines.append(f"| {wn:g} | {alpha:g} | {f:g} | {w_pm[k]:.0f}{'*' if u_pm[k] else ''} | "
                          f"{w_rg[k]:.0f}{'*' if u_rg[k] else ''} | {w_rg[k] - w_pm[k]:+.0f} |")
+    lines += extra_sections(args.dt)
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text("\n".join(lines) + "\n")
     print("\n".join(lines[-8 - len(sweeps) * len(freqs):][:8]))

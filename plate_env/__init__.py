@@ -9,5 +9,17 @@ from plate_env.physics import PHYSICS_NAMES, ProbeResult, ProbeSpec, make_physic
 
 __version__ = "0.1.0"
 
+
+def _register() -> None:
+    from gymnasium.envs.registration import register, registry
+
+    for env_id in ("PlateRotation-v0", "plate_env/PlateRotation-v0"):
+        if env_id not in registry:
+            register(id=env_id, entry_point="plate_env.env:PlateRotationEnv",
+                     vector_entry_point="plate_env.vector:PlateRotationVectorEnv")
+
+
+_register()
+
 __all__ = ["PHYSICS_NAMES", "PRESETS", "ObjectSpec", "PlateMotion", "ProbeResult", "ProbeSpec", "__version__",
            "make_physics", "preset"]

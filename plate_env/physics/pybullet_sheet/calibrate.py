@@ -8,7 +8,8 @@ The virtual test ("hang and release", free-free saddle ring-down):
    (the weak gravity keeps the test linear; at 9.81 m/s^2 soft sheets took a permanent set and did not ring).
 2. Remove the anchors and switch gravity off: the free sheet rings in free-free bending.
 3. Project the node heights (minus their mean) on the saddle pattern ``(r/R)^2 cos 2 phi`` every 2 steps and
-   take the frequency from the zero crossings of that coordinate (minus its mean) over ``T = max(1 s, 5/f_guess)``.
+   take the frequency of the largest peak of that coordinate's spectrum (minus its mean, Hann window) over
+   ``T = max(1 s, 5/f_guess)``.
 
 That frequency times 2 pi is the sheet's omega_n: the lowest free bending mode of a free disc is the saddle
 mode, as in the tile-link model's modal analysis. ``resetMeshData`` is NOT used to impose a deflection: with it
@@ -33,7 +34,7 @@ from plate_env.objects import ObjectSpec
 from plate_env.physics.pybullet_sheet.scene import Client, SheetConfig, SheetScene
 
 #: Stiffness grid (N/m) of the stored calibration table.
-K_GRID = (0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 400.0)
+K_GRID = (0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 400.0)
 TABLE_FILE = "pybullet_calibration.json"
 
 
@@ -55,7 +56,7 @@ def ringdown_omega_n(client: Client, obj: ObjectSpec, k_elastic: float, config: 
     for a in anchors:
         p.removeConstraint(a, physicsClientId=cid)
     p.setGravity(0.0, 0.0, 0.0, physicsClientId=cid)
-    f_guess = 1.3 * math.sqrt(max(k_elastic, 1e-6))  # Hz, rough sqrt(k) law of the default mesh
+    f_guess = 1.5 * math.sqrt(max(k_elastic, 1e-6))  # Hz, rough sqrt(k) law of the default mesh
     dur = max(1.0, 5.0 / f_guess)
     w = (r / r.max()) ** 2 * np.cos(2.0 * phi)
     every = 2
@@ -68,7 +69,20 @@ def ringdown_omega_n(client: Client, obj: ObjectSpec, k_elastic: float, config: 
     q_arr = np.asarray(q)
     if not np.isfinite(q_arr).all():
         return math.nan
-    return 2.0 * math.pi * zero_crossing_frequency(q_arr - q_arr.mean(), every * dt)
+    return 2.0 * math.pi * spectral_peak_frequency(q_arr - q_arr.mean(), every * dt, 0.4 * f_guess, 2.5 * f_guess)
+
+
+def spectral_peak_frequency(y: np.ndarray, dt: float, f_lo: float, f_hi: float) -> float:
+    """Frequency (Hz) of the largest peak in ``[f_lo, f_hi]`` of the Hann-windowed, 16x zero-padded spectrum of ``y``.
+
+    The band (0.4-2.5x a rough sqrt(k) guess) keeps the slow drift of the freely floating sheet (its rigid spin
+    modulates the fixed saddle pattern) and higher modes out of the peak search.
+    """
+    n = len(y)
+    spec = np.abs(np.fft.rfft(y * np.hanning(n), 16 * n))
+    freqs = np.fft.rfftfreq(16 * n, dt)
+    spec[(freqs < f_lo) | (freqs > f_hi)] = 0.0
+    return float(freqs[int(np.argmax(spec))])
 
 
 def zero_crossing_frequency(y: np.ndarray, dt: float) -> float:
@@ -102,7 +116,7 @@ def measure_table(config: SheetConfig, obj: ObjectSpec | None = None,
 def stored_table() -> dict | None:
     """The calibration table shipped in ``plate_env/data`` (None if absent)."""
     try:
-        text = resources.files("plate_env.data").joinpath(TABLE_FILE).read_text()
+        text = resources.files("plate_env").joinpath("data", TABLE_FILE).read_text()
     except (FileNotFoundError, ModuleNotFoundError):
         return None
     return json.loads(text)
@@ -111,18 +125,20 @@ def stored_table() -> dict | None:
 @lru_cache(maxsize=32)
 def _table_for(config: SheetConfig, mass: float, diameter: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
     tab = stored_table()
-    if not (tab and tab["config"] == _config_key(config) and tab["mass"] == mass and tab["diameter"] == diameter):
+    if tab is None:
         tab = measure_table(config, ObjectSpec(mass=mass, diameter=diameter))
-    pairs = [(k, w) for k, w in zip(tab["k_elastic"], tab["omega_n"], strict=True) if math.isfinite(w)]
+    # a mass-spring network keeps its mode shapes when all k scale with the mass: k ~ mass at fixed omega_n
+    scale = mass / tab["mass"]
+    pairs = [(k * scale, w) for k, w in zip(tab["k_elastic"], tab["omega_n"], strict=True) if math.isfinite(w)]
     return tuple(k for k, _ in pairs), tuple(w for _, w in pairs)
 
 
 def k_for_omega_n(obj: ObjectSpec, config: SheetConfig) -> float:
     """``springElasticStiffness`` (N/m) that gives ``obj.omega_n``: log-log interpolation of the table.
 
-    The stored table matches the default config and the paper's cheese (13.6 g, 80 mm); for another mass,
-    diameter or config a table is measured once per process (about 10 ring-downs). Outside the table the
-    ``sqrt(k)`` law extrapolates from the nearest end.
+    The stored table was measured for the default config and the paper's cheese (13.6 g, 80 mm); for another
+    mass, diameter or config it is only a starting guess that :func:`calibrated_k` corrects by measurement.
+    Outside the table the ``sqrt(k)`` law extrapolates from the nearest end.
     """
     ks, ws = _table_for(config, obj.mass, obj.diameter)
     lk, lw = np.log(ks), np.log(ws)
@@ -132,6 +148,40 @@ def k_for_omega_n(obj: ObjectSpec, config: SheetConfig) -> float:
     if target >= lw[-1]:
         return float(math.exp(lk[-1] + 2.0 * (target - lw[-1])))
     return float(math.exp(np.interp(target, lw, lk)))
+
+
+@lru_cache(maxsize=256)
+def calibrated_k(obj: ObjectSpec, config: SheetConfig, tol: float = 0.02, max_iter: int = 8) -> tuple[float, float]:
+    """``(k_elastic N/m, measured omega_n rad/s)`` for ``obj.omega_n``: table start, then ring-down refinement.
+
+    The ring-down estimate wiggles by up to ~10 % around the sqrt(k) law between table points, so the table
+    value is checked by a ring-down at that k and corrected with ``k *= (target / measured)^2`` until the
+    measured omega_n is within ``tol`` (at most ``max_iter`` ring-downs, ~0.5-2 s each, once per object and
+    process). Returns the best pair seen.
+    """
+    k = k_for_omega_n(obj, config)
+    best = (k, math.nan)
+    lo, hi = 0.0, math.inf  # bracket: omega_n(lo) < target < omega_n(hi)
+    client = Client()
+    try:
+        for _ in range(max_iter):
+            w = ringdown_omega_n(client, obj, k, config)
+            if not math.isfinite(w):
+                break
+            if not math.isfinite(best[1]) or abs(w / obj.omega_n - 1) < abs(best[1] / obj.omega_n - 1):
+                best = (k, w)
+            if abs(w / obj.omega_n - 1) < tol:
+                break
+            if w < obj.omega_n:
+                lo = max(lo, k)
+            else:
+                hi = min(hi, k)
+            k *= (obj.omega_n / w) ** 2
+            if not lo < k < hi and 0.0 < lo and math.isfinite(hi):
+                k = math.sqrt(lo * hi)  # the estimate is not monotone there: bisect the bracket in log k
+    finally:
+        client.close()
+    return best
 
 
 def main() -> None:

@@ -57,9 +57,9 @@ class SheetConfig:
         slip_limit: centre distance from the plate centre (plate frame) that makes a probe unstable, m.
     """
 
-    n_layer: int = 50
+    n_layer: int = 91
     thickness: float = 0.002
-    dt: float = 2e-4
+    dt: float = 4e-4
     margin: float = 5e-4
     damping_time: float = 2e-4
     bending_ratio: float = 1.0
@@ -72,7 +72,8 @@ class SheetConfig:
         if not (isinstance(self.n_layer, int) and 8 <= self.n_layer <= 2000):
             raise ValueError(f"n_layer = {self.n_layer!r} must be an int in [8, 2000]")
         for label, value, lo, hi in (("dt", self.dt, 0.0, 0.01), ("thickness", self.thickness, 0.0, 0.05),
-                                     ("margin", self.margin, 0.0, 0.01), ("damping_time", self.damping_time, -1e-12, 1.0),
+                                     ("margin", self.margin, 0.0, 0.01),
+                                     ("damping_time", self.damping_time, -1e-12, 1.0),
                                      ("record_every_s", self.record_every_s, 0.0, 0.1),
                                      ("slip_limit", self.slip_limit, 0.0, 1.0)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and lo < value <= hi):
@@ -136,7 +137,8 @@ class SheetScene:
             self.body = p.loadSoftBody(
                 path, basePosition=base, baseOrientation=orn, mass=obj.mass, useMassSpring=1, useNeoHookean=0,
                 useBendingSprings=0, springElasticStiffness=self.k_elastic,
-                springDampingStiffness=config.damping_time * self.k_elastic, springBendingStiffness=config.bending_ratio * self.k_elastic,
+                springDampingStiffness=config.damping_time * self.k_elastic,
+                springBendingStiffness=config.bending_ratio * self.k_elastic,
                 springDampingAllDirections=0, useSelfCollision=0, frictionCoeff=obj.mu_s,
                 collisionMargin=config.margin, useFaceContact=1, physicsClientId=cid)
         finally:
@@ -199,7 +201,6 @@ class SheetScene:
         period = 1.0 / mot.freq_hz
         t0m = spec.measure_start_s
         vlim = 3.0 * mot.peak_speed(self.obj.radius) + 1.0
-        nl = self.n_layer
         ts: list[float] = [0.0]
         yaws: list[float] = [0.0]
         cus: list[float] = []
@@ -207,7 +208,6 @@ class SheetScene:
         x_prev = self.positions()
         th, _, xp, _ = plate_state(0.0, mot.freq_hz, mot.amp_rad, mot.b_p, mot.ramp_s)
         yaw_prev, cu, cv = self._frame(x_prev, th, xp)[:3]
-        yaw_base = yaw_prev
         cus.append(cu)
         cvs.append(cv)
         yaw_unwrapped = 0.0
@@ -236,7 +236,7 @@ class SheetScene:
             yaws.append(yaw_unwrapped)
             cus.append(cu)
             cvs.append(cv)
-            reason = self._check(x, x_prev, cu, cv, cw, up, gyr, vlim, steps_done - (len(ts) - 2) * rec, t, ts)
+            reason = self._check(x, x_prev, cu, cv, cw, up, gyr, vlim, ts)
             x_prev = x
             if reason is not None:
                 break
@@ -248,14 +248,12 @@ class SheetScene:
                     if math.degrees(se) < stderr_tol_deg_s:
                         break
         wall = time.perf_counter() - wall0
-        del yaw_base
         t_arr, y_arr = np.asarray(ts), np.asarray(yaws)
         unstable = reason is not None
         if unstable:
             self.alive = False
-        t_end = t_arr[-1]
-        n_per = spec.n_periods if not unstable else spec.n_periods
-        omega, se, used = measure_omega_b(t_arr, y_arr, t0m, period, n_per, t_end)
+        t_end = float(t_arr[-1])
+        omega, se, used = measure_omega_b(t_arr, y_arr, t0m, period, spec.n_periods, t_end)
         if not (math.isfinite(omega) and math.isfinite(se)):
             omega, se, used = 0.0, 0.0, 0
         trace = None
@@ -265,8 +263,13 @@ class SheetScene:
                            unstable=unstable, reason=reason, sim_s=float(steps_done * dt), wall_s=wall,
                            periods_measured=used, trace=trace)
 
-    def _frame(self, x: np.ndarray, theta: float, plate_x: float) -> tuple[float, float, float, float, float, float]:
-        """Yaw (rad, wrapped), centre (u, v, w) in the plate frame (m), up-ness of the sheet and in-plane gyration."""
+    def _frame(self, x: np.ndarray, theta: float,
+               plate_x: float) -> tuple[float, float, float, float, tuple[float, float], float]:
+        """Yaw (rad, wrapped), centre (u, v, w) (m, plate frame), (handedness, layer gap m), in-plane gyration (m).
+
+        The handedness is the determinant of the 2D cross-covariance between the rest and current node patterns: it
+        turns negative when the disc lies upside down (mirrored seen from above).
+        """
         c, s = math.cos(theta), math.sin(theta)
         d = x - np.array([plate_x, 0.0, 0.0])
         u = d[:, 0]
@@ -279,18 +282,27 @@ class SheetScene:
         dot = float((r[:, 0] * qu + r[:, 1] * qv).sum())
         yaw = math.atan2(cross, dot)
         nl = self.n_layer
-        up = float(w[nl:].mean() - w[:nl].mean())
+        # handedness of the in-plane node pattern: < 0 when the disc lies mirrored, i.e. upside down
+        det = float((r[:, 0] * qu).sum() * (r[:, 1] * qv).sum() - (r[:, 1] * qu).sum() * (r[:, 0] * qv).sum())
+        gap = float(w[nl:].mean() - w[:nl].mean())  # top layer minus bottom layer, m
         gyr = float(np.sqrt((qu * qu + qv * qv).mean()))
-        return yaw, cu, cv, cw, up, gyr
+        return yaw, cu, cv, cw, (det, gap), gyr
 
-    def _check(self, x: np.ndarray, x_prev: np.ndarray, cu: float, cv: float, cw: float, up: float, gyr: float,
-               vlim: float, steps_since: int, t: float, ts: list[float]) -> str | None:
-        """The reason constant of a failure, or None."""
+    def _check(self, x: np.ndarray, x_prev: np.ndarray, cu: float, cv: float, cw: float,
+               shape: tuple[float, float], gyr: float, vlim: float, ts: list[float]) -> str | None:
+        """The reason constant of a failure, or None.
+
+        ``shape`` is (handedness, layer gap m): a mirrored pattern means overturned; a layer gap below a quarter of
+        the thickness means the sheet collapsed through its own thickness (tetrahedra inverted): reported as
+        ``folded``.
+        """
         cfg = self.config
         if math.hypot(cu, cv) > cfg.slip_limit:
             return SLIPPED
-        if up < 0.0:
+        if shape[0] < 0.0:
             return OVERTURNED
+        if shape[1] < 0.25 * cfg.thickness:
+            return FOLDED
         if cw > 0.1 or cw < -0.02:
             return LEFT_PLATE
         dt_rec = ts[-1] - ts[-2] if len(ts) >= 2 else cfg.record_every_s

@@ -48,6 +48,9 @@ class RigidTileConfig:
         omega_rigid: natural frequency of the "rigid" rows (stiff spring-dampers), rad/s.
         zeta_rigid: damping ratio of the rigid rows.
         iterations: Gauss-Seidel sweeps over the joints per step (warm started).
+        block_refresh: the joints' 3x3/2x2 block inverses are rebuilt every this many steps (0: only at the
+            start). They set GS's convergence rate, not its fixed point: at dt = 2e-4, rebuilding only once
+            moved omega_B by <= 0.3 % (18/22/25 Hz) and saved ~2 us of ~16.5 us per step.
         contact_points: plate contact sampling per tile; only 4 (the corners) is implemented.
         fold_angle: a joint bending angle beyond this (rad) ends the probe as FOLDED (tiles would pass
             through each other at pi; the joint spring's angle is exact up to +-pi).
@@ -69,10 +72,13 @@ class RigidTileConfig:
     fold_tile_w: float = -0.2
     energy_rel_tol: float = 0.1
     energy_abs_tol: float = 2e-4
+    block_refresh: int = 10
 
     def __post_init__(self) -> None:
         if self.contact_points != 4:
             raise ValueError("only 4 contact points per tile (its corners) are implemented")
+        if int(self.block_refresh) < 0:
+            raise ValueError(f"block_refresh = {self.block_refresh!r} must be >= 0")
         if not (1 <= int(self.iterations) <= 100):
             raise ValueError(f"iterations = {self.iterations!r} must be in [1, 100]")
         for label, value in (("k_inplane", self.k_inplane), ("omega_rigid", self.omega_rigid)):

@@ -6,11 +6,13 @@ Integrator (one step of ``dt`` s, semi-implicit):
 2. the joint rows' accumulated impulses of the previous step are applied again (warm start);
 3. plate contact at every tile corner: the shared Eqs. (3)-(4) law (:func:`contact.normal_force` with its
    implicit damper in the corner's effective mass, :func:`contact.friction_scale` stick/slip), impulses acting
-   on the tile's translation and rotation;
+   on the tile's translation and rotation. The geometry is frozen for the step, so each active corner's spring
+   force ``k a^2.2``, effective normal mass and rotational response are computed once per step, not per sweep;
 4. ``iterations`` block Gauss-Seidel sweeps over the 88 joints: every row (compression, rigid edge/normal
    translation, bending, rigid rotation about the normal) is a spring-damper integrated implicitly (backward
    Euler "soft constraint": ``J v' + k C / (dt k + c) + P / (dt (dt k + c)) = 0``), the 3 translation rows and
-   the 2 rotation rows of a joint solved together. Stiff rows therefore do not bound the step;
+   the 2 rotation rows of a joint solved together. Stiff rows therefore do not bound the step. The blocks'
+   inverses are rebuilt every ``block_refresh`` steps (they set the convergence rate, not the fixed point);
 5. positions and unit quaternions advance with the new velocities.
 
 Checks every record (~1 ms): the point-mass model's :func:`kernels.check_state` (NaN, speed limit, overturned,
@@ -70,8 +72,8 @@ from plate_env.physics.tilelink.rigid import RigidTileConfig, RigidTileParams, b
 # Extra entries of the rigid parameter vector (after the point-mass layout, whose meaning they share:
 # P_MASS tile mass, P_KB bending k_b, P_KIN/P_CIN compression row).
 (R_H, R_IXX, R_IZZ, R_CB, R_KT2, R_CT2, R_KN, R_CN, R_KRN, R_CRN, R_NITER, R_FOLD, R_FOLDW, R_EREL, R_EABS,
- R_CORNERW) = range(kn.N_PARAMS, kn.N_PARAMS + 16)
-N_RIGID_PARAMS = kn.N_PARAMS + 16
+ R_CORNERW, R_REFRESH) = range(kn.N_PARAMS, kn.N_PARAMS + 17)
+N_RIGID_PARAMS = kn.N_PARAMS + 17
 
 #: Default time step, s (omega_B within 1 % of the dt -> 0 value; see experiments/bench_models.py).
 DEFAULT_DT = 2e-4
@@ -82,6 +84,19 @@ def _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, ux, uy, uz):
     """``I_world^-1 u`` of a thin symmetric plate with unit normal n: ``u / I_xx + (1/I_zz - 1/I_xx)(n.u) n``."""
     s = dinv * (nx * ux + ny * uy + nz * uz)
     return ux * ixx_inv + s * nx, uy * ixx_inv + s * ny, uz * ixx_inv + s * nz
+
+
+@numba.njit(cache=True, inline="always")
+def _spring_force(depth, k):
+    """The elastic part ``k a^2.2`` of :func:`contact.normal_force` (its value with no damper), N."""
+    return normal_force(depth, 0.0, k, 0.0, 0.0, 1.0)
+
+
+@numba.njit(cache=True, inline="always")
+def _implicit_normal_force(spring, v_normal, c, inv_mass, dt):
+    """:func:`contact.normal_force` given its elastic part ``spring = k a^2.2`` (> 0) precomputed for the step."""
+    f = (spring - c * v_normal) / (1.0 + dt * c * inv_mass)
+    return f if f > 0.0 else 0.0
 
 
 @numba.njit(cache=True, fastmath=FAST)
@@ -126,6 +141,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
     rc[4] = prm[R_CRN]
     gam = np.empty(5)
     kfac = np.empty(5)
+    block_refresh = int(prm[R_REFRESH])
     for r in range(5):
         den = dt * rk[r] + rc[r]
         gam[r] = 1.0 / (dt * den)
@@ -147,7 +163,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
     jc = np.zeros((nj, 5))  # position errors C
     pacc = np.zeros((nj, 5))  # accumulated impulses (warm start)
     ctile = np.empty(4 * n, dtype=np.int64)  # active corner contacts: tile index
-    cdat = np.empty((4 * n, 7))  # lever arm r (3), depth a, plate surface velocity u (3)
+    cdat = np.empty((4 * n, 11))  # lever arm r (3), spring force k a^2.2, plate velocity u (3), 1/m_n, dv_t/dp_n (3)
     cimp = np.empty((4 * n, 3))  # accumulated contact impulse in this step
     cy = math.cos(prm[P_YAW0])
     sy = math.sin(prm[P_YAW0])
@@ -246,7 +262,9 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
             w[i, 0] += dt * dx
             w[i, 1] += dt * dy
             w[i, 2] += dt * dz
-        # 2. joint set-up for this step and warm start
+        # 2. joint set-up for this step and warm start (the block inverses only set GS's convergence rate, not
+        #    its fixed point, so they may be refreshed less often than every step)
+        refresh = step == 0 or (block_refresh > 0 and step % block_refresh == 0)
         for j in range(nj):
             a = links[j, 0]
             b = links[j, 1]
@@ -299,61 +317,62 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
             jc[j, 4] = cx * nnx + cy * nny + cz * nnz
             for r in range(5):
                 jb[j, r] = kfac[r] * jc[j, r]
-            # translation block K = (2/m) I + sum (r x e_i) . I^-1 (r x e_j), in the joint frame
-            k00 = 2.0 * inv_m + gam[0]
-            k11 = 2.0 * inv_m + gam[1]
-            k22 = 2.0 * inv_m + gam[2]
-            k01 = 0.0
-            k02 = 0.0
-            k12 = 0.0
-            for side in range(2):
-                if side == 0:
-                    rx, ry, rz = rax, ray, raz
-                    px, py, pz = nax, nay, naz
-                else:
-                    rx, ry, rz = rbx, rby, rbz
-                    px, py, pz = nbx, nby, nbz
-                u0x = ry * t1z - rz * t1y
-                u0y = rz * t1x - rx * t1z
-                u0z = rx * t1y - ry * t1x
-                u1x = ry * t2z - rz * t2y
-                u1y = rz * t2x - rx * t2z
-                u1z = rx * t2y - ry * t2x
-                u2x = ry * nnz - rz * nny
-                u2y = rz * nnx - rx * nnz
-                u2z = rx * nny - ry * nnx
-                i0x, i0y, i0z = _apply_inv_inertia(px, py, pz, ixx_inv, dinv, u0x, u0y, u0z)
-                i1x, i1y, i1z = _apply_inv_inertia(px, py, pz, ixx_inv, dinv, u1x, u1y, u1z)
-                i2x, i2y, i2z = _apply_inv_inertia(px, py, pz, ixx_inv, dinv, u2x, u2y, u2z)
-                k00 += u0x * i0x + u0y * i0y + u0z * i0z
-                k01 += u0x * i1x + u0y * i1y + u0z * i1z
-                k02 += u0x * i2x + u0y * i2y + u0z * i2z
-                k11 += u1x * i1x + u1y * i1y + u1z * i1z
-                k12 += u1x * i2x + u1y * i2y + u1z * i2z
-                k22 += u2x * i2x + u2y * i2y + u2z * i2z
-            c00 = k11 * k22 - k12 * k12
-            c01 = k02 * k12 - k01 * k22
-            c02 = k01 * k12 - k02 * k11
-            det = k00 * c00 + k01 * c01 + k02 * c02
-            idet = 1.0 / det
-            jkt[j, 0] = c00 * idet
-            jkt[j, 1] = c01 * idet
-            jkt[j, 2] = c02 * idet
-            jkt[j, 3] = (k00 * k22 - k02 * k02) * idet
-            jkt[j, 4] = (k01 * k02 - k00 * k12) * idet
-            jkt[j, 5] = (k00 * k11 - k01 * k01) * idet
-            # rotation block over (t2, n): e_i . (Ia^-1 + Ib^-1) e_j
-            a2x, a2y, a2z = _apply_inv_inertia(nax, nay, naz, ixx_inv, dinv, t2x, t2y, t2z)
-            b2x, b2y, b2z = _apply_inv_inertia(nbx, nby, nbz, ixx_inv, dinv, t2x, t2y, t2z)
-            a3x, a3y, a3z = _apply_inv_inertia(nax, nay, naz, ixx_inv, dinv, nnx, nny, nnz)
-            b3x, b3y, b3z = _apply_inv_inertia(nbx, nby, nbz, ixx_inv, dinv, nnx, nny, nnz)
-            r00 = t2x * (a2x + b2x) + t2y * (a2y + b2y) + t2z * (a2z + b2z) + gam[3]
-            r01 = t2x * (a3x + b3x) + t2y * (a3y + b3y) + t2z * (a3z + b3z)
-            r11 = nnx * (a3x + b3x) + nny * (a3y + b3y) + nnz * (a3z + b3z) + gam[4]
-            idet = 1.0 / (r00 * r11 - r01 * r01)
-            jkr[j, 0] = r11 * idet
-            jkr[j, 1] = -r01 * idet
-            jkr[j, 2] = r00 * idet
+            if refresh:
+                # translation block K = (2/m) I + sum (r x e_i) . I^-1 (r x e_j), in the joint frame
+                k00 = 2.0 * inv_m + gam[0]
+                k11 = 2.0 * inv_m + gam[1]
+                k22 = 2.0 * inv_m + gam[2]
+                k01 = 0.0
+                k02 = 0.0
+                k12 = 0.0
+                for side in range(2):
+                    if side == 0:
+                        rx, ry, rz = rax, ray, raz
+                        px, py, pz = nax, nay, naz
+                    else:
+                        rx, ry, rz = rbx, rby, rbz
+                        px, py, pz = nbx, nby, nbz
+                    u0x = ry * t1z - rz * t1y
+                    u0y = rz * t1x - rx * t1z
+                    u0z = rx * t1y - ry * t1x
+                    u1x = ry * t2z - rz * t2y
+                    u1y = rz * t2x - rx * t2z
+                    u1z = rx * t2y - ry * t2x
+                    u2x = ry * nnz - rz * nny
+                    u2y = rz * nnx - rx * nnz
+                    u2z = rx * nny - ry * nnx
+                    i0x, i0y, i0z = _apply_inv_inertia(px, py, pz, ixx_inv, dinv, u0x, u0y, u0z)
+                    i1x, i1y, i1z = _apply_inv_inertia(px, py, pz, ixx_inv, dinv, u1x, u1y, u1z)
+                    i2x, i2y, i2z = _apply_inv_inertia(px, py, pz, ixx_inv, dinv, u2x, u2y, u2z)
+                    k00 += u0x * i0x + u0y * i0y + u0z * i0z
+                    k01 += u0x * i1x + u0y * i1y + u0z * i1z
+                    k02 += u0x * i2x + u0y * i2y + u0z * i2z
+                    k11 += u1x * i1x + u1y * i1y + u1z * i1z
+                    k12 += u1x * i2x + u1y * i2y + u1z * i2z
+                    k22 += u2x * i2x + u2y * i2y + u2z * i2z
+                c00 = k11 * k22 - k12 * k12
+                c01 = k02 * k12 - k01 * k22
+                c02 = k01 * k12 - k02 * k11
+                det = k00 * c00 + k01 * c01 + k02 * c02
+                idet = 1.0 / det
+                jkt[j, 0] = c00 * idet
+                jkt[j, 1] = c01 * idet
+                jkt[j, 2] = c02 * idet
+                jkt[j, 3] = (k00 * k22 - k02 * k02) * idet
+                jkt[j, 4] = (k01 * k02 - k00 * k12) * idet
+                jkt[j, 5] = (k00 * k11 - k01 * k01) * idet
+                # rotation block over (t2, n): e_i . (Ia^-1 + Ib^-1) e_j
+                a2x, a2y, a2z = _apply_inv_inertia(nax, nay, naz, ixx_inv, dinv, t2x, t2y, t2z)
+                b2x, b2y, b2z = _apply_inv_inertia(nbx, nby, nbz, ixx_inv, dinv, t2x, t2y, t2z)
+                a3x, a3y, a3z = _apply_inv_inertia(nax, nay, naz, ixx_inv, dinv, nnx, nny, nnz)
+                b3x, b3y, b3z = _apply_inv_inertia(nbx, nby, nbz, ixx_inv, dinv, nnx, nny, nnz)
+                r00 = t2x * (a2x + b2x) + t2y * (a2y + b2y) + t2z * (a2z + b2z) + gam[3]
+                r01 = t2x * (a3x + b3x) + t2y * (a3y + b3y) + t2z * (a3z + b3z)
+                r11 = nnx * (a3x + b3x) + nny * (a3y + b3y) + nnz * (a3z + b3z) + gam[4]
+                idet = 1.0 / (r00 * r11 - r01 * r01)
+                jkr[j, 0] = r11 * idet
+                jkr[j, 1] = -r01 * idet
+                jkr[j, 2] = r00 * idet
             # warm start: apply last step's impulses
             p0, p1, p2, p3, p4 = pacc[j, 0], pacc[j, 1], pacc[j, 2], pacc[j, 3], pacc[j, 4]
             fx = p0 * t1x + p1 * t2x + p2 * nnx
@@ -400,10 +419,25 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
                 cdat[n_act, 0] = rx
                 cdat[n_act, 1] = ry
                 cdat[n_act, 2] = rz
-                cdat[n_act, 3] = -wc
+                cdat[n_act, 3] = _spring_force(-wc, kc)
                 cdat[n_act, 4] = xp_dot
                 cdat[n_act, 5] = -th_dot * pz
                 cdat[n_act, 6] = th_dot * py
+                # step-constant response of the corner to a normal impulse: I^-1 (r x n), 1/m_eff, and the
+                # tangential corner velocity per unit normal impulse (geometry is frozen for the step)
+                nx, ny, nz = ax[i, 6], ax[i, 7], ax[i, 8]
+                cx = ry * pnz - rz * pny
+                cy = rz * pnx - rx * pnz
+                cz = rx * pny - ry * pnx
+                ix, iy, iz = _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, cx, cy, cz)
+                cdat[n_act, 7] = inv_m + cx * ix + cy * iy + cz * iz
+                gx = iy * rz - iz * ry
+                gy = iz * rx - ix * rz
+                gz = ix * ry - iy * rx
+                dvn = gx * pnx + gy * pny + gz * pnz
+                cdat[n_act, 8] = gx - dvn * pnx
+                cdat[n_act, 9] = gy - dvn * pny
+                cdat[n_act, 10] = gz - dvn * pnz
                 cimp[n_act, 0] = 0.0
                 cimp[n_act, 1] = 0.0
                 cimp[n_act, 2] = 0.0
@@ -432,28 +466,17 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
                 vry = v[i, 1] + w[i, 2] * rx - w[i, 0] * rz - uy
                 vrz = v[i, 2] + w[i, 0] * ry - w[i, 1] * rx - uz
                 vn = vrx * pnx + vry * pny + vrz * pnz
-                cx = ry * pnz - rz * pny
-                cy = rz * pnx - rx * pnz
-                cz = rx * pny - ry * pnx
-                ix, iy, iz = _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, cx, cy, cz)
-                kn_inv = inv_m + cx * ix + cy * iy + cz * iz
-                fn = normal_force(cdat[k, 3], vn, kc, cc, kn_inv, dt)
+                kn_inv = cdat[k, 7]
+                fn = _implicit_normal_force(cdat[k, 3], vn, cc, kn_inv, dt)
                 jx = 0.0
                 jy = 0.0
                 jz = 0.0
                 if fn > 0.0:
                     pn = dt * fn
-                    tx = vrx - vn * pnx
-                    ty = vry - vn * pny
-                    tz = vrz - vn * pnz
-                    # the normal impulse's rotational part changes the tangential corner velocity too
-                    gx = iy * rz - iz * ry
-                    gy = iz * rx - ix * rz
-                    gz = ix * ry - iy * rx
-                    dvn = gx * pnx + gy * pny + gz * pnz
-                    tx += pn * (gx - dvn * pnx)
-                    ty += pn * (gy - dvn * pny)
-                    tz += pn * (gz - dvn * pnz)
+                    # tangential slip after the normal impulse (its rotational part moves the corner too)
+                    tx = vrx - vn * pnx + pn * cdat[k, 8]
+                    ty = vry - vn * pny + pn * cdat[k, 9]
+                    tz = vrz - vn * pnz + pn * cdat[k, 10]
                     slip = math.sqrt(tx * tx + ty * ty + tz * tz)
                     jx = pn * pnx
                     jy = pn * pny
@@ -627,6 +650,7 @@ def param_vector(spec: ProbeSpec, dt: float, slip_limit: float,
     prm[R_EREL] = config.energy_rel_tol
     prm[R_EABS] = config.energy_abs_tol
     prm[R_CORNERW] = 0.25
+    prm[R_REFRESH] = config.block_refresh
     return prm
 
 

@@ -1,0 +1,280 @@
+"""Gymnasium environment ``PlateRotation-v0``: probes as actions, identification of omega_n as the goal.
+
+Episode. ``reset`` hides an object drawn from a seeded distribution: omega_n log-uniform over
+``omega_n_range_pi`` (units of pi rad/s, default the paper's 3.5-33), alpha uniform over ``alpha_range_deg``
+(default 30-60), the mass optionally varied by +-``mass_variation``. Each ``step`` is one probe, the action
+choosing it; the physics runs it and a camera model measures omega_B. The episode ends when the action says stop
+or the budget (``max_probes`` and/or ``max_sim_s`` simulated seconds) is spent.
+
+Action: ``Box(-1, 1, (4,))``:
+    [0] plate frequency f_p, mapped linearly onto ``f_band_hz``;
+    [1] plate amplitude: the interval [-1, 1] split evenly among ``amplitudes_deg``;
+    [2] measurement window, mapped linearly onto ``measure_range_s``;
+    [3] stop: > 0 ends the episode before this probe is run (ignored on the first step).
+
+Observation (Markov): ``Box(-10, 10, (7 * max_probes + 2,))``: one row per probe slot
+    [f_p (-1..1 over the band), A_p (-1..1 over the amplitudes), omega_B / 1000 deg/s, its standard error / 1000,
+     unstable (0/1), window (-1..1 over measure_range_s), filled (0/1)]
+followed by the probes left and the simulated seconds left, as fractions of the budget.
+
+Reward: each probe costs ``cost_per_sim_s`` per simulated second it took (ramp + settle + window). At the end the
+estimate omega_n_hat (``method``: the atlas posterior or the paper's Lorentzian fit) is scored:
+``-min(|omega_n_hat - omega_n| / omega_n, error_cap)``, or ``-no_estimate_penalty`` when no estimate can be made.
+Defaults: cost 0.005 per simulated second, error cap 1, no-estimate penalty 1.
+
+``info`` carries the truth and the diagnostics: ``omega_n_true`` (rad/s), ``alpha_true`` (rad), ``estimate``
+(a dict: omega_n_hat and its standard error, alpha_hat, fit parameters), ``sim_s`` (the episode's simulated
+seconds so far) and the last probe's details; the final step adds ``wall_s``, the episode's wall-clock seconds
+(the one non-deterministic number, so it is kept out of the per-step infos that seeding must reproduce).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from plate_env.camera import camera_omega_b
+from plate_env.motion import PlateMotion
+from plate_env.objects import ObjectSpec
+from plate_env.physics import make_physics
+from plate_env.physics.base import ProbeResult, ProbeSpec
+from plate_env.probes import ProbeTable
+
+N_FEATURES = 7
+
+
+class PlateRotationEnv(gym.Env):
+    """Identify a hidden object's bending natural frequency by choosing plate probes. See the module docstring."""
+
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
+
+    def __init__(self, physics: str = "tilelink", physics_options: dict | None = None, method: str = "atlas",
+                 omega_n_range_pi: tuple[float, float] = (3.5, 33.0),
+                 alpha_range_deg: tuple[float, float] = (30.0, 60.0),
+                 mass_variation: float = 0.0, f_band_hz: tuple[float, float] = (10.0, 40.0),
+                 amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = 3.0, max_probes: int = 20,
+                 max_sim_s: float | None = None, measure_range_s: tuple[float, float] = (0.25, 2.0),
+                 settle_s: float = 0.5, camera_fps: float = 30.0, angle_noise_deg: float = 0.5,
+                 cost_per_sim_s: float = 0.005, error_cap: float = 1.0, no_estimate_penalty: float = 1.0,
+                 render_mode: str | None = None) -> None:
+        super().__init__()
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode {render_mode!r} not in {self.metadata['render_modes']}")
+        if method not in ("atlas", "lorentz"):
+            raise ValueError(f"method {method!r}: choose 'atlas' or 'lorentz'")
+        _check_range("omega_n_range_pi", omega_n_range_pi, 0.1, 300.0)
+        _check_range("alpha_range_deg", alpha_range_deg, 1.0, 89.0)
+        _check_range("f_band_hz", f_band_hz, 0.5, 200.0)
+        _check_range("measure_range_s", measure_range_s, 0.01, 60.0)
+        if not amplitudes_deg or not all(0 < abs(a) <= 45 for a in amplitudes_deg):
+            raise ValueError(f"amplitudes_deg {amplitudes_deg!r}: give one or more amplitudes in (0, 45] deg")
+        if not (isinstance(max_probes, (int, np.integer)) and 1 <= max_probes <= 500):
+            raise ValueError(f"max_probes {max_probes!r} must be an int in [1, 500]")
+        if max_sim_s is not None and not (math.isfinite(max_sim_s) and max_sim_s > 0):
+            raise ValueError(f"max_sim_s {max_sim_s!r} must be positive or None")
+        if not (0.0 <= mass_variation < 1.0):
+            raise ValueError(f"mass_variation {mass_variation!r} must be in [0, 1)")
+        self.physics_name = physics
+        self.physics_options = dict(physics_options or {})
+        self.physics = make_physics(physics, **self.physics_options)
+        # identification uses the calibration/atlas of the physics the probes come from
+        self.source = getattr(self.physics, "source", physics)
+        self.model = getattr(self.physics, "model", physics)
+        self.method = method
+        self.omega_n_range_pi = tuple(omega_n_range_pi)
+        self.alpha_range_deg = tuple(alpha_range_deg)
+        self.mass_variation = mass_variation
+        self.f_band_hz = tuple(f_band_hz)
+        self.amplitudes_deg = tuple(float(a) for a in amplitudes_deg)
+        self.b_p_mm = b_p_mm
+        self.max_probes = int(max_probes)
+        self.max_sim_s = max_sim_s
+        self.measure_range_s = tuple(measure_range_s)
+        self.settle_s = settle_s
+        self.camera_fps = camera_fps
+        self.angle_noise_deg = angle_noise_deg
+        self.cost_per_sim_s = cost_per_sim_s
+        self.error_cap = error_cap
+        self.no_estimate_penalty = no_estimate_penalty
+        self.render_mode = render_mode
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
+        self.observation_space = spaces.Box(-10.0, 10.0, shape=(N_FEATURES * self.max_probes + 2,),
+                                            dtype=np.float32)
+        self._obj: ObjectSpec | None = None
+        self._rows: list[tuple[float, float, float, float, bool, float]] = []
+        self._results: list[ProbeResult] = []
+        self._sim_s = 0.0
+        self._wall_s = 0.0
+        self._done = True
+        self._last: ProbeResult | None = None
+        self._closed = False
+        self._window = None
+
+    # ------------------------------------------------------------------ episode
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        rng = self.np_random
+        options = options or {}
+        lo, hi = self.omega_n_range_pi
+        omega = options.get("omega_n", math.pi * math.exp(rng.uniform(math.log(lo), math.log(hi))))
+        alpha = options.get("alpha", math.radians(rng.uniform(*self.alpha_range_deg)))
+        mass = 0.0136 * (1.0 + self.mass_variation * rng.uniform(-1.0, 1.0))
+        self._obj = ObjectSpec(omega_n=float(omega), alpha=float(alpha), mass=mass, name="hidden")
+        self._rows, self._results = [], []
+        self._sim_s = self._wall_s = 0.0
+        self._done = False
+        self._last = None
+        return self._obs(), self._info()
+
+    def decode_action(self, action) -> tuple[bool, ProbeSpec | None]:
+        """Check an action and turn it into (stop, probe). Raises ValueError naming a bad value."""
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (4,):
+            raise ValueError(f"action must have shape (4,), got {a.shape}: {action!r}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action {a.tolist()} contains NaN or inf; allowed: finite values in [-1, 1]")
+        if np.any(np.abs(a) > 1.0 + 1e-6):
+            raise ValueError(f"action {a.tolist()} is outside the allowed range [-1, 1]")
+        a = np.clip(a, -1.0, 1.0)
+        if a[3] > 0 and self._rows:
+            return True, None
+        f = self.f_band_hz[0] + (a[0] + 1) / 2 * (self.f_band_hz[1] - self.f_band_hz[0])
+        k = min(int((a[1] + 1) / 2 * len(self.amplitudes_deg)), len(self.amplitudes_deg) - 1)
+        window = self.measure_range_s[0] + (a[2] + 1) / 2 * (self.measure_range_s[1] - self.measure_range_s[0])
+        motion = PlateMotion.from_paper(float(f), self.amplitudes_deg[k], self.b_p_mm)
+        spec = ProbeSpec(self._obj, motion, settle_s=self.settle_s, measure_s=float(window), record_trace=True)
+        return False, spec.perturbed(self.np_random)
+
+    def step(self, action):
+        stop, spec = self.prepare(action)
+        result = None if stop else self.physics.run([spec])[0]
+        return self.finish(result)
+
+    def prepare(self, action) -> tuple[bool, ProbeSpec | None]:
+        """First half of a step: validate the action, decide stop or the probe to run (for batched vector envs)."""
+        if self._obj is None or self._done:
+            raise RuntimeError("call reset() before step() (the episode is over)")
+        return self.decode_action(action)
+
+    def finish(self, result: ProbeResult | None):
+        """Second half of a step: record the probe (or stop), compute reward, termination and info."""
+        reward = 0.0
+        if result is not None:
+            omega, se = camera_omega_b(result, self.np_random, self.camera_fps, self.angle_noise_deg)
+            if result.unstable:
+                omega, se = 0.0, 0.0
+            spec = result.spec
+            self._rows.append((spec.motion.freq_hz, spec.motion.a_p_deg, omega, se, result.unstable, spec.measure_s))
+            self._results.append(result)
+            self._sim_s += result.sim_s
+            self._wall_s += result.wall_s
+            self._last = result
+            reward -= self.cost_per_sim_s * result.sim_s
+        spent = len(self._rows) >= self.max_probes or (self.max_sim_s is not None and self._sim_s >= self.max_sim_s)
+        terminated = result is None or spent
+        info = self._info()
+        if terminated:
+            self._done = True
+            info["wall_s"] = self._wall_s
+            est = self.estimate()
+            info["estimate"] = est.to_dict()
+            if est.ok:
+                info["relative_error"] = est.relative_error(self._obj.omega_n)
+                reward -= min(info["relative_error"], self.error_cap)
+            else:
+                info["relative_error"] = None
+                reward -= self.no_estimate_penalty
+        if self.render_mode == "human":
+            self.render()
+        return self._obs(), float(reward), bool(terminated), False, info
+
+    # ------------------------------------------------------------------ views
+    def table(self) -> ProbeTable:
+        """The probes of this episode as the camera measured them."""
+        if not self._rows:
+            return ProbeTable.from_arrays([], [], [])
+        f, a, w, se, un, _ = zip(*self._rows, strict=True)
+        return ProbeTable.from_arrays(f, a, w, se, un)
+
+    def estimate(self):
+        """The current omega_n estimate from the probes so far."""
+        from plate_env.identify import Estimate, identify
+
+        if not self._rows:
+            return Estimate(ok=False, method=self.method, reason="no probes")
+        try:
+            return identify(self.table(), method=self.method, physics=self.source, model=self.model)
+        except ValueError as exc:
+            return Estimate(ok=False, method=self.method, reason=str(exc))
+
+    def _obs(self) -> np.ndarray:
+        obs = np.zeros(self.observation_space.shape, dtype=np.float32)
+        f_lo, f_hi = self.f_band_hz
+        m_lo, m_hi = self.measure_range_s
+        n_amp = len(self.amplitudes_deg)
+        for i, (f, a, w, se, un, win) in enumerate(self._rows[: self.max_probes]):
+            k = self.amplitudes_deg.index(min(self.amplitudes_deg, key=lambda x: abs(x - a)))
+            obs[N_FEATURES * i: N_FEATURES * (i + 1)] = (
+                2 * (f - f_lo) / (f_hi - f_lo) - 1, (2 * k + 1) / n_amp - 1 if n_amp > 1 else 0.0,
+                np.clip(w / 1000.0, -10, 10), np.clip(se / 1000.0, 0, 10), float(un),
+                2 * (win - m_lo) / (m_hi - m_lo) - 1, 1.0)
+        obs[-2] = 1.0 - len(self._rows) / self.max_probes
+        obs[-1] = 1.0 - self._sim_s / self.max_sim_s if self.max_sim_s else 1.0
+        return np.clip(obs, -10.0, 10.0)
+
+    def _info(self) -> dict[str, Any]:
+        info: dict[str, Any] = {"omega_n_true": self._obj.omega_n if self._obj else None,
+                                "alpha_true": self._obj.alpha if self._obj else None,
+                                "mass_true": self._obj.mass if self._obj else None,
+                                "probes": len(self._rows), "sim_s": self._sim_s}
+        if self._last is not None:
+            last = self._last.to_dict()
+            last.pop("wall_s")
+            info["last_probe"] = last
+        return info
+
+    # ------------------------------------------------------------------ render / close
+    def render(self):
+        if self.render_mode is None:
+            return None
+        from plate_env.render import draw_scene
+
+        frame = draw_scene(self._last, self._obj)
+        if self.render_mode == "rgb_array":
+            return frame
+        from plate_env.render import show
+
+        self._window = show(frame, self._window)
+        return None
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        self.physics.close()
+        if self._window is not None:
+            from plate_env.render import close_window
+
+            close_window(self._window)
+            self._window = None
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["physics"] = None
+        state["_window"] = None
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self.physics = make_physics(self.physics_name, **self.physics_options)
+        self._closed = False
+
+
+def _check_range(name: str, value, lo: float, hi: float) -> None:
+    if (len(value) != 2 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in value)
+            or not (lo <= value[0] < value[1] <= hi)):
+        raise ValueError(f"{name} = {value!r} must be an increasing pair within [{lo}, {hi}]")

@@ -1,0 +1,94 @@
+"""A vector ``PlateRotation-v0`` whose probes run as one batched physics call (``gymnasium.make_vec`` with
+``vectorization_mode="vector_entry_point"``). Same numbers as N single envs (tile-link batches are bit-identical
+to single runs); autoreset follows Gymnasium's default NEXT_STEP mode."""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
+
+from plate_env.env import PlateRotationEnv
+
+
+class PlateRotationVectorEnv(VectorEnv):
+    """``num_envs`` environments sharing one physics backend; each step's probes run in one batched call."""
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"]}
+
+    def __init__(self, num_envs: int = 2, **kwargs) -> None:
+        if not (isinstance(num_envs, int) and num_envs >= 1):
+            raise ValueError(f"num_envs {num_envs!r} must be a positive int")
+        self.envs = [PlateRotationEnv(**kwargs) for _ in range(num_envs)]
+        self.physics = self.envs[0].physics
+        for env in self.envs[1:]:
+            env.physics.close()
+            env.physics = self.physics
+        self.num_envs = num_envs
+        self.render_mode = kwargs.get("render_mode")
+        self.single_observation_space = self.envs[0].observation_space
+        self.single_action_space = self.envs[0].action_space
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self._autoreset = np.zeros(num_envs, dtype=bool)
+        self._obs = create_empty_array(self.single_observation_space, num_envs, fn=np.zeros)
+        self._closed_physics = False
+
+    def reset(self, *, seed=None, options=None):
+        if seed is None or isinstance(seed, (int, np.integer)):
+            seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"{len(seeds)} seeds for {self.num_envs} environments")
+        infos: dict = {}
+        obs = []
+        for i, (env, s) in enumerate(zip(self.envs, seeds, strict=True)):
+            o, info = env.reset(seed=s, options=options)
+            obs.append(o)
+            infos = self._add_info(infos, info, i)
+        self._autoreset[:] = False
+        self._obs = concatenate(self.single_observation_space, obs, self._obs)
+        return self._obs.copy(), infos
+
+    def step(self, actions):
+        actions = np.asarray(actions)
+        if actions.shape != self.action_space.shape:
+            raise ValueError(f"actions must have shape {self.action_space.shape}, got {actions.shape}")
+        plans: list[tuple[str, object]] = []
+        specs = []
+        for i, env in enumerate(self.envs):
+            if self._autoreset[i]:
+                plans.append(("reset", None))
+                continue
+            stop, spec = env.prepare(actions[i])
+            if stop:
+                plans.append(("stop", None))
+            else:
+                plans.append(("probe", len(specs)))
+                specs.append(spec)
+        results = self.physics.run(specs) if specs else []
+        obs, infos = [], {}
+        rewards = np.zeros(self.num_envs)
+        terms = np.zeros(self.num_envs, dtype=bool)
+        truncs = np.zeros(self.num_envs, dtype=bool)
+        for i, (env, (kind, k)) in enumerate(zip(self.envs, plans, strict=True)):
+            if kind == "reset":
+                o, info = env.reset()
+            else:
+                o, rewards[i], terms[i], truncs[i], info = env.finish(results[k] if kind == "probe" else None)
+            obs.append(o)
+            infos = self._add_info(infos, info, i)
+        self._autoreset = terms | truncs
+        self._obs = concatenate(self.single_observation_space, obs, self._obs)
+        return self._obs.copy(), rewards, terms, truncs, infos
+
+    def render(self):
+        return tuple(env.render() for env in self.envs)
+
+    def close_extras(self, **kwargs) -> None:
+        if not self._closed_physics:
+            self._closed_physics = True
+            self.physics.close()
+            for env in self.envs:
+                env._closed = True

@@ -1,0 +1,189 @@
+"""The Gymnasium environment PlateRotation-v0."""
+
+from __future__ import annotations
+
+import copy
+import pickle
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import plate_env  # noqa: F401 - registers the environment
+from plate_env.env import PlateRotationEnv
+
+FAST = {"tilelink": dict(max_probes=4), "atlas": dict(max_probes=6),
+        "pybullet": dict(max_probes=2, settle_s=0.1, measure_range_s=(0.1, 0.2), method="lorentz",
+                         physics_options=dict(n_workers=1))}
+
+
+def make(physics="tilelink", **kw):
+    return gym.make("PlateRotation-v0", physics=physics, **{**FAST[physics], **kw})
+
+
+def probe_action(rng):
+    a = rng.uniform(-1, 1, 4).astype(np.float32)
+    a[3] = -1.0
+    return a
+
+
+@pytest.mark.parametrize("physics", ["tilelink", "atlas", "pybullet"])
+def test_gymnasium_and_sb3_check_env(physics):
+    from gymnasium.utils.env_checker import check_env
+
+    env = make(physics)
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+    from stable_baselines3.common.env_checker import check_env as sb3_check
+
+    env = PlateRotationEnv(physics=physics, **FAST[physics])
+    sb3_check(env, warn=False)
+    env.close()
+
+
+def test_namespaced_id_also_registered():
+    env = gym.make("plate_env/PlateRotation-v0", physics="atlas")
+    assert env.unwrapped.physics.name == "atlas"
+    env.close()
+
+
+def _episode(env, seed, actions):
+    out = []
+    obs, info = env.reset(seed=seed)
+    out.append((obs.copy(), 0.0, info["omega_n_true"]))
+    for a in actions:
+        obs, r, term, trunc, info = env.step(a)
+        out.append((obs.copy(), r, info.get("relative_error")))
+        if term or trunc:
+            break
+    return out
+
+
+@pytest.mark.parametrize("physics", ["tilelink", "atlas"])
+def test_same_seed_same_episode(physics):
+    rng = np.random.default_rng(0)
+    actions = [probe_action(rng) for _ in range(6)]
+    a = _episode(make(physics), 7, actions)
+    b = _episode(make(physics), 7, actions)
+    c = _episode(make(physics), 8, actions)
+    assert len(a) == len(b)
+    for (o1, r1, i1), (o2, r2, i2) in zip(a, b, strict=True):
+        assert np.array_equal(o1, o2) and r1 == r2 and i1 == i2
+    assert not np.array_equal(a[0][0], c[0][0]) or a[0][2] != c[0][2]
+
+
+def test_reward_formula_on_a_hand_made_case():
+    env = PlateRotationEnv(physics="atlas", max_probes=3, cost_per_sim_s=0.01, error_cap=1.0)
+    env.reset(seed=0, options={"omega_n": 10 * np.pi, "alpha": np.radians(40)})
+    rewards, infos = [], []
+    for f in (-0.2, 0.0, 0.2):
+        _, r, term, _, info = env.step(np.array([f, -1.0, 0.0, -1.0], np.float32))
+        rewards.append(r)
+        infos.append(info)
+    assert term
+    sims = np.diff([0.0] + [i["sim_s"] for i in infos])
+    np.testing.assert_allclose(rewards[:2], -0.01 * sims[:2])
+    est = infos[-1]["estimate"]
+    if est["ok"]:
+        err = abs(est["omega_n_rad_s"] - 10 * np.pi) / (10 * np.pi)
+        assert infos[-1]["relative_error"] == pytest.approx(err)
+        assert rewards[-1] == pytest.approx(-0.01 * sims[-1] - min(err, 1.0))
+    else:
+        assert rewards[-1] == pytest.approx(-0.01 * sims[-1] - 1.0)
+
+
+def test_stop_without_probes_is_ignored_and_stop_later_ends_with_penalty_when_no_estimate():
+    env = PlateRotationEnv(physics="atlas", max_probes=5, method="lorentz", no_estimate_penalty=2.0)
+    env.reset(seed=1)
+    _, r, term, _, _ = env.step(np.array([0.0, -1.0, 0.0, 1.0], np.float32))  # stop ignored: no probe yet
+    assert not term and r < 0
+    _, r, term, _, info = env.step(np.array([0.0, -1.0, 0.0, 1.0], np.float32))
+    assert term and info["relative_error"] is None and r == pytest.approx(-2.0)
+
+
+@pytest.mark.parametrize("physics", ["tilelink", "atlas"])
+def test_random_episode_ends_within_budget(physics):
+    env = make(physics, max_probes=5, max_sim_s=6.0)
+    env.reset(seed=3)
+    rng = np.random.default_rng(3)
+    for n in range(1, 100):  # noqa: B007 - n is the probe count after the loop
+        _, r, term, trunc, info = env.step(probe_action(rng))
+        assert np.isfinite(r)
+        if term or trunc:
+            break
+    assert n <= 5 and info["probes"] <= 5
+    assert info["sim_s"] < 6.0 + 3.0  # at most one probe past the simulated-seconds budget
+
+
+@pytest.mark.parametrize("bad, message", [
+    (np.array([np.nan, 0, 0, -1], np.float32), "NaN"),
+    (np.array([2.0, 0, 0, -1], np.float32), "outside the allowed range"),
+    (np.zeros(3, np.float32), "shape"),
+])
+def test_bad_actions_raise_clear_errors_and_keep_history(bad, message):
+    env = PlateRotationEnv(physics="atlas", max_probes=5)
+    env.reset(seed=0)
+    env.step(np.array([0.0, -1.0, 0.0, -1.0], np.float32))
+    with pytest.raises(ValueError, match=message):
+        env.step(bad)
+    assert len(env.table()) == 1
+    env.step(np.array([0.1, -1.0, 0.0, -1.0], np.float32))
+    assert len(env.table()) == 2
+
+
+def test_rgb_array_render_and_no_render_by_default():
+    env = make("tilelink", render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(np.array([0.0, -1.0, 0.0, -1.0], np.float32))
+    frame = env.render()
+    assert frame.shape == (240, 480, 3) and frame.dtype == np.uint8
+    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 3
+    env.close()
+    plain = make("tilelink")
+    plain.reset(seed=0)
+    assert plain.render() is None
+
+
+def test_close_twice_and_pickle_and_deepcopy():
+    env = PlateRotationEnv(physics="tilelink", max_probes=3)
+    env.reset(seed=2)
+    env.step(np.array([0.0, -1.0, 0.0, -1.0], np.float32))
+    clone = pickle.loads(pickle.dumps(env))
+    twin = copy.deepcopy(env)
+    a = np.array([0.2, -1.0, 0.0, -1.0], np.float32)
+    o1, r1, *_ = env.step(a)
+    o2, r2, *_ = clone.step(a)
+    o3, r3, *_ = twin.step(a)
+    assert np.array_equal(o1, o2) and np.array_equal(o1, o3) and r1 == r2 == r3
+    env.close()
+    env.close()
+    clone.close()
+
+
+def test_pybullet_client_disconnected_on_close():
+    pytest.importorskip("pybullet")
+    env = PlateRotationEnv(physics="pybullet", **FAST["pybullet"])
+    env.reset(seed=0)
+    env.step(np.array([-0.6, -1.0, -1.0, -1.0], np.float32))
+    env.close()
+    env.close()
+    assert env.physics._client is None and env.physics._pool is None
+
+
+@pytest.mark.parametrize("mode", ["vector_entry_point", "async"])
+def test_vector_env_equals_n_single_envs(mode):
+    kwargs = dict(physics="tilelink", max_probes=3)
+    vec = gym.make_vec("PlateRotation-v0", num_envs=3, vectorization_mode=mode, **kwargs)
+    ref = gym.make_vec("PlateRotation-v0", num_envs=3, vectorization_mode="sync", **kwargs)
+    o1, _ = vec.reset(seed=11)
+    o2, _ = ref.reset(seed=11)
+    assert np.array_equal(o1, o2)
+    rng = np.random.default_rng(11)
+    for _ in range(5):
+        a = rng.uniform(-1, 1, (3, 4)).astype(np.float32)
+        a[:, 3] = -1
+        s1, s2 = vec.step(a), ref.step(a)
+        for x, y in zip(s1[:4], s2[:4], strict=True):
+            assert np.array_equal(x, y)
+    vec.close()
+    ref.close()
