@@ -1,4 +1,4 @@
-"""``plate-env`` command line: probe, sweep, fit. ``--json`` on every command prints one JSON document."""
+"""``plate-env`` command line: identify, probe, sweep, fit. ``--json`` on every command prints one JSON document."""
 
 from __future__ import annotations
 
@@ -70,7 +70,7 @@ def _spec(args: argparse.Namespace, obj: ObjectSpec, freq: float) -> ProbeSpec:
 
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
-    p.add_argument("--model", default=None, help="tilelink model (pointmass)")
+    p.add_argument("--model", default=None, help="tilelink model (pointmass, rigid)")
     p.add_argument("--object", default=None, help="preset object: cheese, dumpling, cheese_lead")
     p.add_argument("--omega-n", default=None, help="bending natural frequency, rad/s or e.g. 10pi")
     p.add_argument("--alpha", type=float, default=None, help="friction angle, degrees")
@@ -94,6 +94,20 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--freqs", default="10:40:1", help="start:stop:step or a comma list, Hz")
     s.add_argument("--plot", default=None, help="write a PNG of omega_B vs f_p")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    i = sub.add_parser("identify", help="identify a hidden object with a probing agent (the main job)")
+    i.add_argument("--agent", default="bayes", choices=("grid", "coarse_to_fine", "bayes", "ppo"))
+    i.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
+    i.add_argument("--model", default=None, help="tilelink model (pointmass, rigid)")
+    i.add_argument("--object", default=None, help="preset object: cheese, dumpling, cheese_lead")
+    i.add_argument("--omega-n", default=None, help="true bending natural frequency, rad/s or e.g. 17pi")
+    i.add_argument("--alpha", type=float, default=None, help="true friction angle, degrees")
+    i.add_argument("--mass-g", type=float, default=None, help="object mass, grams")
+    i.add_argument("--seed", type=int, default=0, help="seed of the episode (placement, camera noise)")
+    i.add_argument("--max-probes", type=int, default=30, help="probe budget")
+    i.add_argument("--target", type=float, default=None, help="bayes: stop at this relative posterior std")
+    i.add_argument("--dt", type=float, default=None, help="time step, s (backend default if omitted)")
+    i.add_argument("--plot", default=None, help="write a PNG of the probes, fit and estimate")
+    i.add_argument("--json", action="store_true", help="print one JSON document")
     f = sub.add_parser("fit", help="fit a lab sweep (CSV) and estimate omega_n")
     f.add_argument("csv", help="CSV with columns f_p_hz, omega_b_deg_s[, stderr_deg_s, a_p_deg, unstable]")
     f.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees")
@@ -199,7 +213,63 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     return 0 if est.ok else 1
 
 
-COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep, "fit": _cmd_fit}
+def _cmd_identify(args: argparse.Namespace) -> int:
+    import gymnasium as gym
+
+    from agents import make_agent
+    from agents.runner import run_episode
+
+    obj = _object(args)
+    options: dict = {}
+    if args.physics == "tilelink" and args.model:
+        options["model"] = args.model
+    if args.dt is not None:
+        options["dt"] = args.dt
+    env_kw = dict(physics=args.physics, physics_options=options, max_probes=args.max_probes)
+    if args.physics == "pybullet":
+        env_kw["method"] = "lorentz"
+    env = gym.make("PlateRotation-v0", **env_kw)
+    agent_kw = {}
+    if args.agent == "bayes" and args.target is not None:
+        agent_kw["target_rel"] = args.target
+    agent = make_agent(args.agent, **agent_kw)
+
+    def show(k: int, p: dict) -> None:
+        state = f"unstable: {p['reason']}" if p["unstable"] else f"{p['omega_b_deg_s']:7.1f} deg/s"
+        print(f"probe {k:2d}: f_p = {p['f_p_hz']:6.2f} Hz  A_p = {p['a_p_deg']:4.1f} deg  "
+              f"{p['sim_s']:.2f} s simulated  -> {state}", flush=True)
+
+    try:
+        res = run_episode(env, agent, seed=args.seed,
+                          options={"omega_n": obj.omega_n, "alpha": obj.alpha, "mass": obj.mass},
+                          on_probe=None if args.json else show)
+    finally:
+        env.close()
+    if args.plot:
+        from plate_env.plotting import plot_fit
+
+        plot_fit(res.probes, res.estimate, args.plot)
+    if args.json:
+        print(json.dumps({"physics": args.physics, "object": obj.name, **res.to_dict()}))
+        return 0 if res.estimate.ok else 1
+    est = res.estimate
+    if est.ok:
+        print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s ({format_omega_pi(est.omega_n)}) "
+              f"by {est.method}")
+        print(f"true        = {res.omega_n_true:.2f} rad/s ({format_omega_pi(res.omega_n_true)});  "
+              f"error {100 * res.relative_error:.1f} %")
+        if est.alpha is not None:
+            print(f"alpha_hat   = {math.degrees(est.alpha):.1f} +- {math.degrees(est.alpha_stderr):.1f} deg "
+                  f"(true {math.degrees(res.alpha_true):.1f} deg)")
+    else:
+        print(f"no estimate: {est.reason}")
+    print(f"{res.n_probes} probes, {res.sim_s:.1f} s simulated, {res.wall_s:.1f} s wall")
+    if args.plot:
+        print(f"plot: {args.plot}")
+    return 0 if est.ok else 1
+
+
+COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep, "fit": _cmd_fit, "identify": _cmd_identify}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -122,7 +122,7 @@ class PlateRotationEnv(gym.Env):
         lo, hi = self.omega_n_range_pi
         omega = options.get("omega_n", math.pi * math.exp(rng.uniform(math.log(lo), math.log(hi))))
         alpha = options.get("alpha", math.radians(rng.uniform(*self.alpha_range_deg)))
-        mass = 0.0136 * (1.0 + self.mass_variation * rng.uniform(-1.0, 1.0))
+        mass = options.get("mass", 0.0136 * (1.0 + self.mass_variation * rng.uniform(-1.0, 1.0)))
         self._obj = ObjectSpec(omega_n=float(omega), alpha=float(alpha), mass=mass, name="hidden")
         self._rows, self._results = [], []
         self._sim_s = self._wall_s = 0.0
@@ -148,6 +148,25 @@ class PlateRotationEnv(gym.Env):
         motion = PlateMotion.from_paper(float(f), self.amplitudes_deg[k], self.b_p_mm)
         spec = ProbeSpec(self._obj, motion, settle_s=self.settle_s, measure_s=float(window), record_trace=True)
         return False, spec.perturbed(self.np_random)
+
+    def encode_action(self, f_p_hz: float | None = None, a_p_deg: float | None = None,
+                      measure_s: float | None = None, stop: bool = False) -> np.ndarray:
+        """The action that runs a probe at ``f_p_hz`` (Hz), ``a_p_deg`` (one of the amplitudes) and window
+        ``measure_s`` (s), or that stops. Values are clipped to the band and window range."""
+        if stop:
+            return np.array([0.0, 0.0, 0.0, 1.0], dtype=np.float32)
+        f_lo, f_hi = self.f_band_hz
+        m_lo, m_hi = self.measure_range_s
+        f = 2 * (np.clip(f_p_hz, f_lo, f_hi) - f_lo) / (f_hi - f_lo) - 1
+        if a_p_deg is None:
+            a_p_deg = self.amplitudes_deg[0]
+        if not any(abs(a_p_deg - a) < 1e-9 for a in self.amplitudes_deg):
+            raise ValueError(f"A_p = {a_p_deg!r} deg is not one of this env's amplitudes {self.amplitudes_deg}")
+        k = min(range(len(self.amplitudes_deg)), key=lambda i: abs(self.amplitudes_deg[i] - a_p_deg))
+        amp = (2 * k + 1) / len(self.amplitudes_deg) - 1
+        window = 1.0 if measure_s is None else measure_s
+        m = 2 * (np.clip(window, m_lo, m_hi) - m_lo) / (m_hi - m_lo) - 1
+        return np.array([f, amp, m, -1.0], dtype=np.float32)
 
     def step(self, action):
         stop, spec = self.prepare(action)

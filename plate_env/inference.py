@@ -2,8 +2,10 @@
 
 Likelihood of one probe at (f_p, A_p) for an object (omega_n, alpha), with atlas mean mu, spread s and instability
 probability p:
-    stable probe with omega_B = y +- e:  (1 - p) * Normal(y; mu, s^2 + e^2 + sigma_model^2)
+    stable probe with omega_B = y +- e:  (1 - p) * StudentT_4(y; mu, s^2 + e^2 + sigma_model^2)
     unstable probe:                      p
+The Student-t (4 degrees of freedom) keeps one probe that the atlas describes badly (e.g. a rare stable probe
+in a mostly unstable region) from dominating the posterior, as a Gaussian did.
 with p clipped to [P_MIN, 1 - P_MIN] (no single probe can rule an object out on stability alone) and
 ``sigma_model`` (deg/s) covering the atlas's interpolation error against live probes. The prior is uniform in
 log omega_n over the atlas's range and uniform in alpha. Works with any set of probes: mixed amplitudes,
@@ -22,6 +24,8 @@ from plate_env.atlas import Atlas, load_atlas
 from plate_env.probes import ProbeTable
 
 P_MIN = 0.02
+#: Degrees of freedom of the Student-t likelihood.
+NU = 4.0
 #: Default model error of the atlas, deg/s (measured against live probes by experiments/build_atlas.py).
 SIGMA_MODEL = 15.0
 
@@ -68,6 +72,11 @@ def posterior_grid(atlas: Atlas, n_omega: int = 161, n_alpha: int = 31) -> tuple
     return w, a
 
 
+def log_student(resid: np.ndarray, var: np.ndarray, nu: float = NU) -> np.ndarray:
+    """Log-density (up to a constant) of a Student-t residual with scale^2 ``var`` and ``nu`` degrees of freedom."""
+    return -0.5 * (nu + 1.0) * np.log1p(resid ** 2 / (nu * var)) - 0.5 * np.log(var)
+
+
 @lru_cache(maxsize=32)
 def grid_response(atlas: Atlas, a_p_deg: float, n_omega: int = 161, n_alpha: int = 31):
     """The atlas on the posterior grid for one amplitude, as cubic-spline interpolators along f_p.
@@ -104,7 +113,7 @@ def log_likelihood(atlas: Atlas, table: ProbeTable, n_omega: int = 161, n_alpha:
             total += np.log(p)
         else:
             var = s ** 2 + table.stderr_deg_s[k] ** 2 + sigma_model ** 2
-            total += np.log1p(-p) - 0.5 * (table.omega_b_deg_s[k] - mu) ** 2 / var - 0.5 * np.log(2 * np.pi * var)
+            total += np.log1p(-p) + log_student(table.omega_b_deg_s[k] - mu, var)
     return total
 
 
