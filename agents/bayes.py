@@ -40,7 +40,7 @@ class BayesAgent(Agent):
 
     def __init__(self, target_rel: float = 0.03, windows_s: tuple[float, ...] = (1.0, 2.0),
                  f_step_hz: float = 0.5, n_samples: int = 12, n_omega: int = 81, n_alpha: int = 16,
-                 min_probes: int = 3, sigma_model: float = SIGMA_MODEL) -> None:
+                 min_probes: int = 3, sigma_model: float = SIGMA_MODEL, atlas=None) -> None:
         self.target_rel = target_rel
         self.windows_s = windows_s
         self.f_step_hz = f_step_hz
@@ -49,10 +49,11 @@ class BayesAgent(Agent):
         self.n_alpha = n_alpha
         self.min_probes = min_probes
         self.sigma_model = sigma_model
+        self._atlas = atlas
 
     def reset(self, context, rng) -> None:
         super().reset(context, rng)
-        self.atlas = load_atlas(context.physics, context.model)
+        self.atlas = self._atlas if self._atlas is not None else load_atlas(context.physics, context.model)
         self.omega, self.alpha = posterior_grid(self.atlas, self.n_omega, self.n_alpha)
         self.log_w = np.log(self.omega)[:, None]
         lo, hi = context.f_band_hz
