@@ -16,10 +16,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import curve_fit
 
 import plate_env as pe
-from plate_env.measure import measure_omega_b
+from plate_env.fitting import fit_lorentzian
 from plate_env.physics.base import ProbeSpec
 from plate_env.physics.tilelink import rigid_kernels as rk
 
@@ -27,64 +26,20 @@ RESULTS = Path(__file__).resolve().parent / "results" / "bench_models.md"
 PAPER = {(10.0, 36.9): (25.1, 5.1, 598.7), (33.0, 36.9): (28.2, 5.8, 746.9), (10.0, 56.3): (24.6, 5.8, 520.9)}
 
 
-def lorentz(f: np.ndarray, w_max: float, f0: float, b: float) -> np.ndarray:
-    """Eq. (9): omega_B(f_p) = w_max / (1 + ((f_p - f0) / b)^2); deg/s, Hz."""
-    return w_max / (1.0 + ((f - f0) / b) ** 2)
-
-
-def first_hump(freqs: np.ndarray, omegas: np.ndarray, unstable: np.ndarray) -> np.ndarray:
-    """Indices of the stable probes from the lowest f_p up to the first dip after the first hump.
-
-    Unstable probes are left out; two unstable probes in a row end the window (1-Hz sweeps show isolated
-    flags well below the hump in both models). The hump's top is the first point higher than both neighbours
-    (and above 30 % of the stable maximum); the dip is the first point after it lower than its successor.
-    """
-    keep = []
-    top_seen = False
-    stable_max = max([abs(w) for w, u in zip(omegas, unstable, strict=True) if not u] or [1.0])
-    stable = [i for i in range(len(freqs)) if not unstable[i]]
-    for pos, i in enumerate(stable):
-        if i >= 2 and unstable[i - 1] and unstable[i - 2]:
-            break  # two unstable probes in a row end the window; a single one is skipped
-        keep.append(i)
-        w = abs(omegas[i])
-        nxt = abs(omegas[stable[pos + 1]]) if pos + 1 < len(stable) else None
-        prv = abs(omegas[keep[-2]]) if len(keep) > 1 else 0.0
-        if not top_seen and nxt is not None and w > 0.3 * stable_max and w >= prv and w > nxt:
-            top_seen = True
-        elif top_seen and nxt is not None and w < nxt:
-            break
-    return np.asarray(keep, dtype=int)
-
-
 def fit(freqs: np.ndarray, omegas: np.ndarray, unstable: np.ndarray) -> tuple[float, float, float, int]:
-    """(f0 Hz, b Hz, omega_max deg/s, points used) of the first-hump fit; NaNs if it fails."""
-    idx = first_hump(freqs, omegas, unstable)
-    if len(idx) < 4:
-        return math.nan, math.nan, math.nan, len(idx)
-    f, w = freqs[idx], np.abs(omegas[idx])
-    p0 = (w.max(), f[np.argmax(w)], 5.0)
-    try:
-        p, _ = curve_fit(lorentz, f, w, p0=p0, maxfev=20000)
-    except RuntimeError:
-        return math.nan, math.nan, math.nan, len(idx)
-    return float(p[1]), float(abs(p[2])), float(p[0]), len(idx)
+    """(f0 Hz, b Hz, omega_max deg/s, points used) of the package's first-hump fit; NaNs if it cannot fit."""
+    res = fit_lorentzian(freqs, omegas, unstable=unstable)
+    if not res.ok:
+        return math.nan, math.nan, math.nan, res.n_used
+    return res.f0, res.b, res.omega_max, res.n_used
 
 
 def rigid_results(probes: list[ProbeSpec], dt: float) -> tuple[np.ndarray, np.ndarray, float]:
     """omega_B (deg/s) and instability flags of the rigid model, and the batch wall time (s)."""
-    out = rk.run_rigid_arrays(probes, dt=dt)
-    rec = out["prm"][0, rk.P_RECEVERY] * dt
-    omegas, unstable = [], []
-    for b, s in enumerate(probes):
-        n = int(out["nrec"][b])
-        st = int(out["status"][b])
-        t = np.arange(n) * rec
-        w, _, _ = measure_omega_b(t, out["yaw"][b, :n], s.measure_start_s, 1.0 / s.motion.freq_hz, s.n_periods,
-                                  n * rec if st else None)
-        omegas.append(math.degrees(w))
-        unstable.append(st != 0)
-    return np.asarray(omegas), np.asarray(unstable), float(out["wall_s"])
+    t0 = time.perf_counter()
+    res = pe.make_physics("tilelink", model="rigid", dt=dt).run(probes)
+    wall = time.perf_counter() - t0
+    return (np.array([r.omega_b_deg_s for r in res]), np.array([r.unstable for r in res]), wall)
 
 
 def extra_sections(dt: float) -> list[str]:
@@ -98,15 +53,12 @@ def extra_sections(dt: float) -> list[str]:
               for f in fs]
     w_c, u_c, _ = rigid_results(probes, dt)
     it = 2 * rigid.RigidTileConfig().iterations
-    out = rk.run_rigid_arrays(probes, dt=dt / 4, config=rigid.RigidTileConfig(iterations=it))
-    rec = out["prm"][0, rk.P_RECEVERY] * dt / 4
+    fine = pe.make_physics("tilelink", model="rigid", dt=dt / 4,
+                           rigid_config=rigid.RigidTileConfig(iterations=it)).run(probes)
     lines = ["", f"## Rigid model: dt convergence (10pi, 36.9 deg; dt = {dt:g} s vs {dt / 4:g} s, {it} sweeps)", "",
              "| f_p | omega_B dt | omega_B dt/4 | difference |", "|---|---|---|---|"]
-    for b, s in enumerate(probes):
-        n = int(out["nrec"][b])
-        w, _, _ = measure_omega_b(np.arange(n) * rec, out["yaw"][b, :n], s.measure_start_s, 1.0 / s.motion.freq_hz,
-                                  s.n_periods, None)
-        wf = math.degrees(w)
+    for b in range(len(probes)):
+        wf = fine[b].omega_b_deg_s
         lines.append(f"| {fs[b]:g} | {w_c[b]:.1f}{'*' if u_c[b] else ''} | {wf:.1f} | "
                      f"{100 * (w_c[b] - wf) / wf:+.2f} % |")
     names = {v: k for k, v in vars(kn).items() if k.isupper() and isinstance(v, int) and k in

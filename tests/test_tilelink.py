@@ -116,3 +116,11 @@ def test_first_hump_peak_in_band_and_not_falling_with_omega_n(tilelink):
         peaks.append(freqs[k])
     assert all(20.0 <= p <= 32.0 for p in peaks), peaks
     assert all(b >= a for a, b in zip(peaks, peaks[1:], strict=False)), peaks
+
+
+def test_rigid_model_is_a_different_model_behind_the_same_interface(cheese):
+    spec = probe(cheese, 22.0)
+    pm = pe.make_physics("tilelink", model="pointmass").run([spec])[0]
+    rg = pe.make_physics("tilelink", model="rigid").run([spec])[0]
+    assert not rg.unstable and rg.omega_b_deg_s > 100
+    assert rg.omega_b_deg_s != pm.omega_b_deg_s

@@ -87,7 +87,10 @@ class TileLinkPhysics:
 
     def run_arrays(self, probes: Sequence[ProbeSpec]) -> dict[str, np.ndarray]:
         """Run the kernel on a batch and return its raw arrays (parameters, traces, status, records)."""
+        if self.model == "rigid":
+            from plate_env.physics.tilelink.rigid_kernels import run_rigid_arrays
 
+            return run_rigid_arrays(probes, self.dt, self.slip_limit, config=self.rigid_config)
         prm = np.stack([self._param_vector(s) for s in probes])
         geom = _pointmass_params(probes[0].obj, self.config).geom
         rest = np.stack([_pointmass_params(s.obj, self.config).geom.rest for s in probes])
