@@ -134,6 +134,15 @@ class ProbeResult:
         }
 
 
+def check_probes(probes: Sequence[ProbeSpec]) -> list[ProbeSpec]:
+    """The probes as a list, each checked to be a ProbeSpec (TypeError naming the first that is not)."""
+    probes = list(probes)
+    for i, s in enumerate(probes):
+        if not isinstance(s, ProbeSpec):
+            raise TypeError(f"probe {i}: expected ProbeSpec, got {type(s).__name__}")
+    return probes
+
+
 @runtime_checkable
 class Physics(Protocol):
     """A physics backend: runs probes, nothing else."""

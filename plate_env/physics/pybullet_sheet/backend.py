@@ -7,7 +7,7 @@ import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 
-from plate_env.physics.base import NON_FINITE, SLIP_LIMIT_M, ProbeResult, ProbeSpec
+from plate_env.physics.base import NON_FINITE, SLIP_LIMIT_M, ProbeResult, ProbeSpec, check_probes
 from plate_env.physics.pybullet_sheet.scene import Client, SheetConfig, SheetScene
 
 #: The worker process's client (one per process, opened by the first unit the worker runs).
@@ -115,10 +115,7 @@ class PyBulletPhysics:
 
     def run(self, probes: Sequence[ProbeSpec], progress: bool = False) -> list[ProbeResult]:
         """Simulate the probes and return one result per probe, in order."""
-        probes = list(probes)
-        for s in probes:
-            if not isinstance(s, ProbeSpec):
-                raise TypeError(f"expected ProbeSpec, got {type(s).__name__}")
+        probes = check_probes(probes)
         if not probes:
             return []
         units = self.units(probes)

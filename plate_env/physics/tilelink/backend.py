@@ -22,8 +22,17 @@ from plate_env.physics.base import (
     ProbeResult,
     ProbeSpec,
     YawTrace,
+    check_probes,
 )
-from plate_env.physics.tilelink.params import P_CIN, P_KB, P_KIN, P_NSTEPS, P_RECEVERY, common_vector
+from plate_env.physics.tilelink.params import (
+    P_CIN,
+    P_KB,
+    P_KIN,
+    P_NSTEPS,
+    P_RECEVERY,
+    allocate_outputs,
+    common_vector,
+)
 from plate_env.physics.tilelink.pointmass import PointMassConfig, build_params, implicit_damping_matrix
 from plate_env.physics.tilelink.rigid import RigidTileConfig
 
@@ -102,22 +111,16 @@ class TileLinkPhysics:
         """Run the point-mass kernel on prepared arrays (exposed for tests that inject bad states)."""
         from plate_env.physics.tilelink import kernels as kn
 
-        n_rec = (prm[:, P_NSTEPS] // prm[:, P_RECEVERY]).astype(np.int64) + 1
-        size = (len(prm), int(n_rec.max()))
-        yaw, cu, cv = np.zeros(size), np.zeros(size), np.zeros(size)
-        status = np.zeros(len(prm), dtype=np.int64)
-        nrec = np.zeros(len(prm), dtype=np.int64)
+        out = allocate_outputs(prm)
         kernel = kn.pointmass_batch_serial if len(prm) == 1 else kn.pointmass_batch_parallel
-        kernel(prm, ainv, rest, geom.links, geom.diagonals, geom.triplets, geom.cells, yaw, cu, cv, status, nrec)
-        return {"prm": prm, "yaw": yaw, "cu": cu, "cv": cv, "status": status, "nrec": nrec}
+        kernel(prm, ainv, rest, geom.links, geom.diagonals, geom.triplets, geom.cells, out["yaw"], out["cu"],
+               out["cv"], out["status"], out["nrec"])
+        return out
 
     # ------------------------------------------------------------------ probes
     def run(self, probes: Sequence[ProbeSpec], progress: bool = False) -> list[ProbeResult]:
         """Simulate the probes as one batch (in chunks when a progress bar is shown)."""
-        probes = list(probes)
-        for s in probes:
-            if not isinstance(s, ProbeSpec):
-                raise TypeError(f"expected ProbeSpec, got {type(s).__name__}")
+        probes = check_probes(probes)
         if not probes:
             return []
         chunk = PROGRESS_CHUNK if progress else len(probes)

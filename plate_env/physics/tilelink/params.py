@@ -51,3 +51,11 @@ def common_vector(spec: ProbeSpec, dt: float, slip_limit: float, node_mass: floa
     prm[P_YAW0] = spec.initial_yaw
     prm[P_U0], prm[P_V0] = spec.initial_offset
     return prm
+
+
+def allocate_outputs(prm: np.ndarray) -> dict[str, np.ndarray]:
+    """Zeroed output arrays of a batch kernel: yaw/centre traces sized for the longest probe, status, records."""
+    n_rec = (prm[:, P_NSTEPS] // prm[:, P_RECEVERY]).astype(np.int64) + 1
+    size = (len(prm), int(n_rec.max()))
+    return {"prm": prm, "yaw": np.zeros(size), "cu": np.zeros(size), "cv": np.zeros(size),
+            "status": np.zeros(len(prm), dtype=np.int64), "nrec": np.zeros(len(prm), dtype=np.int64)}

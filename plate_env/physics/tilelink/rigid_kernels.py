@@ -66,7 +66,7 @@ from plate_env.physics.tilelink.kernels import (
     observe,
     plate_state,
 )
-from plate_env.physics.tilelink.params import P_U0, P_V0, P_YAW0, common_vector
+from plate_env.physics.tilelink.params import P_U0, P_V0, P_YAW0, allocate_outputs, common_vector
 from plate_env.physics.tilelink.rigid import RigidTileConfig, RigidTileParams, build_params
 
 # Extra entries of the rigid parameter vector (after the point-mass layout, whose meaning they share:
@@ -657,17 +657,15 @@ def param_vector(spec: ProbeSpec, dt: float, slip_limit: float,
 def run_rigid_param_arrays(prm: np.ndarray, rest: np.ndarray, geom, parallel: bool | None = None
                            ) -> dict[str, np.ndarray]:
     """Run the rigid kernel on prepared arrays (exposed for tests that inject bad parameters)."""
-    n_rec = (prm[:, P_NSTEPS] // prm[:, P_RECEVERY]).astype(np.int64) + 1
-    size = (len(prm), int(n_rec.max()))
-    yaw, cu, cv = np.zeros(size), np.zeros(size), np.zeros(size)
-    status = np.zeros(len(prm), dtype=np.int64)
-    nrec = np.zeros(len(prm), dtype=np.int64)
+    out = allocate_outputs(prm)
+    yaw, cu, cv, status, nrec = out["yaw"], out["cu"], out["cv"], out["status"], out["nrec"]
     diag = np.zeros((len(prm), 4))
     if parallel is None:
         parallel = len(prm) > 1
     kernel = rigid_batch_parallel if parallel else rigid_batch_serial
     kernel(prm, rest, geom.links, geom.link_dir, geom.cells, yaw, cu, cv, diag, status, nrec)
-    return {"prm": prm, "yaw": yaw, "cu": cu, "cv": cv, "status": status, "nrec": nrec, "diag": diag}
+    out["diag"] = diag
+    return out
 
 
 def run_rigid_arrays(probes: Sequence[ProbeSpec], dt: float = DEFAULT_DT, slip_limit: float = 0.010,
