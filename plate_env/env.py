@@ -113,6 +113,7 @@ class PlateRotationEnv(gym.Env):
         self._last: ProbeResult | None = None
         self._closed = False
         self._window = None
+        self._renderer = None
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -260,9 +261,16 @@ class PlateRotationEnv(gym.Env):
     def render(self):
         if self.render_mode is None:
             return None
-        from plate_env.render import draw_scene
+        if self.physics_name == "pybullet":
+            from plate_env.render import PyBulletRenderer
 
-        frame = draw_scene(self._last, self._obj)
+            if self._renderer is None:
+                self._renderer = PyBulletRenderer()
+            frame = self._renderer.draw(self._last, self._obj)
+        else:
+            from plate_env.render import draw_scene
+
+            frame = draw_scene(self._last, self._obj)
         if self.render_mode == "rgb_array":
             return frame
         from plate_env.render import show
@@ -275,6 +283,9 @@ class PlateRotationEnv(gym.Env):
             return
         self._closed = True
         self.physics.close()
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
         if self._window is not None:
             from plate_env.render import close_window
 
@@ -285,6 +296,7 @@ class PlateRotationEnv(gym.Env):
         state = self.__dict__.copy()
         state["physics"] = None
         state["_window"] = None
+        state["_renderer"] = None
         return state
 
     def __setstate__(self, state):

@@ -69,3 +69,55 @@ def close_window(window) -> None:
     import matplotlib.pyplot as plt
 
     plt.close(window[0])
+
+
+class PyBulletRenderer:
+    """Draws the plate and the disc with PyBullet's TinyRenderer (software, no GUI) in its own DIRECT client.
+
+    The client holds only visual bodies (a plate box and a disc cylinder) posed from the last probe: the plate
+    tilted by its amplitude, the disc at its last yaw and centre. It is created on the first render and
+    disconnected by :meth:`close`.
+    """
+
+    def __init__(self, width: int = W, height: int = H) -> None:
+        import pybullet as p
+
+        self.p = p
+        self.width, self.height = width, height
+        self.cid = p.connect(p.DIRECT)
+        plate_vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.06, 0.06, 0.002], rgbaColor=[0.6, 0.6, 0.7, 1],
+                                        physicsClientId=self.cid)
+        disc_vis = p.createVisualShape(p.GEOM_CYLINDER, radius=0.04, length=0.002, rgbaColor=[0.95, 0.75, 0.25, 1],
+                                       physicsClientId=self.cid)
+        mark_vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.02, 0.002, 0.0012], rgbaColor=[0.6, 0.25, 0.1, 1],
+                                       physicsClientId=self.cid)
+        self.plate = p.createMultiBody(baseVisualShapeIndex=plate_vis, physicsClientId=self.cid)
+        self.disc = p.createMultiBody(baseVisualShapeIndex=disc_vis, physicsClientId=self.cid)
+        self.mark = p.createMultiBody(baseVisualShapeIndex=mark_vis, physicsClientId=self.cid)
+
+    def draw(self, result, obj) -> np.ndarray:
+        p = self.p
+        yaw, u, v, tilt = 0.0, 0.0, 0.0, 0.0
+        if result is not None:
+            tilt = result.spec.motion.amp_rad
+            if result.trace is not None and len(result.trace.t):
+                yaw = float(result.trace.yaw[-1])
+                u, v = float(result.trace.centre_u[-1]), float(result.trace.centre_v[-1])
+        plate_q = p.getQuaternionFromEuler([tilt, 0, 0])
+        p.resetBasePositionAndOrientation(self.plate, [0, 0, -0.002], plate_q, physicsClientId=self.cid)
+        rot = np.array(p.getMatrixFromQuaternion(plate_q)).reshape(3, 3)
+        centre = rot @ np.array([u, v, 0.001])
+        disc_q = p.multiplyTransforms([0, 0, 0], plate_q, [0, 0, 0], p.getQuaternionFromEuler([0, 0, yaw]))[1]
+        p.resetBasePositionAndOrientation(self.disc, centre.tolist(), disc_q, physicsClientId=self.cid)
+        mark = centre + rot @ np.array([0.02 * math.cos(yaw), 0.02 * math.sin(yaw), 0.001])
+        p.resetBasePositionAndOrientation(self.mark, mark.tolist(), disc_q, physicsClientId=self.cid)
+        view = p.computeViewMatrix([0.0, -0.16, 0.14], [0, 0, 0], [0, 0, 1])
+        proj = p.computeProjectionMatrixFOV(50, self.width / self.height, 0.01, 1.0)
+        img = p.getCameraImage(self.width, self.height, view, proj, renderer=p.ER_TINY_RENDERER,
+                               physicsClientId=self.cid)[2]
+        return np.asarray(img, dtype=np.uint8).reshape(self.height, self.width, 4)[..., :3].copy()
+
+    def close(self) -> None:
+        if self.cid is not None:
+            self.p.disconnect(self.cid)
+            self.cid = None

@@ -187,3 +187,15 @@ def test_vector_env_equals_n_single_envs(mode):
             assert np.array_equal(x, y)
     vec.close()
     ref.close()
+
+
+def test_pybullet_rgb_array_uses_tiny_renderer():
+    pytest.importorskip("pybullet")
+    env = PlateRotationEnv(physics="pybullet", render_mode="rgb_array", **FAST["pybullet"])
+    env.reset(seed=0)
+    env.step(np.array([-0.6, -1.0, -1.0, -1.0], np.float32))
+    frame = env.render()
+    assert frame.shape == (240, 480, 3) and frame.dtype == np.uint8
+    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 10
+    env.close()
+    assert env._renderer is None
