@@ -34,3 +34,23 @@ def objects(omegas_pi, alphas_deg) -> list[ObjectSpec]:
 def sweep_specs(obj: ObjectSpec, freqs_hz, a_p_deg: float, b_p_mm: float = 3.0, **kw) -> list[ProbeSpec]:
     """A frequency sweep of one object at one plate amplitude."""
     return [ProbeSpec(obj, PlateMotion.from_paper(float(f), a_p_deg, b_p_mm), **kw) for f in freqs_hz]
+
+
+# --------------------------------------------------------------------------- the PyBullet atlas (issue 5)
+#: The pybullet atlas grid: only ~10-24 Hz at A_p = 3 deg is informative on the PyBullet sheet (softer than ~5pi
+#: folds, above the rising edge most probes slip off; experiments/results/pybullet_notes.md). >= 4 points per
+#: axis (the atlas interpolates with cubic splines).
+PYBULLET_ATLAS_F_HZ = tuple(float(f) for f in np.arange(10.0, 26.01, 2.0))
+PYBULLET_ATLAS_AMPS_DEG = (3.0,)
+PYBULLET_ATLAS_OMEGAS_PI = (5.0, 7.0, 10.0, 14.0, 20.0, 28.0, 33.0)
+PYBULLET_ATLAS_ALPHAS_DEG = (30.0, 40.0, 50.0, 60.0)
+#: Shorter probe windows for the pybullet atlas and its evaluation (s): the ramp stays 0.2 s.
+PYBULLET_SETTLE_S = 0.3
+PYBULLET_MEASURE_S = 0.6
+#: Placements (yaw rad, dx m, dy m of PyBulletPhysics(initial_pose=...)) and grid objects (omega_n pi, alpha deg)
+#: whose sweeps measure the pybullet atlas's between-placement spread (1 repeat per grid point otherwise).
+PYBULLET_PLACEMENT_POSES = ((0.4, 3e-4, -2e-4), (1.0, -2e-4, 3e-4))
+PYBULLET_PLACEMENT_OBJECTS = ((10.0, 40.0), (20.0, 50.0))
+#: Held-out pybullet objects (omega_n pi, alpha deg): no omega_n or alpha value on the pybullet atlas grid.
+PYBULLET_HELD_OUT_OBJECTS = ((6.0, 41.0), (8.5, 50.0), (11.5, 33.0), (16.5, 55.0), (23.0, 45.0), (25.5, 36.0),
+                             (30.5, 52.0))

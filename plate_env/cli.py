@@ -54,13 +54,22 @@ def _object(args: argparse.Namespace) -> ObjectSpec:
     return base.with_(**changes) if changes else base
 
 
-def _physics(args: argparse.Namespace):
+def _physics_options(args: argparse.Namespace) -> dict:
+    """Backend options from --model and --dt, refused where the backend has no such knob."""
     options: dict = {}
     if args.dt is not None:
+        if args.physics == "atlas":
+            raise CliError("--dt does not apply to --physics atlas (a tabulated response has no time step)")
         options["dt"] = args.dt
-    if args.physics == "tilelink" and args.model:
+    if args.model:
+        if args.physics == "pybullet":
+            raise CliError("--model does not apply to --physics pybullet")
         options["model"] = args.model
-    return make_physics(args.physics, **options)
+    return options
+
+
+def _physics(args: argparse.Namespace):
+    return make_physics(args.physics, **_physics_options(args))
 
 
 def _spec(args: argparse.Namespace, obj: ObjectSpec, freq: float) -> ProbeSpec:
@@ -70,7 +79,7 @@ def _spec(args: argparse.Namespace, obj: ObjectSpec, freq: float) -> ProbeSpec:
 
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
-    p.add_argument("--model", default=None, help="tilelink model (pointmass, rigid)")
+    p.add_argument("--model", default=None, help="tilelink model (pointmass, rigid); atlas: whose atlas")
     p.add_argument("--object", default=None, help="preset object: cheese, dumpling, cheese_lead")
     p.add_argument("--omega-n", default=None, help="bending natural frequency, rad/s or e.g. 10pi")
     p.add_argument("--alpha", type=float, default=None, help="friction angle, degrees")
@@ -220,12 +229,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from agents.runner import run_episode
 
     obj = _object(args)
-    options: dict = {}
-    if args.physics == "tilelink" and args.model:
-        options["model"] = args.model
-    if args.dt is not None:
-        options["dt"] = args.dt
-    env_kw = dict(physics=args.physics, physics_options=options, max_probes=args.max_probes)
+    env_kw = dict(physics=args.physics, physics_options=_physics_options(args), max_probes=args.max_probes)
     if args.physics == "pybullet":
         env_kw["method"] = "lorentz"
     env = gym.make("PlateRotation-v0", **env_kw)

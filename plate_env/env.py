@@ -133,7 +133,10 @@ class PlateRotationEnv(gym.Env):
 
     def decode_action(self, action) -> tuple[bool, ProbeSpec | None]:
         """Check an action and turn it into (stop, probe). Raises ValueError naming a bad value."""
-        a = np.asarray(action, dtype=np.float64)
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"action {action!r} is not an array of 4 numbers in [-1, 1]") from None
         if a.shape != (4,):
             raise ValueError(f"action must have shape (4,), got {a.shape}: {action!r}")
         if not np.all(np.isfinite(a)):

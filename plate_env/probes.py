@@ -77,6 +77,9 @@ def read_lab_csv(path: str | Path, a_p_deg: float | None = None) -> ProbeTable:
     the line and column of the first bad value.
     """
     path = Path(path)
+    if a_p_deg is not None and not (isinstance(a_p_deg, (int, float)) and math.isfinite(a_p_deg)
+                                    and 0 < abs(a_p_deg) <= 45):
+        raise CsvError(f"plate amplitude --amp {a_p_deg!r} deg is outside the allowed range 0 < |A_p| <= 45")
     try:
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:

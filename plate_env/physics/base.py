@@ -23,6 +23,9 @@ REASONS = (OVERTURNED, SLIPPED, NON_FINITE, RUNAWAY, LEFT_PLATE, FOLDED)
 
 #: The paper's instability test: centre more than 10 mm from the plate centre.
 SLIP_LIMIT_M = 0.010
+#: Lowest plate frequency a probe accepts, Hz, and the longest probe, simulated s.
+MIN_PROBE_FREQ_HZ = 0.5
+MAX_PROBE_S = 1200.0
 #: Default placement error (std per axis) of a repeated probe, m.
 PLACEMENT_STD_M = 2e-4
 
@@ -51,6 +54,11 @@ class ProbeSpec:
         for label, value in (("settle_s", self.settle_s), ("measure_s", self.measure_s)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and 0.0 <= value <= 600.0):
                 raise ValueError(f"ProbeSpec {label} = {value!r} is outside the allowed range [0, 600] s")
+        if not (self.motion.freq_hz >= MIN_PROBE_FREQ_HZ):
+            raise ValueError(f"a probe needs a plate frequency f_p >= {MIN_PROBE_FREQ_HZ} Hz (whole periods are "
+                             f"measured), got {self.motion.freq_hz!r}")
+        if self.duration_s > MAX_PROBE_S:
+            raise ValueError(f"the probe would last {self.duration_s:.0f} simulated s; at most {MAX_PROBE_S:.0f} s")
         if not (math.isfinite(self.initial_yaw) and abs(self.initial_yaw) <= 2 * math.pi):
             raise ValueError(f"ProbeSpec initial_yaw = {self.initial_yaw!r} rad is outside [-2pi, 2pi]")
         if len(self.initial_offset) != 2 or not all(
@@ -68,8 +76,6 @@ class ProbeSpec:
         offset = np.clip(rng.normal(0.0, offset_std, 2), -0.5 * SLIP_LIMIT_M, 0.5 * SLIP_LIMIT_M)
         return replace(self, initial_yaw=float(rng.uniform(0.0, math.pi / 2)),
                        initial_offset=(float(offset[0]), float(offset[1])))
-        if self.motion.freq_hz <= 0:
-            raise ValueError(f"a probe needs a plate frequency > 0 Hz, got {self.motion.freq_hz!r}")
 
     @property
     def measure_start_s(self) -> float:
