@@ -1,64 +1,228 @@
 """Build the response atlas of a physics backend and measure its error against live probes at held-out points.
 
     python experiments/build_atlas.py [--physics tilelink] [--model pointmass] [--repeats 3] [--seed 0]
+    python experiments/build_atlas.py --physics pybullet --repeats 1 [--grid pybullet]
 
-Grid (plate_env.benchmarks): f_p 10-40 Hz x A_p {3, 12} deg x 16 omega_n (1.4pi-40pi, log-spaced) x 5 alpha
-(28-60 deg), each point repeated with the disc placed at a random yaw and offset (seeded). Batched, resumable
-(probes are appended to experiments/cache/atlas_*.jsonl as they finish; Ctrl-C and re-run resumes), with a
-progress bar. Writes plate_env/data/atlas_<physics>_<model>.npz and experiments/results/atlas_<physics>_<model>.md.
+Grids (plate_env.benchmarks), chosen by ``--grid`` (default: ``pybullet`` for ``--physics pybullet``, else
+``tilelink``):
+
+* ``tilelink``: f_p 10-40 Hz x A_p {3, 12} deg x 16 omega_n (1.4pi-40pi, log-spaced) x 5 alpha (28-60 deg), each
+  point repeated with the disc placed at a random yaw and offset (seeded); windows 0.5 s settle + 1.0 s measure.
+  Scored against live probes at held-out (off-grid f_p, omega_n, alpha) points.
+* ``pybullet``: f_p 10-26 Hz (2 Hz) x A_p 3 deg x omega_n {5, 7, 10, 14, 20, 28, 33}pi x alpha {30, 40, 50, 60} deg,
+  windows 0.3 s settle + 0.6 s measure (recorded in the provenance; the evaluation uses the same). Probes run as
+  sweeps per object (ascending f_p, the backend's scene carried over within a sequence, as in the evaluation).
+  PyBullet ignores ProbeSpec.initial_yaw/initial_offset, so repeats would be identical: use ``--repeats 1``. The
+  between-placement spread is measured instead by re-running a few grid sweeps with other
+  ``PyBulletPhysics(initial_pose=...)`` placements, and folded into every grid point's spread (see below). The
+  held-out scoring is done on the identification sweeps (``experiments/evaluate_pybullet.py``).
+
+Batched, resumable (probes are appended to experiments/cache/atlas_*.jsonl as they finish; Ctrl-C and re-run
+resumes), with a progress bar. Writes plate_env/data/atlas_<physics>_<model>.npz and
+experiments/results/atlas_<physics>_<model>.md (<model> = the backend's ``model`` attribute, else the physics name:
+``atlas_pybullet_pybullet`` for PyBullet).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import math
 import os
+import time
 
 import numpy as np
 
 import plate_env as pe
 from plate_env import benchmarks as bm
-from plate_env.atlas import atlas_file, atlas_from_repeats
+from plate_env.atlas import FILL_SPREAD, atlas_file, atlas_from_repeats
 from plate_env.sweeps import run_cached
+
+#: Named grids: (f_p Hz, A_p deg, omega_n pi rad/s, alpha deg, settle s, measure s).
+GRIDS = {
+    "tilelink": (bm.ATLAS_F_HZ, bm.ATLAS_AMPS_DEG, bm.ATLAS_OMEGAS_PI, bm.ATLAS_ALPHAS_DEG, 0.5, 1.0),
+    "pybullet": (bm.PYBULLET_ATLAS_F_HZ, bm.PYBULLET_ATLAS_AMPS_DEG, bm.PYBULLET_ATLAS_OMEGAS_PI,
+                 bm.PYBULLET_ATLAS_ALPHAS_DEG, bm.PYBULLET_SETTLE_S, bm.PYBULLET_MEASURE_S),
+}
+
+
+def make_backend(physics_name: str, model: str, **kw):
+    """The backend, and the model name its atlas is filed under (``getattr(physics, "model", physics_name)``)."""
+    if physics_name == "tilelink":
+        physics = pe.make_physics("tilelink", model=model)
+    elif physics_name == "pybullet":
+        physics = pe.make_physics("pybullet", n_workers=1, **kw)
+    else:
+        physics = pe.make_physics(physics_name)
+    return physics, getattr(physics, "model", physics_name)
+
+
+def _f_range(f) -> str:
+    step = f[1] - f[0] if len(f) > 1 else 0.0
+    return f"{f[0]:g}:{f[-1]:g}:{step:g}"
+
+
+def placement_spread(physics_name: str, grid_res: dict, settle: float, measure: float, f, amp: float):
+    """Sweeps of a few grid objects re-run at other initial placements; returns (rows, abs floor, rel floor).
+
+    rows: (omega_pi, alpha_deg, f, [omega_B per placement, None if unstable]). The floors are the medians of the
+    between-placement standard deviation (deg/s) and of that deviation over |mean|, over points with >= 2 stable.
+    """
+    rows = []
+    runs = {}
+    for i, pose in enumerate(bm.PYBULLET_PLACEMENT_POSES):
+        phys, _ = make_backend(physics_name, "", initial_pose=pose)
+        specs = [s for w, a in bm.PYBULLET_PLACEMENT_OBJECTS
+                 for s in bm.sweep_specs(pe.ObjectSpec.from_paper(w, a), f, amp, settle_s=settle, measure_s=measure)]
+        runs[i] = run_cached(phys, specs, f"experiments/cache/atlas_pybullet_pose{i}.jsonl", chunk=len(f),
+                             desc=f"placement {i}")
+        phys.close()
+    n = len(f)
+    sds, rels = [], []
+    for j, (w, a) in enumerate(bm.PYBULLET_PLACEMENT_OBJECTS):
+        for k, fk in enumerate(f):
+            vals = [grid_res[(w, a, fk)]] + [runs[i][j * n + k] for i in runs]
+            ys = [None if r.unstable else r.omega_b_deg_s for r in vals]
+            rows.append((w, a, fk, ys))
+            st = [y for y in ys if y is not None]
+            if len(st) >= 2:
+                sd = float(np.std(st, ddof=1))
+                sds.append(sd)
+                rels.append(sd / max(abs(float(np.mean(st))), 1.0))
+    if not sds:
+        return rows, 1.0, 0.0
+    return rows, float(np.median(sds)), float(np.median(rels))
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--physics", default="tilelink")
     ap.add_argument("--model", default="pointmass")
+    ap.add_argument("--grid", choices=sorted(GRIDS), default=None,
+                    help="named grid (default: pybullet for --physics pybullet, else tilelink)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--held-out", type=int, default=120, help="live probes at held-out points to score the atlas")
+    ap.add_argument("--held-out", type=int, default=None,
+                    help="live probes at held-out points to score the atlas (default 120; 0 for the pybullet grid)")
     args = ap.parse_args()
-    physics = pe.make_physics(args.physics, **({"model": args.model} if args.physics == "tilelink" else {}))
+    grid = args.grid or ("pybullet" if args.physics == "pybullet" else "tilelink")
+    n_held = args.held_out if args.held_out is not None else (0 if grid == "pybullet" else 120)
+    physics, model = make_backend(args.physics, args.model)
     rng = np.random.default_rng(args.seed)
-    f, amps, ws, als = bm.ATLAS_F_HZ, bm.ATLAS_AMPS_DEG, bm.ATLAS_OMEGAS_PI, bm.ATLAS_ALPHAS_DEG
+    f, amps, ws, als, settle, measure = GRIDS[grid]
     shape = (len(f), len(amps), len(ws), len(als), args.repeats)
+    # object-major order with ascending f_p inside (sweeps) for the pybullet grid: its backend carries the sheet's
+    # state over a sequence of probes of one object; the tile-link order (f_p outermost) is kept as it was.
+    order = list(np.ndindex(shape))
+    if grid == "pybullet":
+        order.sort(key=lambda ix: (ix[2], ix[3], ix[1], ix[4], ix[0]))
     specs = []
-    for idx in np.ndindex(shape):
+    for idx in order:
         i_f, i_a, i_w, i_al, _ = idx
-        base = pe.ProbeSpec(pe.ObjectSpec.from_paper(ws[i_w], als[i_al]), pe.PlateMotion.from_paper(f[i_f], amps[i_a]))
-        specs.append(base.perturbed(rng))
-    tag = f"{args.physics}_{args.model}"
-    res = run_cached(physics, specs, f"experiments/cache/atlas_{tag}.jsonl", chunk=128, desc="atlas")
-    omega = np.array([r.omega_b_deg_s for r in res]).reshape(shape)
-    se = np.array([r.stderr_deg_s for r in res]).reshape(shape)
-    un = np.array([r.unstable for r in res]).reshape(shape)
-    atlas = atlas_from_repeats(args.physics, args.model, f, amps, np.array(ws) * math.pi, np.radians(als), omega,
-                               se, un, provenance={"f_p_hz": "10:40:1", "a_p_deg": amps, "omega_n_pi": ws,
-                                                   "alpha_deg": als, "repeats": args.repeats, "seed": args.seed,
-                                                   "b_p_mm": 3.0, "dt_s": getattr(physics, "dt", None),
-                                                   "settle_s": 0.5, "measure_s": 1.0,
-                                                   "placement": "yaw U(0, pi/2), offset N(0, 1 mm) per axis",
-                                                   "plate_env": pe.__version__,
-                                                   "date": datetime.date.today().isoformat()})
-    out = f"plate_env/data/{atlas_file(args.physics, args.model)}"
+        base = pe.ProbeSpec(pe.ObjectSpec.from_paper(ws[i_w], als[i_al]), pe.PlateMotion.from_paper(f[i_f], amps[i_a]),
+                            settle_s=settle, measure_s=measure)
+        # PyBullet ignores the placement fields: keep them at 0 there (and the cache keys clean)
+        specs.append(base.perturbed(rng) if args.physics != "pybullet" else base)
+    tag = f"{args.physics}_{model}"
+    t0 = time.perf_counter()
+    res_list = run_cached(physics, specs, f"experiments/cache/atlas_{tag}.jsonl",
+                          chunk=len(f) if grid == "pybullet" else 128, desc="atlas")
+    res = np.empty(shape, dtype=object)
+    for idx, r in zip(order, res_list, strict=True):
+        res[idx] = r
+    omega = np.vectorize(lambda r: r.omega_b_deg_s, otypes=[float])(res)
+    se = np.vectorize(lambda r: r.stderr_deg_s, otypes=[float])(res)
+    un = np.vectorize(lambda r: r.unstable, otypes=[bool])(res)
+    provenance = {"grid": grid, "f_p_hz": _f_range(f), "a_p_deg": amps, "omega_n_pi": ws, "alpha_deg": als,
+                  "repeats": args.repeats, "seed": args.seed, "b_p_mm": 3.0, "dt_s": getattr(physics, "dt", None),
+                  "ramp_s": 0.2, "settle_s": settle, "measure_s": measure,
+                  "placement": ("yaw U(0, pi/2), offset N(0, 1 mm) per axis" if args.physics != "pybullet" else
+                                "centred (PyBulletPhysics initial_pose (0, 0, 0)); sweeps per object, ascending f_p, "
+                                f"sequence_len {getattr(physics, 'sequence_len', None)}"),
+                  "plate_env": pe.__version__, "date": datetime.date.today().isoformat()}
+    study_lines: list[str] = []
+    floor_abs = floor_rel = None
+    if grid == "pybullet":
+        grid_res = {(ws[i_w], als[i_al], f[i_f]): res[i_f, 0, i_w, i_al, 0]
+                    for i_f, i_w, i_al in np.ndindex(len(f), len(ws), len(als))}
+        rows, floor_abs, floor_rel = placement_spread(args.physics, grid_res, settle, measure, f, amps[0])
+        provenance["spread_floor"] = {"abs_deg_s": floor_abs, "rel": floor_rel,
+                                      "poses": bm.PYBULLET_PLACEMENT_POSES,
+                                      "objects": bm.PYBULLET_PLACEMENT_OBJECTS}
+        study_lines = _study_table(rows, floor_abs, floor_rel)
+    build_s = time.perf_counter() - t0
+    atlas = atlas_from_repeats(args.physics, model, f, amps, np.array(ws) * math.pi, np.radians(als), omega,
+                               se, un, provenance=provenance)
+    if floor_abs is not None:
+        # fold the between-placement spread into every grid point with a stable probe:
+        # spread = sqrt(own stderr^2 + max(abs floor, rel floor * |mean|)^2)
+        n_st = (~un).sum(-1)
+        own = np.sqrt(np.where(~un, se ** 2, 0.0).sum(-1) / np.maximum(n_st, 1))
+        floor = np.maximum(floor_abs, floor_rel * np.abs(atlas.mean))
+        spread = np.where(n_st > 0, np.sqrt(own ** 2 + floor ** 2), FILL_SPREAD)
+        atlas = dataclasses.replace(atlas, spread=spread)
+    out = f"plate_env/data/{atlas_file(args.physics, model)}"
     atlas.save(out)
+    lines = [f"# Response atlas: {args.physics} / {model}", "",
+             f"Grid `{grid}`: {len(f)} frequencies ({_f_range(f)} Hz) x A_p {amps} deg x {len(ws)} omega_n "
+             f"({ws[0]}pi-{ws[-1]}pi) x alpha {als} deg x {args.repeats} repeats = {len(specs)} probes; windows "
+             f"0.2 s ramp + {settle} s settle + {measure} s measure. File: `{out}` "
+             f"({os.path.getsize(out) / 1e3:.0f} kB). Regenerate: `python experiments/build_atlas.py "
+             f"--physics {args.physics}" + (" --repeats 1" if grid == "pybullet" else "") + "`.", "",
+             f"Share of unstable probes in the grid: {un.mean():.1%}. Build wall time (this run, cache hits "
+             f"excluded): {build_s / 60:.1f} min.", ""]
+    if grid == "pybullet":
+        lines += _grid_table(f, ws, als, omega, un), ""
+        lines += study_lines
+    if n_held > 0:
+        lines += _held_out(args, physics, atlas, amps, tag, n_held)
+    else:
+        lines += ["Held-out error: scored on the identification sweeps of held-out objects "
+                  "(`experiments/evaluate_pybullet.py`, `experiments/results/identification_pybullet*.md`)."]
+    path = f"experiments/results/atlas_{tag}.md"
+    with open(path, "w") as fh:
+        fh.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    if hasattr(physics, "close"):
+        physics.close()
+
+
+def _grid_table(f, ws, als, omega, un) -> str:
+    head = "| omega_n, alpha | " + " | ".join(f"{x:g}" for x in f) + " |\n|---|" + "---|" * len(f) + "\n"
+    body = []
+    for i_w, w in enumerate(ws):
+        for i_al, a in enumerate(als):
+            cells = [f"{omega[k, 0, i_w, i_al, 0]:.0f}" + ("u" if un[k, 0, i_w, i_al, 0] else "")
+                     for k in range(len(f))]
+            body.append(f"| {w:g}pi, {a:g} deg | " + " | ".join(cells) + " |")
+    return ("omega_B [deg/s] at A_p = 3 deg per grid point (`u`: unstable, value over the periods before "
+            "the failure):\n\n" + head + "\n".join(body))
+
+
+def _study_table(rows, floor_abs, floor_rel) -> list[str]:
+    out = ["## Between-placement spread (1 repeat per grid point)", "",
+           "PyBullet ignores ProbeSpec.initial_yaw/initial_offset, so the grid has one (centred) run per point and "
+           "atlas_from_repeats would fall back to a 1 deg/s spread. The sweeps of "
+           f"{bm.PYBULLET_PLACEMENT_OBJECTS} (omega_n pi, alpha deg) were re-run with PyBulletPhysics(initial_pose="
+           f"...) at {bm.PYBULLET_PLACEMENT_POSES} (yaw rad, dx m, dy m):", "",
+           "| omega_n, alpha | f_p | centred / placements [deg/s] | sd |", "|---|---|---|---|"]
+    for w, a, fk, ys in rows:
+        st = [y for y in ys if y is not None]
+        sd = f"{np.std(st, ddof=1):.1f}" if len(st) >= 2 else "-"
+        out.append(f"| {w:g}pi, {a:g} | {fk:g} | " + " / ".join("u" if y is None else f"{y:.0f}" for y in ys)
+                   + f" | {sd} |")
+    out += ["", f"Median between-placement sd: {floor_abs:.1f} deg/s; median sd / |mean|: {100 * floor_rel:.1f} %. "
+            "Folded in: every stable grid point's spread = sqrt(own stderr^2 + max(abs floor, rel floor x |mean|)^2) "
+            f"(unstable points keep {FILL_SPREAD:g} deg/s).", ""]
+    return out
+
+
+def _held_out(args, physics, atlas, amps, tag, n_held) -> list[str]:
     # held-out points: off-grid frequency, omega_n and alpha
     hrng = np.random.default_rng(args.seed + 1)
     held = []
-    for _ in range(args.held_out):
+    for _ in range(n_held):
         obj = pe.ObjectSpec.from_paper(float(hrng.choice(bm.HELD_OUT_OMEGAS_PI)),
                                        float(hrng.choice(bm.HELD_OUT_ALPHAS_DEG)))
         held.append(pe.ProbeSpec(obj, pe.PlateMotion.from_paper(float(hrng.uniform(10.5, 39.5)),
@@ -74,21 +238,12 @@ def main() -> None:
     pu = np.array([p for *_, p in rows])
     unst = np.array([u for u, *_ in rows], float)
     brier = float(np.mean((pu - unst) ** 2))
-    lines = [f"# Response atlas: {args.physics} / {args.model}", "",
-             f"Grid: {len(f)} frequencies (10-40 Hz) x A_p {amps} deg x {len(ws)} omega_n ({ws[0]}pi-{ws[-1]}pi) x "
-             f"alpha {als} deg x {args.repeats} repeats = {len(specs)} probes. File: `{out}` "
-             f"({os.path.getsize(out) / 1e3:.0f} kB). Regenerate: `python experiments/build_atlas.py`.", "",
-             f"Share of unstable probes in the grid: {un.mean():.1%}.", "",
-             f"## Error against {len(live)} live probes at held-out points (off-grid f_p, omega_n, alpha)", "",
-             "| stable probes | median abs error [deg/s] | 90th pct [deg/s] | median abs z (error / spread) | "
-             "instability Brier score (0.25 = coin) | observed unstable share |",
-             "|---|---|---|---|---|---|",
-             f"| {len(st)} | {np.median(err):.1f} | {np.percentile(err, 90):.1f} | {np.median(np.abs(z)):.2f} | "
-             f"{brier:.3f} | {unst.mean():.2f} |"]
-    path = f"experiments/results/atlas_{tag}.md"
-    with open(path, "w") as fh:
-        fh.write("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    return [f"## Error against {len(live)} live probes at held-out points (off-grid f_p, omega_n, alpha)", "",
+            "| stable probes | median abs error [deg/s] | 90th pct [deg/s] | median abs z (error / spread) | "
+            "instability Brier score (0.25 = coin) | observed unstable share |",
+            "|---|---|---|---|---|---|",
+            f"| {len(st)} | {np.median(err):.1f} | {np.percentile(err, 90):.1f} | {np.median(np.abs(z)):.2f} | "
+            f"{brier:.3f} | {unst.mean():.2f} |"]
 
 
 if __name__ == "__main__":
