@@ -170,8 +170,8 @@ def main() -> None:
              f"0.2 s ramp + {settle} s settle + {measure} s measure. File: `{out}` "
              f"({os.path.getsize(out) / 1e3:.0f} kB). Regenerate: `python experiments/build_atlas.py "
              f"--physics {args.physics}" + (" --repeats 1" if grid == "pybullet" else "") + "`.", "",
-             f"Share of unstable probes in the grid: {un.mean():.1%}. Build wall time (this run, cache hits "
-             f"excluded): {build_s / 60:.1f} min.", ""]
+             f"Share of unstable probes in the grid: {un.mean():.1%}. Build wall time (this run, grid and placement "
+             f"study, cache hits excluded): {build_s / 60:.1f} min.", ""]
     if grid == "pybullet":
         lines += _grid_table(f, ws, als, omega, un), ""
         lines += study_lines
