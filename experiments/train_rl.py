@@ -52,87 +52,19 @@ def env_kwargs_of(hp: dict) -> dict:
     return kw
 
 
-def correlated_atlas_class():
-    """AtlasPhysics whose instability is correlated along f_p within an object (domain randomisation).
-
-    The plain atlas backend draws every probe's instability independently with the atlas's probability p, and
-    the atlas posterior scores it the same way, so on the atlas a run of unstable probes is strong evidence. Live
-    tile-link instability is largely set by the object and f_p (placement only jitters it),
-    with transitions the atlas (3 repeats per node) places only roughly, so live a run of unstable probes says
-    less than the posterior thinks. Here a probe is unstable when
-    Phi(rho z(f_p) + sqrt(1 - rho^2) e) < p: z is a smooth Gaussian field along f_p (correlation ``corr_hz``)
-    drawn once per object and amplitude, e a per-probe normal, so each probe is still unstable with the atlas's
-    probability p but neighbouring probes of one object agree, as live ones do.
-    """
-    import hashlib
-    import math
-
-    from scipy.special import ndtr
-
-    from plate_env.physics.atlas_physics import AtlasPhysics
-    from plate_env.physics.base import SLIPPED, ProbeResult, YawTrace
-
-    class CorrelatedAtlasPhysics(AtlasPhysics):
-        def __init__(self, rho: float = 0.9, corr_hz: float = 2.0, **kw) -> None:
-            super().__init__(**kw)
-            self.rho = rho
-            self.corr_hz = corr_hz
-            self._grid = np.arange(0.0, 60.0, 0.25)
-
-        def _field(self, spec) -> np.ndarray:
-            o = spec.obj
-            key = repr((o.omega_n, o.alpha, o.mass, round(abs(spec.motion.a_p_deg), 6))).encode()
-            rng = np.random.default_rng(int.from_bytes(hashlib.sha256(key).digest()[:8], "little"))
-            white = rng.normal(size=self._grid.size)
-            k = np.arange(-40, 41) * 0.25
-            kern = np.exp(-0.5 * (k / self.corr_hz) ** 2)
-            z = np.convolve(white, kern, mode="same") / math.sqrt(np.sum(kern ** 2))
-            return z
-
-        def run(self, probes, progress: bool = False):
-            out = []
-            for spec in probes:
-                rng = self._rng(spec)
-                m = spec.motion
-                mean, spread, p_un = (float(x) for x in self.atlas.predict(m.freq_hz, abs(m.a_p_deg),
-                                                                           spec.obj.omega_n, spec.obj.alpha))
-                z = float(np.interp(m.freq_hz, self._grid, self._field(spec)))
-                u = float(ndtr(self.rho * z + math.sqrt(1 - self.rho ** 2) * rng.normal()))
-                sign = 1.0 if m.amp_rad * m.b_p >= 0 else -1.0
-                unstable = u < p_un
-                if unstable:
-                    t_fail = float(rng.uniform(0.2, 1.0)) * spec.duration_s
-                    used = max(0, int(math.floor((t_fail - spec.measure_start_s) * m.freq_hz)))
-                    omega = sign * max(mean + spread * float(rng.normal()), 0.0) if used > 0 else 0.0
-                    sim_s = t_fail
-                else:
-                    used = spec.n_periods
-                    omega = sign * (mean + spread * float(rng.normal()))
-                    sim_s = spec.duration_s
-                se = spread / math.sqrt(max(used, 1)) if used > 0 else 0.0
-                trace = None
-                if spec.record_trace:
-                    t = np.arange(0.0, sim_s + 1e-12, 1e-3)
-                    yaw = np.radians(omega) * np.clip(t - m.ramp_s, 0.0, None) + spec.initial_yaw
-                    trace = YawTrace(t=t, yaw=yaw, centre_u=np.zeros_like(t), centre_v=np.zeros_like(t))
-                out.append(ProbeResult(spec=spec, omega_b_deg_s=omega if used > 0 else 0.0, stderr_deg_s=se,
-                                       unstable=unstable, reason=SLIPPED if unstable else None, sim_s=sim_s,
-                                       wall_s=0.0, periods_measured=used, trace=trace))
-            return out
-
-    return CorrelatedAtlasPhysics
-
-
 def physics_wrapper(options: dict | None):
-    """A make_vec_env ``wrapper_class`` that swaps the atlas backend for the correlated-instability one."""
+    """A make_vec_env ``wrapper_class`` that swaps the atlas backend for one with correlated instability
+    (plate_env.physics.atlas_physics.AtlasPhysics, ``instability_rho``/``instability_corr_hz``)."""
     if not options:
         return None
-    cls = correlated_atlas_class()
+    from plate_env.physics.atlas_physics import AtlasPhysics
+
 
     def wrap(env):
         base = env.unwrapped
-        base.physics = cls(atlas=base.physics.atlas, source=base.physics.source, model=base.physics.model,
-                           **options)
+        base.physics = AtlasPhysics(atlas=base.physics.atlas, source=base.physics.source, model=base.physics.model,
+                                    instability_rho=options.get("rho", 0.9),
+                                    instability_corr_hz=options.get("corr_hz", 2.0))
         return env
 
     return wrap

@@ -22,13 +22,28 @@ from plate_env.physics.base import SLIPPED, ProbeResult, ProbeSpec, YawTrace
 
 
 class AtlasPhysics:
-    """Probes answered from the atlas of ``source``/``model`` (e.g. tilelink/pointmass)."""
+    """Probes answered from the atlas of ``source``/``model`` (e.g. tilelink/pointmass).
 
-    def __init__(self, source: str = "tilelink", model: str = "pointmass", atlas: Atlas | None = None) -> None:
+    ``instability_rho``/``instability_corr_hz`` (domain randomisation for RL training): by default every probe's
+    instability is drawn independently with the atlas's probability p. Live tile-link instability is largely set
+    by the object and f_p (placement only jitters it), so with ``instability_rho`` > 0 a probe is unstable when
+    Phi(rho z(f_p) + sqrt(1 - rho^2) e) < p, where z is a smooth Gaussian field along f_p (correlation length
+    ``instability_corr_hz``) drawn once per object and amplitude and e a per-probe normal: each probe keeps the
+    atlas's probability p, but neighbouring probes of one object agree, as live ones do.
+    """
+
+    def __init__(self, source: str = "tilelink", model: str = "pointmass", atlas: Atlas | None = None,
+                 instability_rho: float = 0.0, instability_corr_hz: float = 2.0) -> None:
+        if not (0.0 <= instability_rho < 1.0 and instability_corr_hz > 0):
+            raise ValueError(f"instability_rho {instability_rho!r} must be in [0, 1) and instability_corr_hz "
+                             f"{instability_corr_hz!r} > 0")
         self.name = "atlas"
         self.source = source
         self.model = model
         self.atlas = atlas if atlas is not None else load_atlas(source, model)
+        self.rho = instability_rho
+        self.corr_hz = instability_corr_hz
+        self._grid = np.arange(0.0, 60.0, 0.25)
 
     def __repr__(self) -> str:
         return f"AtlasPhysics(source={self.source!r}, model={self.model!r})"
@@ -43,6 +58,25 @@ class AtlasPhysics:
                     spec.initial_yaw, spec.initial_offset)).encode()
         return np.random.default_rng(int.from_bytes(hashlib.sha256(key).digest()[:8], "little"))
 
+    def _field(self, spec: ProbeSpec) -> np.ndarray:
+        """The object's smooth standard-normal field along f_p (on ``self._grid``) for correlated instability."""
+        o = spec.obj
+        key = repr((o.omega_n, o.alpha, o.mass, round(abs(spec.motion.a_p_deg), 6))).encode()
+        rng = np.random.default_rng(int.from_bytes(hashlib.sha256(key).digest()[:8], "little"))
+        white = rng.normal(size=self._grid.size)
+        k = np.arange(-40, 41) * 0.25
+        kern = np.exp(-0.5 * (k / self.corr_hz) ** 2)
+        return np.convolve(white, kern, mode="same") / math.sqrt(np.sum(kern ** 2))
+
+    def _uniform(self, spec: ProbeSpec, rng: np.random.Generator) -> float:
+        """The probe's U(0, 1) instability draw (independent, or correlated along f_p within the object)."""
+        if self.rho == 0.0:
+            return float(rng.random())
+        from scipy.special import ndtr
+
+        z = float(np.interp(spec.motion.freq_hz, self._grid, self._field(spec)))
+        return float(ndtr(self.rho * z + math.sqrt(1 - self.rho ** 2) * rng.normal()))
+
     def run(self, probes: Sequence[ProbeSpec], progress: bool = False) -> list[ProbeResult]:
         out = []
         for spec in probes:
@@ -53,7 +87,7 @@ class AtlasPhysics:
                                                                        spec.obj.omega_n, spec.obj.alpha))
             sign = 1.0 if spec.motion.amp_rad * spec.motion.b_p >= 0 else -1.0
             period = 1.0 / spec.motion.freq_hz
-            unstable = bool(rng.random() < p_un)
+            unstable = bool(self._uniform(spec, rng) < p_un)
             if unstable:
                 t_fail = float(rng.uniform(0.2, 1.0)) * spec.duration_s
                 used = max(0, int(math.floor((t_fail - spec.measure_start_s) / period)))
