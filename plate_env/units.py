@@ -36,15 +36,6 @@ def parse_omega_n(text: str | float) -> float:
     return value
 
 
-def omega_in_pi(omega_rad_s: float) -> float:
-    """rad/s -> units of pi rad/s (the paper's axis unit)."""
-    return omega_rad_s / math.pi
-
-
-def rad_s_to_deg_s(x: float) -> float:
-    return math.degrees(x)
-
-
 def format_omega_pi(omega_rad_s: float) -> str:
     """Format rad/s as the paper writes it, e.g. ``10.0pi``."""
     return f"{omega_rad_s / math.pi:.4g}pi"
