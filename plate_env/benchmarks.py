@@ -42,7 +42,7 @@ def sweep_specs(obj: ObjectSpec, freqs_hz, a_p_deg: float, b_p_mm: float = 3.0, 
 #: axis (the atlas interpolates with cubic splines).
 PYBULLET_ATLAS_F_HZ = tuple(float(f) for f in np.arange(10.0, 26.01, 2.0))
 PYBULLET_ATLAS_AMPS_DEG = (3.0,)
-PYBULLET_ATLAS_OMEGAS_PI = (5.0, 7.0, 10.0, 14.0, 20.0, 28.0, 33.0)
+PYBULLET_ATLAS_OMEGAS_PI = (5.0, 7.0, 10.0, 12.0, 14.0, 17.0, 20.0, 24.0, 28.0, 33.0)
 PYBULLET_ATLAS_ALPHAS_DEG = (30.0, 40.0, 50.0, 60.0)
 #: Shorter probe windows for the pybullet atlas and its evaluation (s): the ramp stays 0.2 s.
 PYBULLET_SETTLE_S = 0.3
