@@ -109,6 +109,22 @@ def check_state(cu, cv, cw, nw, vmax2, prm):
     return OK
 
 
+@numba.njit(cache=True)
+def record(x, rest, cells, x_plate, s_th, c_th, prev_yaw, vmax2, extra_status, prm, yaw_out, cu_out, cv_out, n_rec):
+    """One record of any tile-link kernel: observe, check (``check_state`` first, then the model's own
+    ``extra_status``) and, if still fine, write yaw and centre. Returns (status, yaw, records written)."""
+    cu, cv, cw, yaw, nw = observe(x, rest, cells, x_plate, s_th, c_th, prev_yaw)
+    status = check_state(cu, cv, cw, nw, vmax2, prm)
+    if status == OK:
+        status = extra_status
+    if status == OK:
+        yaw_out[n_rec] = yaw
+        cu_out[n_rec] = cu
+        cv_out[n_rec] = cv
+        n_rec += 1
+    return status, yaw, n_rec
+
+
 @numba.njit(cache=True, fastmath=FAST)
 def pointmass_probe(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out, cu_out, cv_out):
     """Simulate one point-mass probe; fills the traces and returns (status, records written)."""
@@ -149,14 +165,10 @@ def pointmass_probe(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out,
                 sp = v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2
                 if not (sp <= vmax2):
                     vmax2 = sp
-            cu, cv, cw, yaw, nw = observe(x, rest, cells, xp, s_th, c_th, yaw)
-            status = check_state(cu, cv, cw, nw, vmax2, prm)
+            status, yaw, n_rec = record(x, rest, cells, xp, s_th, c_th, yaw, vmax2, OK, prm, yaw_out, cu_out,
+                                        cv_out, n_rec)
             if status != OK:
                 break
-            yaw_out[n_rec] = yaw
-            cu_out[n_rec] = cu
-            cv_out[n_rec] = cv
-            n_rec += 1
         if step == n_steps:
             break
         # forces: gravity, bending (explicit stiffness), in-plane spring-dampers

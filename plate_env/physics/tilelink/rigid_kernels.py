@@ -60,11 +60,10 @@ from plate_env.physics.tilelink.kernels import (
     P_RECEVERY,
     P_VT,
     RUNAWAY,
-    check_state,
     friction_scale,
     normal_force,
-    observe,
     plate_state,
+    record,
 )
 from plate_env.physics.tilelink.params import P_U0, P_V0, P_YAW0, allocate_outputs, common_vector
 from plate_env.physics.tilelink.rigid import RigidTileConfig, RigidTileParams, build_params
@@ -233,18 +232,15 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
             e_last = e_kin - e0
             if excess > excess_max:
                 excess_max = excess
-            cu, cv, cw, yaw, nw = observe(x, rest, cells, xp, s_th, c_th, yaw)
-            status = check_state(cu, cv, cw, nw, vmax2, prm)
-            if status == OK and (bend_max > fold or tile_w_min < foldw):
-                status = FOLDED
-            if status == OK and not (excess <= prm[R_EREL] * work_abs + prm[R_EABS]):
-                status = RUNAWAY
+            extra = OK
+            if bend_max > fold or tile_w_min < foldw:
+                extra = FOLDED
+            elif not (excess <= prm[R_EREL] * work_abs + prm[R_EABS]):
+                extra = RUNAWAY
+            status, yaw, n_rec = record(x, rest, cells, xp, s_th, c_th, yaw, vmax2, extra, prm, yaw_out, cu_out,
+                                        cv_out, n_rec)
             if status != OK:
                 break
-            yaw_out[n_rec] = yaw
-            cu_out[n_rec] = cu
-            cv_out[n_rec] = cv
-            n_rec += 1
         if step == n_steps:
             break
         # 1. gravity and gyroscopic torque (explicit)
