@@ -85,19 +85,6 @@ def _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, ux, uy, uz):
     return ux * ixx_inv + s * nx, uy * ixx_inv + s * ny, uz * ixx_inv + s * nz
 
 
-@numba.njit(cache=True, inline="always")
-def _spring_force(depth, k):
-    """The elastic part ``k a^2.2`` of :func:`contact.normal_force` (its value with no damper), N."""
-    return normal_force(depth, 0.0, k, 0.0, 0.0, 1.0)
-
-
-@numba.njit(cache=True, inline="always")
-def _implicit_normal_force(spring, v_normal, c, inv_mass, dt):
-    """:func:`contact.normal_force` given its elastic part ``spring = k a^2.2`` (> 0) precomputed for the step."""
-    f = (spring - c * v_normal) / (1.0 + dt * c * inv_mass)
-    return f if f > 0.0 else 0.0
-
-
 @numba.njit(cache=True, fastmath=FAST)
 def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag):
     """Simulate one rigid-tile probe; fills the traces and ``diag`` and returns (status, records written).
@@ -162,7 +149,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
     jc = np.zeros((nj, 5))  # position errors C
     pacc = np.zeros((nj, 5))  # accumulated impulses (warm start)
     ctile = np.empty(4 * n, dtype=np.int64)  # active corner contacts: tile index
-    cdat = np.empty((4 * n, 11))  # lever arm r (3), spring force k a^2.2, plate velocity u (3), 1/m_n, dv_t/dp_n (3)
+    cdat = np.empty((4 * n, 11))  # lever arm r (3), depth a, plate velocity u (3), 1/m_n, dv_t/dp_n (3)
     cimp = np.empty((4 * n, 3))  # accumulated contact impulse in this step
     cy = math.cos(prm[P_YAW0])
     sy = math.sin(prm[P_YAW0])
@@ -415,7 +402,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
                 cdat[n_act, 0] = rx
                 cdat[n_act, 1] = ry
                 cdat[n_act, 2] = rz
-                cdat[n_act, 3] = _spring_force(-wc, kc)
+                cdat[n_act, 3] = -wc
                 cdat[n_act, 4] = xp_dot
                 cdat[n_act, 5] = -th_dot * pz
                 cdat[n_act, 6] = th_dot * py
@@ -463,7 +450,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
                 vrz = v[i, 2] + w[i, 0] * ry - w[i, 1] * rx - uz
                 vn = vrx * pnx + vry * pny + vrz * pnz
                 kn_inv = cdat[k, 7]
-                fn = _implicit_normal_force(cdat[k, 3], vn, cc, kn_inv, dt)
+                fn = normal_force(cdat[k, 3], vn, kc, cc, kn_inv, dt)
                 jx = 0.0
                 jy = 0.0
                 jz = 0.0
