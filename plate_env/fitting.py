@@ -8,8 +8,9 @@ default window is ``"first_hump"``: stable probes in frequency order up to and i
 more than ``drop`` (5 %) below the running maximum, or up to two unstable probes in a row, without the flat base
 below ``floor`` (40 %) of the hump's height. ``"all"`` uses every stable probe. ``experiments/calibrate.py``
 measures the rules: on the point-mass tile-link model at A_p = 3 deg (36 sweeps, 3.5pi-33pi, alpha 30-56 deg) the
-R^2 of omega_n on f0 was 0.05 for "all", 0.02 for the first hump with its base, 0.76 with floor 0.2 and 0.81 with
-floor 0.4.
+R^2 of omega_n on f0 was 0.01 for "all", 0.005 for the first hump with its base, 0.81 with floor 0.2 and 0.81 with
+floor 0.4 (chosen: its slope is closer to the paper's). Fits whose peak lies over ``MAX_PEAK_RATIO`` times above every
+fitted probe (a narrow Lorentzian's tail fitted to the foot of a hump) are refused, not returned.
 """
 
 from __future__ import annotations
@@ -96,6 +97,10 @@ def first_hump_mask(f_hz: np.ndarray, omega: np.ndarray, usable: np.ndarray, dro
     return mask
 
 
+#: A fit whose peak omega_max exceeds the highest fitted probe by more than this factor has no peak in its data.
+MAX_PEAK_RATIO = 10.0
+
+
 def fit_lorentzian(f_hz, omega_deg_s, stderr_deg_s=None, unstable=None, window: str = "first_hump",
                    drop: float = DEFAULT_DROP, floor: float = DEFAULT_FLOOR) -> LorentzFit:
     """Fit Eq. (9) by Levenberg-Marquardt (``scipy.optimize.least_squares(method="lm")``).
@@ -176,6 +181,9 @@ def fit_lorentzian(f_hz, omega_deg_s, stderr_deg_s=None, unstable=None, window: 
     omega_max, f0, b = math.exp(min(best.x[0], 50.0)), float(best.x[1]), math.exp(min(best.x[2], 50.0))
     if b > 20 * span or abs(f0 - fu.mean()) > 20 * span:
         return fail(f"no peak: the fit ran away (b = {b:.3g} Hz, f0 = {f0:.3g} Hz over a {span:.3g} Hz window)")
+    if omega_max > MAX_PEAK_RATIO * float(wu.max()):
+        return fail(f"no peak: the fitted peak ({omega_max:.3g} deg/s) is over {MAX_PEAK_RATIO:g}x the highest probe "
+                    f"({float(wu.max()):.3g} deg/s); the window holds only the foot of a hump")
     # covariance in natural parameters from the Jacobian of the weighted residuals
     x = 1.0 + ((fu - f0) / b) ** 2
     jac = np.column_stack([1.0 / x, omega_max * 2 * (fu - f0) / (b * b * x * x),

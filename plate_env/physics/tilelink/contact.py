@@ -32,17 +32,30 @@ V_TRANSITION = 0.1
 GRAVITY = 9.81
 
 
-def normal_force(depth: float, v_normal: float, k: float, c: float, inv_mass: float, dt: float) -> float:
-    """Penalty normal force (N, >= 0) with the damper implicit in the end-of-step normal velocity.
-
-    ``depth``: penetration a >= 0 (m); ``v_normal``: relative normal velocity (m/s, positive = separating,
-    so da/dt = -v_normal) before the contact force acts; ``inv_mass``: inverse effective mass at the contact.
-    Solves ``f = k a^2.2 - c v'`` with ``v' = v_normal + dt f inv_mass``, then clips adhesion to zero.
-    """
+def spring_force(depth: float, k: float) -> float:
+    """The penalty spring of Eq. (3), ``k a^2.2`` (N); 0 without penetration (``depth`` a in m)."""
     if depth <= 0.0:
         return 0.0
-    f = (k * math.exp(CONTACT_EXPONENT * math.log(depth)) - c * v_normal) / (1.0 + dt * c * inv_mass)
+    return k * math.exp(CONTACT_EXPONENT * math.log(depth))
+
+
+def damped_normal_force(f_spring: float, v_normal: float, c: float, inv_mass: float, dt: float) -> float:
+    """Normal force (N, >= 0) from the spring force ``f_spring`` (N) and the damper, implicit in the end-of-step
+    normal velocity: solves ``f = f_spring - c v'`` with ``v' = v_normal + dt f inv_mass``, then clips adhesion.
+
+    ``v_normal``: relative normal velocity (m/s, positive = separating, so da/dt = -v_normal) before the contact
+    force acts; ``inv_mass``: inverse effective mass at the contact. Callers that hold the geometry fixed over
+    several solver sweeps evaluate :func:`spring_force` once and call this per sweep.
+    """
+    if f_spring <= 0.0:
+        return 0.0
+    f = (f_spring - c * v_normal) / (1.0 + dt * c * inv_mass)
     return f if f > 0.0 else 0.0
+
+
+def normal_force(depth: float, v_normal: float, k: float, c: float, inv_mass: float, dt: float) -> float:
+    """Penalty normal force of Eqs. (3)-(4) (N, >= 0): :func:`spring_force` then :func:`damped_normal_force`."""
+    return damped_normal_force(spring_force(depth, k), v_normal, c, inv_mass, dt)
 
 
 def friction_scale(slip_speed: float, f_normal: float, mu_s: float, mu_k: float, v_transition: float,

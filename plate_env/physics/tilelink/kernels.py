@@ -13,8 +13,9 @@ import numba
 import numpy as np
 
 from plate_env.motion import plate_state as _plate_state_py
+from plate_env.physics.tilelink.contact import damped_normal_force as _damped_normal_force_py
 from plate_env.physics.tilelink.contact import friction_scale as _friction_scale_py
-from plate_env.physics.tilelink.contact import normal_force as _normal_force_py
+from plate_env.physics.tilelink.contact import spring_force as _spring_force_py
 from plate_env.physics.tilelink.params import (  # noqa: F401 - re-exported for the kernels' users
     N_PARAMS,
     P_AMP,
@@ -43,7 +44,8 @@ from plate_env.physics.tilelink.params import (  # noqa: F401 - re-exported for 
 )
 
 plate_state = numba.njit(cache=True, inline="always")(_plate_state_py)
-normal_force = numba.njit(cache=True, inline="always")(_normal_force_py)
+spring_force = numba.njit(cache=True, inline="always")(_spring_force_py)
+damped_normal_force = numba.njit(cache=True, inline="always")(_damped_normal_force_py)
 friction_scale = numba.njit(cache=True, inline="always")(_friction_scale_py)
 
 # Status codes (see plate_env.physics.base for the reasons' names).
@@ -227,7 +229,7 @@ def pointmass_probe(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out,
             ry = v[i, 1] - pvy
             rz = v[i, 2] - pvz
             vn = -ry * s_th + rz * c_th
-            fn = normal_force(-w_i, vn, prm[P_KC], prm[P_CC], inv_m, dt)
+            fn = damped_normal_force(spring_force(-w_i, prm[P_KC]), vn, prm[P_CC], inv_m, dt)
             if fn <= 0.0:
                 continue
             vn_new = vn + dt * inv_m * fn

@@ -4,7 +4,7 @@ Integrator (one step of ``dt`` s, semi-implicit):
 
 1. gravity and the gyroscopic torque ``-w x (I w)`` update each tile's velocity and angular velocity;
 2. the joint rows' accumulated impulses of the previous step are applied again (warm start);
-3. plate contact at every tile corner: the shared Eqs. (3)-(4) law (:func:`contact.normal_force` with its
+3. plate contact at every tile corner: the shared Eqs. (3)-(4) law (:func:`contact.spring_force` once per step, :func:`contact.damped_normal_force` with its
    implicit damper in the corner's effective mass, :func:`contact.friction_scale` stick/slip), impulses acting
    on the tile's translation and rotation. The geometry is frozen for the step, so each active corner's spring
    force ``k a^2.2``, effective normal mass and rotational response are computed once per step, not per sweep;
@@ -60,13 +60,14 @@ from plate_env.physics.tilelink.kernels import (
     P_RECEVERY,
     P_VT,
     RUNAWAY,
+    damped_normal_force,
     friction_scale,
-    normal_force,
     plate_state,
     record,
+    spring_force,
 )
 from plate_env.physics.tilelink.params import P_U0, P_V0, P_YAW0, allocate_outputs, common_vector
-from plate_env.physics.tilelink.rigid import RigidTileConfig, RigidTileParams, build_params
+from plate_env.physics.tilelink.rigid import RigidTileConfig, RigidTileParams, build_params, joint_order
 
 # Extra entries of the rigid parameter vector (after the point-mass layout, whose meaning they share:
 # P_MASS tile mass, P_KB bending k_b, P_KIN/P_CIN compression row).
@@ -149,7 +150,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
     jc = np.zeros((nj, 5))  # position errors C
     pacc = np.zeros((nj, 5))  # accumulated impulses (warm start)
     ctile = np.empty(4 * n, dtype=np.int64)  # active corner contacts: tile index
-    cdat = np.empty((4 * n, 11))  # lever arm r (3), depth a, plate velocity u (3), 1/m_n, dv_t/dp_n (3)
+    cdat = np.empty((4 * n, 11))  # lever arm r (3), spring force k a^2.2, plate velocity u (3), 1/m_n, dv_t/dp_n (3)
     cimp = np.empty((4 * n, 3))  # accumulated contact impulse in this step
     cy = math.cos(prm[P_YAW0])
     sy = math.sin(prm[P_YAW0])
@@ -386,8 +387,8 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
         pny = -s_th
         pnz = c_th
         n_act = 0
-        for i in range(n):
-            for cnr in range(4):
+        for cnr in range(4):  # corner-major order: consecutive GS updates touch different tiles (no stall)
+            for i in range(n):
                 sa = hh if (cnr == 0 or cnr == 3) else -hh
                 sb = hh if cnr < 2 else -hh
                 rx = sa * ax[i, 0] + sb * ax[i, 3]
@@ -402,7 +403,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
                 cdat[n_act, 0] = rx
                 cdat[n_act, 1] = ry
                 cdat[n_act, 2] = rz
-                cdat[n_act, 3] = -wc
+                cdat[n_act, 3] = spring_force(-wc, kc)
                 cdat[n_act, 4] = xp_dot
                 cdat[n_act, 5] = -th_dot * pz
                 cdat[n_act, 6] = th_dot * py
@@ -450,7 +451,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
                 vrz = v[i, 2] + w[i, 0] * ry - w[i, 1] * rx - uz
                 vn = vrx * pnx + vry * pny + vrz * pnz
                 kn_inv = cdat[k, 7]
-                fn = normal_force(cdat[k, 3], vn, kc, cc, kn_inv, dt)
+                fn = damped_normal_force(cdat[k, 3], vn, cc, kn_inv, dt)
                 jx = 0.0
                 jy = 0.0
                 jz = 0.0
@@ -646,7 +647,8 @@ def run_rigid_param_arrays(prm: np.ndarray, rest: np.ndarray, geom, parallel: bo
     if parallel is None:
         parallel = len(prm) > 1
     kernel = rigid_batch_parallel if parallel else rigid_batch_serial
-    kernel(prm, rest, geom.links, geom.link_dir, geom.cells, yaw, cu, cv, diag, status, nrec)
+    order = joint_order(geom)
+    kernel(prm, rest, geom.links[order], geom.link_dir[order], geom.cells, yaw, cu, cv, diag, status, nrec)
     out["diag"] = diag
     return out
 
