@@ -64,6 +64,15 @@ def test_cannot_fit_is_a_result_not_an_exception(f, y):
     assert not fit.ok and fit.reason
 
 
+def test_fit_to_the_foot_of_a_hump_is_refused():
+    # the 33pi rigid-tile sweep that exposed it: 4 probes below slips, a narrow Lorentzian tail fitted them with
+    # f0 = 40.5 Hz and omega_max = 4e10 deg/s
+    fit = fit_lorentzian([14.0, 15.0, 16.0, 17.0], [65.0, 72.0, 74.0, 84.0], window="all")
+    assert not fit.ok and "foot" in fit.reason
+    ok = fit_lorentzian(F, lorentzian(F, 600.0, 25.0, 5.0), window="all")
+    assert ok.ok and ok.omega_max == pytest.approx(600.0, rel=1e-6)
+
+
 def test_unstable_probes_are_excluded_and_counted():
     y = lorentzian(F, 600.0, 25.0, 5.0)
     unstable = F > 33
