@@ -90,6 +90,15 @@ def test_first_hump_window_stops_at_dip_and_unstable_runs():
     assert not fit.used[f > 28].any()
 
 
+def test_unstable_run_on_the_base_does_not_end_the_first_hump():
+    f = np.arange(14.0, 35.0, 1.0)
+    y = 60.0 + lorentzian(f, 600.0, 27.0, 4.0)
+    unstable = (f == 18) | (f == 19) | (f >= 30)
+    fit = fit_lorentzian(f, y, unstable=unstable)
+    assert fit.ok and fit.used[(f >= 22) & (f <= 28)].all()
+    assert fit.f0 == pytest.approx(27.0, abs=0.5)
+
+
 def test_paper_calibration_units():
     cal = paper_calibration(3)
     assert cal.omega_n(25.1) == pytest.approx((5.30 * 25.1 - 121.62) * math.pi)
