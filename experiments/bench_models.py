@@ -42,8 +42,34 @@ def rigid_results(probes: list[ProbeSpec], dt: float) -> tuple[np.ndarray, np.nd
     return (np.array([r.omega_b_deg_s for r in res]), np.array([r.unstable for r in res]), wall)
 
 
+def speed_section(dt: float) -> list[str]:
+    """Real-time factors (simulated s per wall s) of both models: one probe, and a batch of 32 on all cores.
+
+    Medians of 3 runs measured in this process (compiled kernels warmed up first)."""
+    rng = np.random.default_rng(0)
+    probes = [ProbeSpec(obj=pe.ObjectSpec.from_paper(float(rng.uniform(5, 30)), 36.9),
+                        motion=pe.PlateMotion.from_paper(float(f), 3.0, 3.0)) for f in np.linspace(14, 24, 32)]
+    lines = ["", "## Speed (A_p 3 deg, 14-24 Hz, objects 5pi-30pi, windows 0.5 s + 1.0 s; medians of 3 runs)", "",
+             "| model | dt (s) | one probe, real-time factor | batch of 32, aggregate real-time factor |",
+             "|---|---|---|---|"]
+    for name, kw in (("pointmass", {}), ("rigid", {"model": "rigid", "dt": dt})):
+        physics = pe.make_physics("tilelink", **kw)
+        physics.run(probes[:2])
+        one, batch = [], []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            res = physics.run(probes[:1])
+            one.append(res[0].sim_s / (time.perf_counter() - t0))
+            t0 = time.perf_counter()
+            res = physics.run(probes)
+            batch.append(sum(r.sim_s for r in res) / (time.perf_counter() - t0))
+        lines.append(f"| {name} | {getattr(physics, 'dt', dt):g} | {np.median(one):.1f} | {np.median(batch):.1f} |")
+        print(lines[-1], flush=True)
+    return lines
+
+
 def extra_sections(dt: float) -> list[str]:
-    """Rigid model: dt convergence at 18/22/25 Hz (dt vs dt/4 with twice the sweeps), 12-deg fold behaviour."""
+    """Rigid model: dt convergence at 18/22/25 Hz, sensitivity to the rigid rows' stiffness, 12-deg folds."""
     from plate_env.physics.tilelink import kernels as kn
     from plate_env.physics.tilelink import rigid
 
@@ -51,16 +77,34 @@ def extra_sections(dt: float) -> list[str]:
     fs = (18.0, 22.0, 25.0)
     probes = [ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(f, 3.0, 3.0), settle_s=0.6, measure_s=1.0)
               for f in fs]
-    w_c, u_c, _ = rigid_results(probes, dt)
-    it = 2 * rigid.RigidTileConfig().iterations
-    fine = pe.make_physics("tilelink", model="rigid", dt=dt / 4,
-                           rigid_config=rigid.RigidTileConfig(iterations=it)).run(probes)
-    lines = ["", f"## Rigid model: dt convergence (10pi, 36.9 deg; dt = {dt:g} s vs {dt / 4:g} s, {it} sweeps)", "",
-             "| f_p | omega_B dt | omega_B dt/4 | difference |", "|---|---|---|---|"]
-    for b in range(len(probes)):
-        wf = fine[b].omega_b_deg_s
-        lines.append(f"| {fs[b]:g} | {w_c[b]:.1f}{'*' if u_c[b] else ''} | {wf:.1f} | "
-                     f"{100 * (w_c[b] - wf) / wf:+.2f} % |")
+    base = rigid.RigidTileConfig()
+    steps = [(4e-4, base.iterations), (dt, base.iterations), (dt, 2 * base.iterations), (dt / 2, base.iterations),
+             (dt / 4, base.iterations), (dt / 8, 2 * base.iterations), (dt / 16, 2 * base.iterations)]
+    runs = {}
+    for step, it in steps:
+        cfg = rigid.RigidTileConfig(iterations=it)
+        runs[(step, it)] = pe.make_physics("tilelink", model="rigid", dt=step, rigid_config=cfg).run(probes)
+        print(f"dt {step:g} s, {it} sweeps done", flush=True)
+    ref = runs[steps[-1]]
+    lines = ["", f"## Rigid model: omega_B against dt (10pi, 36.9 deg, 3 deg; reference dt = {steps[-1][0]:g} s)", "",
+             "| dt (s) | sweeps | " + " | ".join(f"{f:g} Hz" for f in fs) + " | max |difference| |",
+             "|---|---|" + "---|" * len(fs) + "---|"]
+    for (step, it), res in runs.items():
+        diffs = [100 * (r.omega_b_deg_s - q.omega_b_deg_s) / q.omega_b_deg_s for r, q in zip(res, ref, strict=True)]
+        cells = [f"{r.omega_b_deg_s:.1f}{'*' if r.unstable else ''} ({d:+.2f} %)"
+                 for r, d in zip(res, diffs, strict=True)]
+        lines.append(f"| {step:g} | {it} | " + " | ".join(cells) + f" | {max(abs(d) for d in diffs):.2f} % |")
+    lines += ["", "(* = ended unstable before the window closed; omega_B from the part measured.)", "",
+              "## Rigid model: omega_B against the stiffness of the 'rigid' rows (omega_rigid, rad/s)", "",
+              "| omega_rigid | dt (s) | " + " | ".join(f"{f:g} Hz" for f in fs) + " |",
+              "|---|---|" + "---|" * len(fs)]
+    for w_r in (1000.0, 2500.0, 5000.0, 20000.0):
+        for step in (dt, dt / 8):
+            cfg = rigid.RigidTileConfig(omega_rigid=w_r, iterations=2 * base.iterations)
+            res = pe.make_physics("tilelink", model="rigid", dt=step, rigid_config=cfg).run(probes)
+            lines.append(f"| {w_r:g} | {step:g} | " + " | ".join(
+                f"{r.omega_b_deg_s:.1f}{'*' if r.unstable else ''}" for r in res) + " |")
+            print(lines[-1], flush=True)
     names = {v: k for k, v in vars(kn).items() if k.isupper() and isinstance(v, int) and k in
              ("OK", "OVERTURNED", "SLIPPED", "NON_FINITE", "RUNAWAY", "LEFT_PLATE", "FOLDED")}
     lines += ["", "## Rigid model at A_p = 12 deg (B_p 3 mm, settle 0.8 s, measure 1.0 s)", "",
@@ -131,6 +175,7 @@ def main() -> None:
         for k, f in enumerate(freqs):
             lines.append(f"| {wn:g} | {alpha:g} | {f:g} | {w_pm[k]:.0f}{'*' if u_pm[k] else ''} | "
                          f"{w_rg[k]:.0f}{'*' if u_rg[k] else ''} | {w_rg[k] - w_pm[k]:+.0f} |")
+    lines += speed_section(args.dt)
     lines += extra_sections(args.dt)
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text("\n".join(lines) + "\n")

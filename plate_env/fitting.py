@@ -79,9 +79,9 @@ def first_hump_mask(f_hz: np.ndarray, omega: np.ndarray, usable: np.ndarray, dro
     """Probes of the first hump: usable probes in frequency order up to the first that falls ``drop`` below the
     running maximum (that probe included, it pins the falling side) or up to a run of ``UNSTABLE_RUN`` unstable
     probes (the paper: past the peak "the object becomes unstable") once the curve has risen to ``RISE_FACTOR``
-    times its lowest stable probe so far (an unstable run on the flat base, before the hump, does not end it), leaving out
-    those below ``floor`` times the hump's maximum (the flat low-frequency base, which a Lorentzian cannot
-    follow)."""
+    times its lowest stable probe so far (an unstable run on the flat base, before the hump, does not end it),
+    leaving out those below ``floor`` times the hump's maximum (the flat low-frequency base, which a Lorentzian
+    cannot follow)."""
     f_hz = np.asarray(f_hz, dtype=float)
     omega = np.asarray(omega, dtype=float)
     mask = np.zeros(len(f_hz), dtype=bool)

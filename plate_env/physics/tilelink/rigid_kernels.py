@@ -4,10 +4,12 @@ Integrator (one step of ``dt`` s, semi-implicit):
 
 1. gravity and the gyroscopic torque ``-w x (I w)`` update each tile's velocity and angular velocity;
 2. the joint rows' accumulated impulses of the previous step are applied again (warm start);
-3. plate contact at every tile corner: the shared Eqs. (3)-(4) law (:func:`contact.spring_force` once per step, :func:`contact.damped_normal_force` with its
-   implicit damper in the corner's effective mass, :func:`contact.friction_scale` stick/slip), impulses acting
-   on the tile's translation and rotation. The geometry is frozen for the step, so each active corner's spring
-   force ``k a^2.2``, effective normal mass and rotational response are computed once per step, not per sweep;
+3. plate contact at every tile corner: the shared Eqs. (3)-(4) law (:func:`contact.spring_force` once per step,
+   :func:`contact.damped_normal_force` with its implicit damper in the corner's effective mass per sweep,
+   :func:`contact.friction_scale` stick/slip), impulses acting on the tile's translation and rotation. The geometry
+   is frozen for the step, so each active corner's spring force ``k a^2.2``, effective normal mass and rotational
+   response are computed once per step, not per sweep. Corners are visited corner-major and joints in four colour
+   classes (:func:`rigid.joint_order`) so that consecutive updates touch different tiles;
 4. ``iterations`` block Gauss-Seidel sweeps over the 88 joints: every row (compression, rigid edge/normal
    translation, bending, rigid rotation about the normal) is a spring-damper integrated implicitly (backward
    Euler "soft constraint": ``J v' + k C / (dt k + c) + P / (dt (dt k + c)) = 0``), the 3 translation rows and
@@ -75,7 +77,8 @@ from plate_env.physics.tilelink.rigid import RigidTileConfig, RigidTileParams, b
  R_CORNERW, R_REFRESH) = range(kn.N_PARAMS, kn.N_PARAMS + 17)
 N_RIGID_PARAMS = kn.N_PARAMS + 17
 
-#: Default time step, s (omega_B within 1 % of the dt -> 0 value; see experiments/bench_models.py).
+#: Default time step, s. Against dt = 1.25e-5 s omega_B is +0.2 / -1.1 / -4.3 % at 18 / 22 / 25 Hz (10pi), so the
+#: 1 % goal is missed near the hump's top; dt = 5e-5 s meets ~1.2 % at 4x the cost (experiments/bench_models.py).
 DEFAULT_DT = 2e-4
 
 
