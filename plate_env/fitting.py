@@ -70,32 +70,33 @@ class LorentzFit:
                 "b_stderr_hz": self.stderr[2], "r2": self.r2, "n_used": self.n_used, "n_unstable": self.n_unstable}
 
 
-#: The unstable-run stop of the first-hump window applies once omega_B has risen to this multiple of its base.
-RISE_FACTOR = 2.0
+#: An unstable run does not end the first-hump window while omega_B rose by more than this fraction per probe into it.
+RISE_STEP = 0.1
 
 
 def first_hump_mask(f_hz: np.ndarray, omega: np.ndarray, usable: np.ndarray, drop: float = DEFAULT_DROP,
                     floor: float = DEFAULT_FLOOR) -> np.ndarray:
     """Probes of the first hump: usable probes in frequency order up to the first that falls ``drop`` below the
     running maximum (that probe included, it pins the falling side) or up to a run of ``UNSTABLE_RUN`` unstable
-    probes (the paper: past the peak "the object becomes unstable") once the curve has risen to ``RISE_FACTOR``
-    times its lowest stable probe so far (an unstable run on the flat base, before the hump, does not end it),
-    leaving out those below ``floor`` times the hump's maximum (the flat low-frequency base, which a Lorentzian
-    cannot follow)."""
+    probes (the paper: past the peak "the object becomes unstable"), unless omega_B was still rising steeply
+    into the run (the last two stable probes differ by more than ``RISE_STEP`` of the last: the hump's top is
+    still ahead, so the run is bridged), leaving out those below ``floor`` times the hump's maximum (the flat
+    low-frequency base, which a Lorentzian cannot follow)."""
     f_hz = np.asarray(f_hz, dtype=float)
     omega = np.asarray(omega, dtype=float)
     mask = np.zeros(len(f_hz), dtype=bool)
     running = -math.inf
-    base = math.inf
+    last = prev = math.nan
     bad_run = 0
     for i in np.argsort(f_hz, kind="stable"):
         if not usable[i]:
             bad_run += 1
-            if running >= RISE_FACTOR * base and bad_run >= UNSTABLE_RUN:
+            rising = last - prev > RISE_STEP * abs(last)  # False while fewer than two stable probes were seen
+            if running > -math.inf and bad_run >= UNSTABLE_RUN and not rising:
                 break
             continue
         bad_run = 0
-        base = min(base, omega[i])
+        prev, last = last, omega[i]
         mask[i] = True
         if omega[i] < (1.0 - drop) * running:
             break

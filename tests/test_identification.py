@@ -90,13 +90,18 @@ def test_first_hump_window_stops_at_dip_and_unstable_runs():
     assert not fit.used[f > 28].any()
 
 
-def test_unstable_run_on_the_base_does_not_end_the_first_hump():
+def test_unstable_run_on_the_rising_edge_does_not_end_the_first_hump():
     f = np.arange(14.0, 35.0, 1.0)
-    y = 60.0 + lorentzian(f, 600.0, 27.0, 4.0)
-    unstable = (f == 18) | (f == 19) | (f >= 30)
+    y = 60.0 + lorentzian(f, 600.0, 27.0, 4.0)  # 159 and 180 deg/s at 18 and 19 Hz: still rising > 10 % a probe
+    unstable = (f == 20) | (f == 21) | (f >= 30)
     fit = fit_lorentzian(f, y, unstable=unstable)
     assert fit.ok and fit.used[(f >= 22) & (f <= 28)].all()
     assert fit.f0 == pytest.approx(27.0, abs=0.5)
+    # past the top (flat into the run) an unstable run still ends the window: a later climb is not fitted
+    y2 = np.where(f <= 28, lorentzian(f, 600.0, 26.0, 4.0), 800.0)
+    unstable2 = (f == 29) | (f == 30)
+    fit2 = fit_lorentzian(f, y2, unstable=unstable2)
+    assert fit2.ok and not fit2.used[f > 30].any()
 
 
 def test_paper_calibration_units():
