@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -34,14 +35,6 @@ def fit(freqs: np.ndarray, omegas: np.ndarray, unstable: np.ndarray) -> tuple[fl
     return res.f0, res.b, res.omega_max, res.n_used
 
 
-def rigid_results(probes: list[ProbeSpec], dt: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """omega_B (deg/s) and instability flags of the rigid model, and the batch wall time (s)."""
-    t0 = time.perf_counter()
-    res = pe.make_physics("tilelink", model="rigid", dt=dt).run(probes)
-    wall = time.perf_counter() - t0
-    return (np.array([r.omega_b_deg_s for r in res]), np.array([r.unstable for r in res]), wall)
-
-
 def speed_section(dt: float) -> list[str]:
     """Real-time factors (simulated s per wall s) of both models: one probe, and a batch of 32 on all cores.
 
@@ -49,14 +42,16 @@ def speed_section(dt: float) -> list[str]:
     rng = np.random.default_rng(0)
     probes = [ProbeSpec(obj=pe.ObjectSpec.from_paper(float(rng.uniform(5, 30)), 36.9),
                         motion=pe.PlateMotion.from_paper(float(f), 3.0, 3.0)) for f in np.linspace(14, 24, 32)]
-    lines = ["", "## Speed (A_p 3 deg, 14-24 Hz, objects 5pi-30pi, windows 0.5 s + 1.0 s; medians of 3 runs)", "",
+    lines = ["", "## Speed (A_p 3 deg, 14-24 Hz, objects 5pi-30pi, default windows; medians of 3 runs, rigid_limit: 1)",
+             "",
              "| model | dt (s) | one probe, real-time factor | batch of 32, aggregate real-time factor |",
              "|---|---|---|---|"]
-    for name, kw in (("pointmass", {}), ("rigid", {"model": "rigid", "dt": dt})):
+    for name, kw in (("pointmass", {}), ("rigid", {"model": "rigid", "dt": dt}),
+                     ("rigid_limit", {"model": "rigid_limit"})):
         physics = pe.make_physics("tilelink", **kw)
         physics.run(probes[:2])
         one, batch = [], []
-        for _ in range(3):
+        for _ in range(1 if name == "rigid_limit" else 3):
             t0 = time.perf_counter()
             res = physics.run(probes[:1])
             one.append(res[0].sim_s / (time.perf_counter() - t0))
@@ -78,29 +73,41 @@ def extra_sections(dt: float) -> list[str]:
     probes = [ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(f, 3.0, 3.0), settle_s=0.6, measure_s=1.0)
               for f in fs]
     base = rigid.RigidTileConfig()
-    steps = [(4e-4, base.iterations), (dt, base.iterations), (dt, 2 * base.iterations), (dt / 2, base.iterations),
-             (dt / 4, base.iterations), (dt / 8, 2 * base.iterations), (dt / 16, 2 * base.iterations)]
-    runs = {}
-    for step, it in steps:
-        cfg = rigid.RigidTileConfig(iterations=it)
-        runs[(step, it)] = pe.make_physics("tilelink", model="rigid", dt=step, rigid_config=cfg).run(probes)
-        print(f"dt {step:g} s, {it} sweeps done", flush=True)
-    ref = runs[steps[-1]]
-    lines = ["", f"## Rigid model: omega_B against dt (10pi, 36.9 deg, 3 deg; reference dt = {steps[-1][0]:g} s)", "",
-             "| dt (s) | sweeps | " + " | ".join(f"{f:g} Hz" for f in fs) + " | max |difference| |",
-             "|---|---|" + "---|" * len(fs) + "---|"]
-    for (step, it), res in runs.items():
-        diffs = [100 * (r.omega_b_deg_s - q.omega_b_deg_s) / q.omega_b_deg_s for r, q in zip(res, ref, strict=True)]
-        cells = [f"{r.omega_b_deg_s:.1f}{'*' if r.unstable else ''} ({d:+.2f} %)"
-                 for r, d in zip(res, diffs, strict=True)]
-        lines.append(f"| {step:g} | {it} | " + " | ".join(cells) + f" | {max(abs(d) for d in diffs):.2f} % |")
+    lines = []
+    lim = rigid.RIGID_LIMIT_CONFIG
+    for name, cfg0, steps in (
+            ("rigid", base, [(4e-4, base.iterations), (dt, base.iterations), (dt, 2 * base.iterations),
+                             (dt / 2, base.iterations), (dt / 4, base.iterations), (dt / 8, 2 * base.iterations),
+                             (dt / 16, 2 * base.iterations)]),
+            ("rigid_limit", lim, [(5e-5, lim.iterations), (2.5e-5, lim.iterations), (1.25e-5, lim.iterations),
+                                  (6.25e-6, lim.iterations)])):
+        runs = {}
+        for step, it in steps:
+            cfg = replace(cfg0, iterations=it)
+            runs[(step, it)] = pe.make_physics("tilelink", model=name, dt=step, rigid_config=cfg).run(probes)
+            print(f"{name}: dt {step:g} s, {it} sweeps done", flush=True)
+        ref = runs[steps[-1]]
+        lines += ["", f"## {name}: omega_B against dt (10pi, 36.9 deg, 3 deg; omega_rigid {cfg0.omega_rigid:g} rad/s; "
+                  f"reference dt = {steps[-1][0]:g} s)", "",
+                  "| dt (s) | sweeps | " + " | ".join(f"{f:g} Hz" for f in fs) + " | max |difference| |",
+                  "|---|---|" + "---|" * len(fs) + "---|"]
+        for (step, it), res in runs.items():
+            diffs = [100 * (r.omega_b_deg_s - q.omega_b_deg_s) / q.omega_b_deg_s
+                     for r, q in zip(res, ref, strict=True)]
+            cells = [f"{r.omega_b_deg_s:.1f}{'*' if r.unstable else ''} ({d:+.2f} %)"
+                     for r, d in zip(res, diffs, strict=True)]
+            lines.append(f"| {step:g} | {it} | " + " | ".join(cells) + f" | {max(abs(d) for d in diffs):.2f} % |")
     lines += ["", "(* = ended unstable before the window closed; omega_B from the part measured.)", "",
-              "## Rigid model: omega_B against the stiffness of the 'rigid' rows (omega_rigid, rad/s)", "",
+              "## Rigid tiles: omega_B against the stiffness of the 'rigid' rows (omega_rigid, rad/s)", "",
+              f"dt = {dt / 8:g} s, {2 * lim.iterations} sweeps (and the default dt {dt:g} s, "
+              f"{2 * base.iterations} sweeps, where it runs).", "",
               "| omega_rigid | dt (s) | " + " | ".join(f"{f:g} Hz" for f in fs) + " |",
               "|---|---|" + "---|" * len(fs)]
-    for w_r in (1000.0, 2500.0, 5000.0, 20000.0):
-        for step in (dt, dt / 8):
-            cfg = rigid.RigidTileConfig(omega_rigid=w_r, iterations=2 * base.iterations)
+    for w_r in (1000.0, 2500.0, 5000.0, 10000.0, 20000.0, 40000.0, 80000.0):
+        for step, it in ((dt, 2 * base.iterations), (dt / 8, 2 * lim.iterations)):
+            if step == dt and w_r > 20000.0:
+                continue
+            cfg = rigid.RigidTileConfig(omega_rigid=w_r, iterations=it)
             res = pe.make_physics("tilelink", model="rigid", dt=step, rigid_config=cfg).run(probes)
             lines.append(f"| {w_r:g} | {step:g} | " + " | ".join(
                 f"{r.omega_b_deg_s:.1f}{'*' if r.unstable else ''}" for r in res) + " |")
@@ -132,35 +139,41 @@ def main() -> None:
     objects = [(10.0, 36.9), (33.0, 36.9), (10.0, 56.3)]
     if not args.quick:
         objects += [(20.0, 36.9), (50.0, 36.9)]
-    pm = pe.make_physics("tilelink")
+    models = {"pointmass": pe.make_physics("tilelink"),
+              "rigid": pe.make_physics("tilelink", model="rigid", dt=args.dt),
+              "rigid_limit": pe.make_physics("tilelink", model="rigid_limit")}
+    spec0 = ProbeSpec(obj=pe.ObjectSpec.from_paper(10.0, 36.9), motion=pe.PlateMotion.from_paper(20.0, 3.0, 3.0))
     lines = ["# Point-mass vs rigid-tile tile-link models", "",
-             f"A_p = 3 deg, B_p = 3 mm, ramp 0.2 s, settle 0.8 s, measure 1.5 s; rigid dt = {args.dt:g} s, "
-             f"point-mass dt = {pm.dt:g} s. First-hump fit of Eq. (9) (stable probes up to the first dip).", "",
+             f"A_p = 3 deg, B_p = 3 mm, ramp {spec0.motion.ramp_s:g} s, settle {spec0.settle_s:g} s, measure "
+             f"{spec0.measure_s:g} s; dt: " + ", ".join(f"{k} {m.dt:g} s" for k, m in models.items())
+             + ". First-hump fit of Eq. (9) by the package's fitter (stable probes up to the first dip). "
+             "rigid_limit: the joint rows at 40000 rad/s (their converged rigid limit), 4 sweeps.", "",
              "| omega_n (pi rad/s) | alpha (deg) | model | f0 (Hz) | b (Hz) | omega_max (deg/s) | points | "
              "paper f0/b/max | wall s (batch) | RT aggregate |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     sweeps = []
-    f0s: dict[str, list[tuple[float, float]]] = {"pointmass": [], "rigid": []}
+    f0s: dict[str, list[tuple[float, float]]] = {name: [] for name in models}
     for wn, alpha in objects:
         obj = pe.ObjectSpec.from_paper(wn, alpha)
         probes = [ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(float(f), 3.0, 3.0)) for f in freqs]
         sim_s = sum(p.duration_s for p in probes)
-        t0 = time.perf_counter()
-        res = pm.run(probes)
-        wall_pm = time.perf_counter() - t0
-        w_pm = np.array([r.omega_b_deg_s for r in res])
-        u_pm = np.array([r.unstable for r in res])
-        w_rg, u_rg, wall_rg = rigid_results(probes, args.dt)
-        sweeps.append((wn, alpha, w_pm, u_pm, w_rg, u_rg))
         paper = PAPER.get((wn, alpha))
         ptxt = "/".join(f"{x:g}" for x in paper) if paper else "-"
-        for name, w, u, wall in (("pointmass", w_pm, u_pm, wall_pm), ("rigid", w_rg, u_rg, wall_rg)):
+        per_model = {}
+        for name, physics in models.items():
+            t0 = time.perf_counter()
+            res = physics.run(probes)
+            wall = time.perf_counter() - t0
+            w = np.array([r.omega_b_deg_s for r in res])
+            u = np.array([r.unstable for r in res])
+            per_model[name] = (w, u)
             f0, b, wmax, npts = fit(freqs, w, u)
             if alpha == 36.9 and math.isfinite(f0):
                 f0s[name].append((wn, f0))
             lines.append(f"| {wn:g} | {alpha:g} | {name} | {f0:.1f} | {b:.1f} | {wmax:.0f} | {npts} | {ptxt} | "
-                         f"{wall:.1f} | {sim_s / wall:.0f} |")
+                         f"{wall:.1f} | {sim_s / wall:.1f} |")
             print(lines[-1], flush=True)
+        sweeps.append((wn, alpha, per_model))
     lines += ["", "Slope of f0 against omega_n (alpha 36.9 deg), Hz per (pi rad/s):", ""]
     for name, pts in f0s.items():
         if len(pts) >= 2:
@@ -169,17 +182,16 @@ def main() -> None:
             lines.append(f"- {name}: {np.polyfit(x, y, 1)[0]:.3f} (points {pts_txt})")
     lines.append("- paper: (28.2 - 25.1) / 23 = 0.135")
     lines += ["", "## omega_B per probe (deg/s; * = unstable)", ""]
-    lines.append("| omega_n | alpha | f_p | point-mass | rigid | rigid - point-mass |")
-    lines.append("|---|---|---|---|---|---|")
-    for wn, alpha, w_pm, u_pm, w_rg, u_rg in sweeps:
+    lines.append("| omega_n | alpha | f_p | " + " | ".join(models) + " |")
+    lines.append("|---|---|---|" + "---|" * len(models))
+    for wn, alpha, per_model in sweeps:
         for k, f in enumerate(freqs):
-            lines.append(f"| {wn:g} | {alpha:g} | {f:g} | {w_pm[k]:.0f}{'*' if u_pm[k] else ''} | "
-                         f"{w_rg[k]:.0f}{'*' if u_rg[k] else ''} | {w_rg[k] - w_pm[k]:+.0f} |")
+            lines.append(f"| {wn:g} | {alpha:g} | {f:g} | " + " | ".join(
+                f"{w[k]:.0f}{'*' if u[k] else ''}" for w, u in per_model.values()) + " |")
     lines += speed_section(args.dt)
     lines += extra_sections(args.dt)
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text("\n".join(lines) + "\n")
-    print("\n".join(lines[-8 - len(sweeps) * len(freqs):][:8]))
     print(f"wrote {RESULTS}")
 
 

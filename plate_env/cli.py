@@ -79,7 +79,7 @@ def _spec(args: argparse.Namespace, obj: ObjectSpec, freq: float) -> ProbeSpec:
 
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
-    p.add_argument("--model", default=None, help="tilelink model (pointmass, rigid); atlas: whose atlas")
+    p.add_argument("--model", default=None, help="tilelink model (pointmass, rigid, rigid_limit); atlas: whose atlas")
     p.add_argument("--object", default=None, help="preset object: cheese, dumpling, cheese_lead")
     p.add_argument("--omega-n", default=None, help="bending natural frequency, rad/s or e.g. 10pi")
     p.add_argument("--alpha", type=float, default=None, help="friction angle, degrees")
@@ -106,7 +106,7 @@ def build_parser() -> argparse.ArgumentParser:
     i = sub.add_parser("identify", help="identify a hidden object with a probing agent (the main job)")
     i.add_argument("--agent", default="bayes", choices=("grid", "coarse_to_fine", "bayes", "ppo"))
     i.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
-    i.add_argument("--model", default=None, help="tilelink model (pointmass, rigid)")
+    i.add_argument("--model", default=None, help="tilelink model (pointmass, rigid, rigid_limit)")
     i.add_argument("--object", default=None, help="preset object: cheese, dumpling, cheese_lead")
     i.add_argument("--omega-n", default=None, help="true bending natural frequency, rad/s or e.g. 17pi")
     i.add_argument("--alpha", type=float, default=None, help="true friction angle, degrees")

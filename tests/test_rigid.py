@@ -105,23 +105,21 @@ def test_dt_convergence_three_frequencies():
 
 
 @pytest.mark.slow
-def test_first_hump_rises_with_omega_n():
+@pytest.mark.parametrize("model", ["rigid", "rigid_limit"])
+def test_first_hump_rises_with_omega_n(model):
     """The protocol of experiments/bench_models.py (14-34 Hz step 1, default windows, the package's first-hump
     fit), so this test and the reported table measure the same thing."""
-    import importlib.util
-    from pathlib import Path
+    from plate_env.fitting import fit_lorentzian
 
-    path = Path(__file__).resolve().parents[1] / "experiments" / "bench_models.py"
-    spec_ = importlib.util.spec_from_file_location("bench_models", path)
-    bm = importlib.util.module_from_spec(spec_)
-    spec_.loader.exec_module(bm)
     freqs = np.arange(14.0, 35.0, 1.0)
+    physics = pe.make_physics("tilelink", model=model)
     f0 = {}
     for wn in (10.0, 33.0):
         obj = pe.ObjectSpec.from_paper(wn, 36.9)
-        probes = [ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(float(f), 3.0, 3.0)) for f in freqs]
-        w, u, _ = bm.rigid_results(probes, rk.DEFAULT_DT)
-        f0[wn] = bm.fit(freqs, w, u)[0]
+        res = physics.run([ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(float(f), 3.0, 3.0)) for f in freqs])
+        fit = fit_lorentzian(freqs, [r.omega_b_deg_s for r in res], unstable=[r.unstable for r in res])
+        assert fit.ok, fit.reason
+        f0[wn] = fit.f0
     assert f0[33.0] - f0[10.0] >= 2.0
 
 
@@ -132,3 +130,14 @@ def test_large_fold_is_detected_not_launched():
     for b in range(len(specs)):
         assert int(out["status"][b]) not in (kn.NON_FINITE, kn.RUNAWAY)
         assert out["diag"][b, 0] <= 0.1 * out["diag"][b, 2] + 2e-4
+
+
+def test_rigid_limit_is_the_rigid_kernel_with_stiff_rows_and_a_small_step():
+    physics = pe.make_physics("tilelink", model="rigid_limit")
+    assert physics.dt == pytest.approx(2.5e-5)
+    assert physics.rigid_config == rigid.RIGID_LIMIT_CONFIG
+    assert physics.rigid_config.omega_rigid > 5 * rigid.RigidTileConfig().omega_rigid
+    res = physics.run([_probe(22.0, settle=0.02, measure=0.05)])[0]
+    assert not res.unstable and math.isfinite(res.omega_b_deg_s)
+    with pytest.raises(ValueError, match="rigid_limit"):
+        pe.make_physics("tilelink", model="rigid-limit")

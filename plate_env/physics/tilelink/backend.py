@@ -34,9 +34,11 @@ from plate_env.physics.tilelink.params import (
     common_vector,
 )
 from plate_env.physics.tilelink.pointmass import PointMassConfig, build_params, implicit_damping_matrix
-from plate_env.physics.tilelink.rigid import RigidTileConfig
+from plate_env.physics.tilelink.rigid import RIGID_LIMIT_CONFIG, RigidTileConfig
 
-MODELS = ("pointmass", "rigid")
+MODELS = ("pointmass", "rigid", "rigid_limit")
+#: Default time step of each model, s.
+DEFAULT_DT = {"pointmass": 2e-4, "rigid": 2e-4, "rigid_limit": 2.5e-5}
 _REASONS = {1: OVERTURNED, 2: SLIPPED, 3: NON_FINITE, 4: RUNAWAY, 5: LEFT_PLATE, 6: FOLDED}
 #: Probes per kernel call when a progress bar is shown.
 PROGRESS_CHUNK = 8
@@ -56,18 +58,22 @@ class TileLinkPhysics:
     """The paper's tile-link model.
 
     Args:
-        model: ``"pointmass"`` (the fast point-mass reduction, default) or ``"rigid"`` (52 rigid tiles, the
-            faithful version; ~10x slower, see ``experiments/bench_models.py``).
-        dt: time step, s. The default 2e-4 s keeps omega_B within 1 % of the dt -> 0 value
-            (``experiments/bench_physics.py``).
+        model: ``"pointmass"`` (the fast point-mass reduction, default), ``"rigid"`` (52 rigid tiles with the
+            joints' held motions as stiff rows at 5000 rad/s: ~8x slower than point masses) or ``"rigid_limit"``
+            (the same tiles with the rows in their converged rigid limit, :data:`rigid.RIGID_LIMIT_CONFIG`, at
+            dt = 2.5e-5 s: the paper's model, ~1x real time). See ``experiments/bench_models.py``.
+        dt: time step, s; None takes the model's default (:data:`DEFAULT_DT`). Point mass at 2e-4 s: omega_B
+            0.85 % median / 3.6 % max from its dt -> 0 value (``experiments/bench_physics.py``).
         slip_limit: centre displacement (m, plate frame) beyond which a probe is unstable (the paper: 10 mm).
         config: joint parameters the paper does not give.
     """
 
-    def __init__(self, model: str = "pointmass", dt: float = 2e-4, slip_limit: float = SLIP_LIMIT_M,
+    def __init__(self, model: str = "pointmass", dt: float | None = None, slip_limit: float = SLIP_LIMIT_M,
                  config: PointMassConfig | None = None, rigid_config: RigidTileConfig | None = None) -> None:
         if model not in MODELS:
             raise ValueError(f"unknown tilelink model {model!r}; choose one of {MODELS}")
+        if dt is None:
+            dt = DEFAULT_DT[model]
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and 0.0 < dt <= 0.01):
             raise ValueError(f"time step dt = {dt!r} s is outside the allowed range (0, 0.01]")
         if not (math.isfinite(slip_limit) and slip_limit > 0):
@@ -77,7 +83,9 @@ class TileLinkPhysics:
         self.dt = float(dt)
         self.slip_limit = float(slip_limit)
         self.config = config or PointMassConfig()
-        self.rigid_config = rigid_config or RigidTileConfig()
+        if rigid_config is None:
+            rigid_config = RIGID_LIMIT_CONFIG if model == "rigid_limit" else RigidTileConfig()
+        self.rigid_config = rigid_config
 
     def __repr__(self) -> str:
         return f"TileLinkPhysics(model={self.model!r}, dt={self.dt:g})"
@@ -96,7 +104,7 @@ class TileLinkPhysics:
 
     def run_arrays(self, probes: Sequence[ProbeSpec]) -> dict[str, np.ndarray]:
         """Run the kernel on a batch and return its raw arrays (parameters, traces, status, records)."""
-        if self.model == "rigid":
+        if self.model in ("rigid", "rigid_limit"):
             from plate_env.physics.tilelink.rigid_kernels import run_rigid_arrays
 
             return run_rigid_arrays(probes, self.dt, self.slip_limit, config=self.rigid_config)
