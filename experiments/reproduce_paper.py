@@ -2,7 +2,8 @@
 
     python experiments/reproduce_paper.py [--rigid] [--pybullet] [--seed 0]
 
-For tilelink/pointmass (always), tilelink/rigid (``--rigid``, Figs. 5 and 7 only, ~8x slower) and a PyBullet sheet
+For tilelink/pointmass (always), tilelink/rigid and tilelink/rigid_limit (``--rigid``, Figs. 5 and 7 only, ~8x and
+~100x slower) and a PyBullet sheet
 (``--pybullet``: one tiny 10pi sweep at A_p = 3 deg, 6 probes on a 30-point/layer sheet, minutes):
 
 * Fig. 5(a): omega_B vs f_p at A_p = 1, 3, 6, 12, 24 deg for omega_n = 10pi rad/s (alpha 36.9 deg, B_p 3 mm);
@@ -317,7 +318,7 @@ def pybullet_tiny(out_dir: Path, cache: Path) -> list[str]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--rigid", action="store_true", help="also tilelink/rigid (Figs. 5 and 7)")
+    ap.add_argument("--rigid", action="store_true", help="also tilelink/rigid and tilelink/rigid_limit (Figs. 5, 7)")
     ap.add_argument("--pybullet", action="store_true", help="also one tiny PyBullet sweep")
     ap.add_argument("--seed", type=int, default=0, help="placement seed of the held-out probes (Fig. 11)")
     ap.add_argument("--out-dir", default="experiments/results")
@@ -328,6 +329,7 @@ def main() -> None:
     backends = [("tilelink_pointmass", {"model": "pointmass"}, True)]
     if args.rigid:
         backends.append(("tilelink_rigid", {"model": "rigid"}, False))
+        backends.append(("tilelink_rigid_limit", {"model": "rigid_limit"}, False))
     for tag, options, full in backends:
         physics = pe.make_physics("tilelink", **options)
         md = reproduce(physics, tag, out_dir, cache_dir / f"reproduce_paper_{tag}.jsonl", args.seed, full)
