@@ -53,11 +53,6 @@ def damped_normal_force(f_spring: float, v_normal: float, c: float, inv_mass: fl
     return f if f > 0.0 else 0.0
 
 
-def normal_force(depth: float, v_normal: float, k: float, c: float, inv_mass: float, dt: float) -> float:
-    """Penalty normal force of Eqs. (3)-(4) (N, >= 0): :func:`spring_force` then :func:`damped_normal_force`."""
-    return damped_normal_force(spring_force(depth, k), v_normal, c, inv_mass, dt)
-
-
 def friction_scale(slip_speed: float, f_normal: float, mu_s: float, mu_k: float, v_transition: float,
                    inv_mass: float, dt: float) -> float:
     """Factor ``s`` in [0, 1) that the tangential slip velocity is multiplied by after the friction impulse.
