@@ -74,7 +74,7 @@ def test_huge_dt_is_reported_unstable_not_nan(cheese):
 
 def test_injected_nan_is_reported_non_finite(tilelink, cheese):
     from plate_env.physics.tilelink import kernels as kn
-    from plate_env.physics.tilelink.backend import _ainv, _pointmass_params
+    from plate_env.physics.tilelink.backend import _ainv, _pointmass_params, result_from_arrays
 
     spec = probe(cheese, 25.0)
     prm = tilelink._param_vector(spec)[None, :]
@@ -83,7 +83,7 @@ def test_injected_nan_is_reported_non_finite(tilelink, cheese):
     raw = tilelink.run_param_arrays(prm, _ainv(cheese, tilelink.config, tilelink.dt)[None], params.geom.rest[None],
                                     params.geom)
     assert raw["status"][0] == kn.NON_FINITE
-    result = tilelink._result(spec, raw, 0, 0.0)
+    result = result_from_arrays(spec, raw, 0, tilelink.dt)
     assert result.unstable and result.reason == "non_finite"
     assert result.omega_b_deg_s == 0.0
 

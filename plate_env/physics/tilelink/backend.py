@@ -144,7 +144,7 @@ class TileLinkPhysics:
                 t0 = time.perf_counter()
                 raw = self.run_arrays(part)
                 wall = (time.perf_counter() - t0) / len(part)
-                results.extend(self._result(s, raw, b, wall) for b, s in enumerate(part))
+                results.extend(result_from_arrays(s, raw, b, self.dt, wall) for b, s in enumerate(part))
                 if bar is not None:
                     bar.update(len(part))
         finally:
@@ -152,26 +152,31 @@ class TileLinkPhysics:
                 bar.close()
         return results
 
-    def _result(self, spec: ProbeSpec, raw: dict[str, np.ndarray], b: int, wall: float) -> ProbeResult:
-        from plate_env.physics.tilelink import kernels as kn
 
-        rec_dt = raw["prm"][b, P_RECEVERY] * self.dt
-        nrec = int(raw["nrec"][b])
-        t = np.arange(nrec) * rec_dt
-        yaw = raw["yaw"][b, :nrec]
-        status = int(raw["status"][b])
-        unstable = status != kn.OK
-        t_end = nrec * rec_dt if unstable else None
-        period = 1.0 / spec.motion.freq_hz
-        if nrec >= 2:
-            omega, se, used = measure_omega_b(t, yaw, spec.measure_start_s, period, spec.n_periods, t_end)
-        else:
-            omega, se, used = 0.0, 0.0, 0
-        sim_s = (nrec - 1) * rec_dt if unstable else raw["prm"][b, P_NSTEPS] * self.dt
-        trace = None
-        if spec.record_trace:
-            trace = YawTrace(t=t, yaw=yaw.copy(), centre_u=raw["cu"][b, :nrec].copy(),
-                             centre_v=raw["cv"][b, :nrec].copy())
-        return ProbeResult(spec=spec, omega_b_deg_s=math.degrees(omega), stderr_deg_s=math.degrees(se),
-                           unstable=unstable, reason=_REASONS.get(status), sim_s=float(max(sim_s, 0.0)),
-                           wall_s=wall, periods_measured=used, trace=trace)
+def result_from_arrays(spec: ProbeSpec, raw: dict[str, np.ndarray], b: int, dt: float, wall: float = 0.0
+                       ) -> ProbeResult:
+    """The :class:`ProbeResult` of probe ``b`` of a tile-link kernel's raw arrays (``run_arrays`` or
+    ``run_rigid_param_arrays`` output) run at time step ``dt`` (s): omega_B from the yaw trace by
+    :func:`measure_omega_b`, status, simulated time; ``wall``: wall seconds charged to the probe."""
+    from plate_env.physics.tilelink import kernels as kn
+
+    rec_dt = raw["prm"][b, P_RECEVERY] * dt
+    nrec = int(raw["nrec"][b])
+    t = np.arange(nrec) * rec_dt
+    yaw = raw["yaw"][b, :nrec]
+    status = int(raw["status"][b])
+    unstable = status != kn.OK
+    t_end = nrec * rec_dt if unstable else None
+    period = 1.0 / spec.motion.freq_hz
+    if nrec >= 2:
+        omega, se, used = measure_omega_b(t, yaw, spec.measure_start_s, period, spec.n_periods, t_end)
+    else:
+        omega, se, used = 0.0, 0.0, 0
+    sim_s = (nrec - 1) * rec_dt if unstable else raw["prm"][b, P_NSTEPS] * dt
+    trace = None
+    if spec.record_trace:
+        trace = YawTrace(t=t, yaw=yaw.copy(), centre_u=raw["cu"][b, :nrec].copy(),
+                         centre_v=raw["cv"][b, :nrec].copy())
+    return ProbeResult(spec=spec, omega_b_deg_s=math.degrees(omega), stderr_deg_s=math.degrees(se),
+                       unstable=unstable, reason=_REASONS.get(status), sim_s=float(max(sim_s, 0.0)),
+                       wall_s=wall, periods_measured=used, trace=trace)
