@@ -89,6 +89,26 @@ def _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, ux, uy, uz):
     return ux * ixx_inv + s * nx, uy * ixx_inv + s * ny, uz * ixx_inv + s * nz
 
 
+@numba.njit(cache=True, inline="always")
+def _turn(w, i, lx, ly, lz, nx, ny, nz, ixx_inv, dinv):
+    """Add ``I^-1 l`` to tile ``i``'s angular velocity (l: angular impulse, N m s; n: the tile's normal)."""
+    dx, dy, dz = _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, lx, ly, lz)
+    w[i, 0] += dx
+    w[i, 1] += dy
+    w[i, 2] += dz
+
+
+@numba.njit(cache=True, inline="always")
+def _push(v, w, i, fx, fy, fz, rx, ry, rz, lx, ly, lz, nx, ny, nz, inv_m, ixx_inv, dinv):
+    """Apply the impulse f (N s) at lever r (m) from the centre, plus the angular impulse l (N m s), to tile ``i``.
+    Callers pass -f, -l for the other side of a joint."""
+    v[i, 0] += fx * inv_m
+    v[i, 1] += fy * inv_m
+    v[i, 2] += fz * inv_m
+    _turn(w, i, lx + (ry * fz - rz * fy), ly + (rz * fx - rx * fz), lz + (rx * fy - ry * fx), nx, ny, nz, ixx_inv,
+          dinv)
+
+
 @numba.njit(cache=True, fastmath=FAST)
 def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag):
     """Simulate one rigid-tile probe; fills the traces and ``diag`` and returns (status, records written).
@@ -365,26 +385,11 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
             fx = p0 * t1x + p1 * t2x + p2 * nnx
             fy = p0 * t1y + p1 * t2y + p2 * nny
             fz = p0 * t1z + p1 * t2z + p2 * nnz
-            lx = p3 * t2x + p4 * nnx + (ray * fz - raz * fy)
-            ly = p3 * t2y + p4 * nny + (raz * fx - rax * fz)
-            lz = p3 * t2z + p4 * nnz + (rax * fy - ray * fx)
-            v[a, 0] -= fx * inv_m
-            v[a, 1] -= fy * inv_m
-            v[a, 2] -= fz * inv_m
-            dx, dy, dz = _apply_inv_inertia(nax, nay, naz, ixx_inv, dinv, lx, ly, lz)
-            w[a, 0] -= dx
-            w[a, 1] -= dy
-            w[a, 2] -= dz
-            lx = p3 * t2x + p4 * nnx + (rby * fz - rbz * fy)
-            ly = p3 * t2y + p4 * nny + (rbz * fx - rbx * fz)
-            lz = p3 * t2z + p4 * nnz + (rbx * fy - rby * fx)
-            v[b, 0] += fx * inv_m
-            v[b, 1] += fy * inv_m
-            v[b, 2] += fz * inv_m
-            dx, dy, dz = _apply_inv_inertia(nbx, nby, nbz, ixx_inv, dinv, lx, ly, lz)
-            w[b, 0] += dx
-            w[b, 1] += dy
-            w[b, 2] += dz
+            lx = p3 * t2x + p4 * nnx
+            ly = p3 * t2y + p4 * nny
+            lz = p3 * t2z + p4 * nnz
+            _push(v, w, a, -fx, -fy, -fz, rax, ray, raz, -lx, -ly, -lz, nax, nay, naz, inv_m, ixx_inv, dinv)
+            _push(v, w, b, fx, fy, fz, rbx, rby, rbz, lx, ly, lz, nbx, nby, nbz, inv_m, ixx_inv, dinv)
         # 3. active plate contacts at the corners (geometry frozen for the step)
         pnx = 0.0
         pny = -s_th
@@ -438,17 +443,8 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
                 rx, ry, rz = cdat[k, 0], cdat[k, 1], cdat[k, 2]
                 ux, uy, uz = cdat[k, 4], cdat[k, 5], cdat[k, 6]
                 # remove this corner's accumulated impulse from its tile
-                ox, oy, oz = cimp[k, 0], cimp[k, 1], cimp[k, 2]
-                v[i, 0] -= ox * inv_m
-                v[i, 1] -= oy * inv_m
-                v[i, 2] -= oz * inv_m
-                lx = ry * oz - rz * oy
-                ly = rz * ox - rx * oz
-                lz = rx * oy - ry * ox
-                dx, dy, dz = _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, lx, ly, lz)
-                w[i, 0] -= dx
-                w[i, 1] -= dy
-                w[i, 2] -= dz
+                _push(v, w, i, -cimp[k, 0], -cimp[k, 1], -cimp[k, 2], rx, ry, rz, 0.0, 0.0, 0.0, nx, ny, nz, inv_m,
+                      ixx_inv, dinv)
                 vrx = v[i, 0] + w[i, 1] * rz - w[i, 2] * ry - ux
                 vry = v[i, 1] + w[i, 2] * rx - w[i, 0] * rz - uy
                 vrz = v[i, 2] + w[i, 0] * ry - w[i, 1] * rx - uz
@@ -483,16 +479,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
                 cimp[k, 0] = jx
                 cimp[k, 1] = jy
                 cimp[k, 2] = jz
-                v[i, 0] += jx * inv_m
-                v[i, 1] += jy * inv_m
-                v[i, 2] += jz * inv_m
-                lx = ry * jz - rz * jy
-                ly = rz * jx - rx * jz
-                lz = rx * jy - ry * jx
-                dx, dy, dz = _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, lx, ly, lz)
-                w[i, 0] += dx
-                w[i, 1] += dy
-                w[i, 2] += dz
+                _push(v, w, i, jx, jy, jz, rx, ry, rz, 0.0, 0.0, 0.0, nx, ny, nz, inv_m, ixx_inv, dinv)
             for jj in range(nj):
                 j = jj if it % 2 == 0 else nj - 1 - jj
                 a = links[j, 0]
@@ -521,26 +508,8 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
                 fx = d0 * t1x + d1 * t2x + d2 * nnx
                 fy = d0 * t1y + d1 * t2y + d2 * nny
                 fz = d0 * t1z + d1 * t2z + d2 * nnz
-                v[a, 0] -= fx * inv_m
-                v[a, 1] -= fy * inv_m
-                v[a, 2] -= fz * inv_m
-                v[b, 0] += fx * inv_m
-                v[b, 1] += fy * inv_m
-                v[b, 2] += fz * inv_m
-                lx = ray * fz - raz * fy
-                ly = raz * fx - rax * fz
-                lz = rax * fy - ray * fx
-                dx, dy, dz = _apply_inv_inertia(nax, nay, naz, ixx_inv, dinv, lx, ly, lz)
-                w[a, 0] -= dx
-                w[a, 1] -= dy
-                w[a, 2] -= dz
-                lx = rby * fz - rbz * fy
-                ly = rbz * fx - rbx * fz
-                lz = rbx * fy - rby * fx
-                dx, dy, dz = _apply_inv_inertia(nbx, nby, nbz, ixx_inv, dinv, lx, ly, lz)
-                w[b, 0] += dx
-                w[b, 1] += dy
-                w[b, 2] += dz
+                _push(v, w, a, -fx, -fy, -fz, rax, ray, raz, 0.0, 0.0, 0.0, nax, nay, naz, inv_m, ixx_inv, dinv)
+                _push(v, w, b, fx, fy, fz, rbx, rby, rbz, 0.0, 0.0, 0.0, nbx, nby, nbz, inv_m, ixx_inv, dinv)
                 dwx = w[b, 0] - w[a, 0]
                 dwy = w[b, 1] - w[a, 1]
                 dwz = w[b, 2] - w[a, 2]
@@ -553,14 +522,8 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
                 lx = d3 * t2x + d4 * nnx
                 ly = d3 * t2y + d4 * nny
                 lz = d3 * t2z + d4 * nnz
-                dx, dy, dz = _apply_inv_inertia(nax, nay, naz, ixx_inv, dinv, lx, ly, lz)
-                w[a, 0] -= dx
-                w[a, 1] -= dy
-                w[a, 2] -= dz
-                dx, dy, dz = _apply_inv_inertia(nbx, nby, nbz, ixx_inv, dinv, lx, ly, lz)
-                w[b, 0] += dx
-                w[b, 1] += dy
-                w[b, 2] += dz
+                _turn(w, a, -lx, -ly, -lz, nax, nay, naz, ixx_inv, dinv)
+                _turn(w, b, lx, ly, lz, nbx, nby, nbz, ixx_inv, dinv)
         # plate work of this step's contact impulses
         for k in range(n_act):
             dw_ = cimp[k, 0] * cdat[k, 4] + cimp[k, 1] * cdat[k, 5] + cimp[k, 2] * cdat[k, 6]
