@@ -90,7 +90,7 @@ def test_returns_backend_keys():
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="target missed, measured (experiments/results/bench_models.md): dt 2e-4 vs "
-                   "dt/4 differs by -0.3/+0.2/-3.4 % at 18/22/25 Hz; 1 % at all three needs dt <= 5e-5 (~4x slower). "
+                   "dt/4 differs by -0.1/+0.3/-3.5 % at 18/22/25 Hz; 1 % at all three needs dt ~2.5e-5 (~8x slower). "
                    "A first-order error of the step across the band (up to -6.6 % against dt 1.25e-5), insensitive "
                    "to contact, friction, row damping and sweeps (experiments/results/dt_error_sources.md).")
 def test_dt_convergence_three_frequencies():

@@ -90,7 +90,7 @@ class RigidTileConfig:
 #: rows' stiffness from ~20000 rad/s (10pi, 22 / 25 Hz: 450 / 543 deg/s at 5000 rad/s, 482 / 582 at 20000, 483 /
 #: 576 at 40000, 482 / 569 at 80000; ``experiments/bench_models.py``). Stiffer rows need a smaller step: 20000 rad/s
 #: ran away at dt = 2e-4 s, 40000 at 5e-5 s with 2 sweeps. 4 sweeps at 2.5e-5 s gave what 8, 16 and 32 gave
-#: (483.5 / 575.6 deg/s); dt = 5e-5 s was 1.3 % low at 22 Hz.
+#: (483.5 / 575.6 deg/s); dt = 5e-5 s was ~1 % low at 22 Hz.
 RIGID_LIMIT_CONFIG = RigidTileConfig(omega_rigid=40000.0, iterations=4)
 
 

@@ -77,8 +77,8 @@ from plate_env.physics.tilelink.rigid import RigidTileConfig, RigidTileParams, b
  R_CORNERW, R_REFRESH) = range(kn.N_PARAMS, kn.N_PARAMS + 17)
 N_RIGID_PARAMS = kn.N_PARAMS + 17
 
-#: Default time step, s. Against dt = 1.25e-5 s omega_B is +0.2 / -1.1 / -4.3 % at 18 / 22 / 25 Hz (10pi), so the
-#: 1 % goal is missed near the hump's top; dt = 5e-5 s meets ~1.2 % at 4x the cost (experiments/bench_models.py).
+#: Default time step, s. Against dt = 1.25e-5 s omega_B is +0.5 / -1.1 / -4.4 % at 18 / 22 / 25 Hz (10pi), so the
+#: 1 % goal is missed; dt = 5e-5 s gives 1.1 % at 4x the cost, 2.5e-5 s 0.5 % (experiments/bench_models.py).
 DEFAULT_DT = 2e-4
 
 
