@@ -1,7 +1,7 @@
 """The same probe in a process that compiles the kernels and in one that reloads them from numba's disk cache.
 
 Measured: the point-mass kernel repeats bit for bit. The rigid-tile kernel's freshly compiled code and its cached
-code differ in the last bits (with its fastmath flags ~1e-13 relative after 0.5 s; without any fastmath still
+code differ in the last bits (with its fastmath flags ~5e-12 relative after 0.5 s; without any fastmath still
 1 ulp), which the disc's sensitive dynamics can grow to ~0.4 % of omega_B over a 1.6 s probe (448.07 against
 450.01 deg/s, 10pi at 22 Hz): the run right after a compile does not repeat later runs exactly.
 """
