@@ -15,9 +15,10 @@ from plate_env.physics.base import Physics, ProbeResult, ProbeSpec
 
 
 def backend_tag(physics: Physics) -> str:
-    """A string naming the backend and its settings (part of every cache key)."""
+    """A string naming the backend and its settings (part of every cache key): every setting that changes a
+    result (model, time step, mesh, joint and contact parameters) is in it."""
     parts = [physics.name]
-    for attr in ("model", "dt", "n_layer", "mesh"):
+    for attr in ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact"):
         if hasattr(physics, attr):
             parts.append(f"{attr}={getattr(physics, attr)}")
     return ",".join(parts)
