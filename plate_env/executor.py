@@ -179,6 +179,7 @@ class PoolExecutor:
             raise ValueError(f"pool workers = {workers!r} must be a positive int")
         self.workers = workers
         self.max_retries = max_retries
+        self.restarts = 0  #: pools replaced after a worker died
         self._pool = None
 
     def _new_pool(self):
@@ -212,6 +213,7 @@ class PoolExecutor:
             except BrokenProcessPool:
                 self._pool.shutdown(wait=False, cancel_futures=True)
                 self._pool = None
+                self.restarts += 1
                 for i in pending:
                     failures[i] += 1
                 worst = max(pending, key=failures.__getitem__)
