@@ -137,3 +137,21 @@ def test_import_plate_env_stays_light():
 
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_cli_sweep_on_an_executor_with_a_resumable_cache(tmp_path, capsys):
+    from plate_env.cli import main
+
+    base = ["sweep", "--omega-n", "10pi", "--freqs", "14:18:2", "--settle", "0.2", "--measure", "0.3", "--json",
+            "--chunk", "2"]
+    assert main(base) == 0
+    local = json.loads(capsys.readouterr().out)["probes"]
+    cache = tmp_path / "sweep.jsonl"
+    assert main([*base, "--executor", "pool:2", "--cache", str(cache)]) == 0
+    pooled = json.loads(capsys.readouterr().out)["probes"]
+    assert [p["omega_b_deg_s"] for p in pooled] == [p["omega_b_deg_s"] for p in local]
+    assert len(load_cache(cache)) == 3
+    assert main([*base, "--executor", "dask"]) == 2
+    assert "unknown executor 'dask'" in capsys.readouterr().err
+    assert main([*base, "--chunk", "0"]) == 2
+    assert "--chunk 0" in capsys.readouterr().err
