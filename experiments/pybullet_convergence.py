@@ -1,6 +1,6 @@
 """Mesh and time-step convergence of the PyBullet sheet across its rising edge, with repeated placements.
 
-    nice -n 10 python experiments/pybullet_convergence.py [--workers 2] [--configs n91_dt4,n150_dt2,...]
+    nice -n 10 python experiments/pybullet_convergence.py [--executor local|pool:N|ray] [--configs n91_dt4,...]
 
 Grid: omega_n {7, 10, 17, 23}pi x f_p {16, 18, 20, 22} Hz at A_p = 3 deg, alpha 40 deg, each probe on a fresh
 sheet (``sequence_len=1``) at two placements (centred and the pybullet atlas's first placement pose,
@@ -31,6 +31,7 @@ import numpy as np
 
 import plate_env as pe
 from plate_env import benchmarks as bm
+from plate_env.executor import BackendSpec, add_executor_argument, make_executor
 from plate_env.sweeps import backend_tag, load_cache, run_cached, spec_key
 
 ROOT = Path(__file__).resolve().parent
@@ -61,9 +62,9 @@ def specs_for(label: str) -> list[pe.ProbeSpec]:
                                     settle_s=settle, measure_s=measure)]
 
 
-def physics_for(label: str, pose, workers: int):
+def backend_for(label: str, pose) -> BackendSpec:
     n, dt, _, _ = CONFIGS[label]
-    return pe.make_physics("pybullet", n_layer=n, dt=dt, sequence_len=1, n_workers=workers, initial_pose=pose)
+    return BackendSpec.of("pybullet", n_layer=n, dt=dt, sequence_len=1, n_workers=1, initial_pose=tuple(pose))
 
 
 def cache_path(i_pose: int) -> Path:
@@ -74,8 +75,7 @@ def cached(label: str) -> np.ndarray | None:
     """omega_B [pose, omega, f] (NaN where unstable) if every probe of ``label`` is cached, else None."""
     out = np.full((len(POSES), len(OMEGAS_PI), len(FREQS_HZ)), np.nan)
     for i, pose in enumerate(POSES):
-        phys = physics_for(label, pose, 1)
-        tag = backend_tag(phys)
+        tag = backend_tag(backend_for(label, pose))
         done = load_cache(cache_path(i))
         for k, s in enumerate(specs_for(label)):
             d = done.get(spec_key(tag, s))
@@ -161,7 +161,7 @@ def report(labels: list[str], walls: dict[str, float], loads: list[str]) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--workers", type=int, default=2)
+    add_executor_argument(ap)
     ap.add_argument("--configs", default=",".join(CONFIGS))
     ap.add_argument("--report-only", action="store_true")
     args = ap.parse_args()
@@ -172,20 +172,24 @@ def main() -> None:
     walls: dict[str, float] = {}
     loads = [f"start: {uptime()}"]
     if not args.report_only:
-        for lab in labels:
-            n_todo = 0
-            t0 = time.perf_counter()
-            for i, pose in enumerate(POSES):
-                phys = physics_for(lab, pose, args.workers)
-                specs = specs_for(lab)
-                done = load_cache(cache_path(i))
-                n_todo += sum(spec_key(backend_tag(phys), s) not in done for s in specs)
-                run_cached(phys, specs, cache_path(i), chunk=2 * args.workers, desc=f"{lab} pose {i}")
-                phys.close()
-            if n_todo:
-                walls[lab] = (time.perf_counter() - t0) * args.workers / n_todo
-            loads.append(f"after {lab}: {uptime()}")
-            print(loads[-1], flush=True)
+        executor = make_executor(args.executor, backend_for(labels[0], POSES[0]))
+        workers = getattr(executor, "workers", 1)
+        try:
+            for lab in labels:
+                n_todo = 0
+                t0 = time.perf_counter()
+                for i, pose in enumerate(POSES):
+                    backend = backend_for(lab, pose)
+                    specs = specs_for(lab)
+                    done = load_cache(cache_path(i))
+                    n_todo += sum(spec_key(backend_tag(backend), s) not in done for s in specs)
+                    run_cached(backend, specs, cache_path(i), chunk=2, desc=f"{lab} pose {i}", executor=executor)
+                if n_todo:
+                    walls[lab] = (time.perf_counter() - t0) * workers / n_todo
+                loads.append(f"after {lab}: {uptime()}")
+                print(loads[-1], flush=True)
+        finally:
+            executor.close()
     text = report(labels, walls, loads)
     out = ROOT / "results" / "pybullet_convergence.md"
     out.write_text(text + "\n")
