@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+from collections import deque
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -262,12 +263,12 @@ class RayExecutor:
     def map(self, backend: BackendSpec, chunks):
         ray = self._ray
         backend_ref = ray.put(backend)
-        todo = list(range(len(chunks)))
+        pending = deque(range(len(chunks)))
         refs: dict[Any, int] = {}
         try:
-            while todo or refs:
-                while todo and len(refs) < self.max_in_flight:
-                    i = todo.pop(0)
+            while pending or refs:
+                while pending and len(refs) < self.max_in_flight:
+                    i = pending.popleft()
                     refs[self._task.remote(backend_ref, list(chunks[i]))] = i
                 ready, _ = ray.wait(list(refs), num_returns=1)
                 for ref in ready:

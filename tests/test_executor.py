@@ -17,12 +17,14 @@ import pytest
 from executor_helpers import POINTMASS, Counting, Interrupting, same, short_specs
 
 from plate_env.executor import (
+    WORKER_ENV,
     BackendSpec,
     InProcessExecutor,
     PoolExecutor,
     default_local,
     make_executor,
 )
+from plate_env.executor import _env as executor_env
 from plate_env.physics.tilelink.contact import PAPER_CONTACT
 from plate_env.sweeps import load_cache, run_cached
 
@@ -155,3 +157,17 @@ def test_cli_sweep_on_an_executor_with_a_resumable_cache(tmp_path, capsys):
     assert "unknown executor 'dask'" in capsys.readouterr().err
     assert main([*base, "--chunk", "0"]) == 2
     assert "--chunk 0" in capsys.readouterr().err
+
+
+def test_pool_workers_run_with_one_blas_and_numba_thread():
+    """The workers inherit WORKER_ENV (set while they spawn); the driver's environment is restored after."""
+    before = {k: os.environ.get(k) for k in WORKER_ENV}
+    ex = PoolExecutor(workers=2)
+    try:
+        ex._pool = ex._new_pool()
+        with executor_env(WORKER_ENV):
+            seen = [ex._pool.submit(os.getenv, k) for k in WORKER_ENV]
+        assert [f.result() for f in seen] == list(WORKER_ENV.values())
+        assert {k: os.environ.get(k) for k in WORKER_ENV} == before
+    finally:
+        ex.close()

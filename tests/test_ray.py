@@ -120,3 +120,15 @@ def test_a_worker_s_error_reaches_the_caller(ray_executor):
 
     with pytest.raises(ray.exceptions.RayTaskError, match="dt = -1.0"):
         list(ray_executor.map(BackendSpec.of("tilelink", dt=-1.0), [short_specs(1)]))
+
+
+def test_ray_workers_run_with_one_blas_and_numba_thread(ray_executor):
+    import ray
+
+    from plate_env.executor import WORKER_ENV
+
+    @ray.remote(num_cpus=1)
+    def env(keys):
+        return [os.getenv(k) for k in keys]
+
+    assert ray.get(env.remote(list(WORKER_ENV))) == list(WORKER_ENV.values())
