@@ -38,8 +38,8 @@ import numpy as np
 
 from plate_env.physics.base import ProbeSpec
 from plate_env.physics.tilelink import contact
-from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
 from plate_env.physics.tilelink import kernels as kn
+from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
 from plate_env.physics.tilelink.kernels import (
     FAST,
     FOLDED,
