@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import os
+import signal
+import threading
+import time
 
 import plate_env as pe
 from plate_env.executor import BackendSpec
@@ -55,3 +59,32 @@ class Counting:
 
     def close(self) -> None:
         self.inner.close()
+
+
+def run_killing_one(find_pids, run, settle_s: float = 0.0, timeout_s: float = 120.0):
+    """``run()`` while a thread SIGKILLs the first process ``find_pids()`` names (``settle_s`` after it first names
+    any); returns ``(run's result, [killed pid])``."""
+    killed: list[int] = []
+    stop = threading.Event()
+
+    def kill() -> None:
+        deadline = time.monotonic() + timeout_s
+        while not stop.is_set() and time.monotonic() < deadline:
+            pids = find_pids()
+            if pids:
+                if settle_s:
+                    time.sleep(settle_s)
+                    pids = find_pids() or pids
+                os.kill(pids[0], signal.SIGKILL)
+                killed.append(pids[0])
+                return
+            time.sleep(0.01)
+
+    killer = threading.Thread(target=kill)
+    killer.start()
+    try:
+        out = run()
+    finally:
+        stop.set()
+        killer.join()
+    return out, killed

@@ -8,13 +8,10 @@ from __future__ import annotations
 import json
 import os
 import pickle
-import signal
 import sys
-import threading
-import time
 
 import pytest
-from executor_helpers import POINTMASS, Counting, Interrupting, same, short_specs
+from executor_helpers import POINTMASS, Counting, Interrupting, run_killing_one, same, short_specs
 
 from plate_env.executor import (
     WORKER_ENV,
@@ -78,25 +75,13 @@ def test_a_dead_pool_worker_s_chunk_is_retried(tmp_path):
     specs = short_specs(8, measure_s=20.0)  # ~0.3 s a probe per core: chunks of 2 are in flight when killed
     reference = run_cached(POINTMASS, specs, None, chunk=2, progress=False, executor="inprocess")
     ex = PoolExecutor(workers=2)
-    killed: list[int] = []
-
-    def kill_one() -> None:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and len(ex.worker_pids()) < 2:
-            time.sleep(0.02)
-        time.sleep(1.0)  # workers loading the kernels / running their first chunk
-        pids = ex.worker_pids()
-        if pids:
-            os.kill(pids[0], signal.SIGKILL)
-            killed.append(pids[0])
-
-    killer = threading.Thread(target=kill_one)
-    killer.start()
+    cache = tmp_path / "c.jsonl"
     try:
-        cache = tmp_path / "c.jsonl"
-        got = run_cached(POINTMASS, specs, cache, chunk=2, progress=False, executor=ex)
+        got, killed = run_killing_one(
+            lambda: ex.worker_pids() if len(ex.worker_pids()) >= 2 else [],
+            lambda: run_cached(POINTMASS, specs, cache, chunk=2, progress=False, executor=ex),
+            settle_s=1.0)  # workers loading the kernels / running their first chunk
     finally:
-        killer.join()
         ex.close()
     assert killed, "no worker was killed"
     assert ex.restarts >= 1

@@ -7,15 +7,12 @@ when Ray is not installed (``pip install -e ".[test,ray]"``)."""
 from __future__ import annotations
 
 import os
-import signal
-import threading
-import time
 
 import pytest
 
 pytest.importorskip("ray")
 
-from executor_helpers import POINTMASS, Counting, Interrupting, same, short_specs  # noqa: E402
+from executor_helpers import POINTMASS, Counting, Interrupting, run_killing_one, same, short_specs  # noqa: E402
 
 from plate_env.executor import BackendSpec, InProcessExecutor, RayExecutor  # noqa: E402
 from plate_env.sweeps import load_cache, run_cached  # noqa: E402
@@ -76,27 +73,9 @@ def test_ray_gives_the_local_results_bit_for_bit(ray_executor):
 def test_ray_retries_the_chunk_of_a_killed_worker(ray_executor, tmp_path):
     specs = short_specs(4, measure_s=30.0)  # ~0.4 s a probe: a chunk of 2 runs long enough to be killed
     reference = run_cached(POINTMASS, specs, None, chunk=2, progress=False, executor=InProcessExecutor())
-    killed: list[int] = []
-    stop = threading.Event()
-
-    def kill_first_running_chunk() -> None:
-        deadline = time.monotonic() + 120
-        while not stop.is_set() and time.monotonic() < deadline:
-            pids = _running_chunk_pids()
-            if pids:
-                os.kill(pids[0], signal.SIGKILL)
-                killed.append(pids[0])
-                return
-            time.sleep(0.01)
-
-    killer = threading.Thread(target=kill_first_running_chunk)
-    killer.start()
-    try:
-        cache = tmp_path / "ray.jsonl"
-        got = run_cached(POINTMASS, specs, cache, chunk=2, progress=False, executor=ray_executor)
-    finally:
-        stop.set()
-        killer.join()
+    cache = tmp_path / "ray.jsonl"
+    got, killed = run_killing_one(_running_chunk_pids, lambda: run_cached(POINTMASS, specs, cache, chunk=2,
+                                                                          progress=False, executor=ray_executor))
     assert killed, "no running chunk was found to kill"
     assert same(got, reference)
     assert len(load_cache(cache)) == len(specs)
