@@ -10,6 +10,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from plate_env.executor import BackendSpec, add_executor_argument, make_executor
 from plate_env.motion import PlateMotion
 from plate_env.objects import ObjectSpec, preset
 from plate_env.physics import PHYSICS_NAMES, ProbeSpec, make_physics
@@ -103,6 +104,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--freqs", default="10:40:1", help="start:stop:step or a comma list, Hz")
     s.add_argument("--plot", default=None, help="write a PNG of omega_B vs f_p")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    s.add_argument("--cache", default=None, help="JSON-lines file: finished chunks are appended, a rerun resumes")
+    s.add_argument("--chunk", type=int, default=8, help="probes per chunk (a unit of work and of persistence)")
+    add_executor_argument(s)
     i = sub.add_parser("identify", help="identify a hidden object with a probing agent (the main job)")
     i.add_argument("--agent", default="bayes", choices=("grid", "coarse_to_fine", "bayes", "ppo"))
     i.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
@@ -147,14 +151,23 @@ def _cmd_probe(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
+    from plate_env.sweeps import run_cached
+
     obj = _object(args)
     freqs = parse_freqs(args.freqs)
-    physics = _physics(args)
+    if args.chunk < 1:
+        raise CliError(f"--chunk {args.chunk}: must be a positive number of probes")
+    backend = BackendSpec.of(args.physics, **_physics_options(args))
+    backend.build().close()  # refuse bad options here, before any worker starts
     try:
-        results = physics.run([_spec(args, obj, f) for f in freqs],
-                              progress=not (args.json or args.no_progress))
+        executor = make_executor(args.executor, backend)
+    except ImportError as exc:
+        raise CliError(str(exc)) from None
+    try:
+        results = run_cached(backend, [_spec(args, obj, f) for f in freqs], args.cache, chunk=args.chunk,
+                             progress=not (args.json or args.no_progress), desc="sweep", executor=executor)
     finally:
-        physics.close()
+        executor.close()
     if args.plot:
         from plate_env.plotting import plot_sweep
 

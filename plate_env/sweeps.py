@@ -1,7 +1,8 @@
 """Run many probes with a resumable on-disk cache: every finished chunk is appended to a JSON-lines file.
 
 Interrupting a long sweep (Ctrl-C) keeps the probes already written; running it again only simulates the rest.
-Used by the experiment scripts (calibration, atlas, paper reproduction).
+Chunks run on an executor (:mod:`plate_env.executor`: in-process, a process pool or Ray) and are written as they
+finish, in any order. Used by the CLI's ``sweep`` and the experiment scripts (calibration, atlas, paper reproduction).
 """
 
 from __future__ import annotations
@@ -11,12 +12,20 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
+from plate_env.executor import BackendSpec, Executor, InProcessExecutor, make_executor
 from plate_env.physics.base import Physics, ProbeResult, ProbeSpec
 
 
-def backend_tag(physics: Physics) -> str:
+def backend_tag(physics: Physics | BackendSpec) -> str:
     """A string naming the backend and its settings (part of every cache key): every setting that changes a
-    result (model, time step, mesh, joint and contact parameters) is in it."""
+    result (model, time step, mesh, joint and contact parameters) is in it. A :class:`BackendSpec` is built
+    (cheaply: no client or kernel is touched) to read them."""
+    if isinstance(physics, BackendSpec):
+        built = physics.build()
+        try:
+            return backend_tag(built)
+        finally:
+            built.close()
     parts = [physics.name]
     for attr in ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact"):
         if hasattr(physics, attr):
@@ -58,36 +67,61 @@ def load_cache(path: Path) -> dict[str, dict]:
     return out
 
 
-def run_cached(physics: Physics, specs: Sequence[ProbeSpec], cache: str | Path | None, chunk: int = 64,
-               progress: bool = True, desc: str = "probes") -> list[ProbeResult]:
-    """Results for ``specs`` in order, simulating only those not yet in ``cache`` (appended chunk by chunk)."""
+def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache: str | Path | None,
+               chunk: int = 64, progress: bool = True, desc: str = "probes",
+               executor: Executor | str | None = None) -> list[ProbeResult]:
+    """Results for ``specs`` in order, simulating only those not yet in ``cache`` (appended chunk by chunk).
+
+    Chunks are cut from the whole ``specs`` list every ``chunk`` probes (so an interrupted and resumed run runs the
+    same chunks, less the finished ones; a chunk is a PyBullet object sequence's boundary) and run on ``executor``
+    (an :class:`~plate_env.executor.Executor` or a name for :func:`~plate_env.executor.make_executor`; default
+    ``"local"``), each written to the cache and counted on the progress bar as it finishes. ``physics`` is a
+    :class:`BackendSpec` (any executor) or a built backend (in this process only).
+    """
+    if not (isinstance(chunk, int) and chunk >= 1):
+        raise ValueError(f"chunk = {chunk!r} must be a positive int")
     tag = backend_tag(physics)
     keys = [spec_key(tag, s) for s in specs]
     done = load_cache(Path(cache)) if cache else {}
-    todo = [i for i, k in enumerate(keys) if k not in done]
+    chunks = [[i for i in range(start, min(start + chunk, len(specs))) if keys[i] not in done]
+              for start in range(0, len(specs), chunk)]
+    chunks = [c for c in chunks if c]
+    own = executor is None or isinstance(executor, str)  # an executor object passed in stays the caller's
+    if isinstance(physics, BackendSpec):
+        backend = physics
+        if own:
+            executor = make_executor(executor, backend)
+    else:
+        backend = None
+        if executor not in (None, "local", "inprocess"):
+            raise TypeError(f"executor {executor!r} needs a BackendSpec (a built {physics.name} backend cannot be "
+                            "sent to workers): pass BackendSpec.of(name, **options)")
+        executor, own = InProcessExecutor(physics), True
     bar = None
-    if progress and todo:
+    if progress and chunks:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=len(todo), desc=desc, unit="probe")
+        bar = tqdm(total=sum(map(len, chunks)), desc=desc, unit="probe")
     fh = None
-    if cache:
+    if cache and chunks:
         Path(cache).parent.mkdir(parents=True, exist_ok=True)
         fh = open(cache, "a")  # noqa: SIM115 - kept open across chunks, closed in finally
     try:
-        for start in range(0, len(todo), chunk):
-            idx = todo[start:start + chunk]
-            results = physics.run([specs[i] for i in idx])
-            for i, r in zip(idx, results, strict=True):
-                line = _to_line(keys[i], r)
-                done[keys[i]] = json.loads(line)
+        if chunks:
+            for j, results in executor.map(backend, [[specs[i] for i in c] for c in chunks]):
+                idx = chunks[j]
+                for i, r in zip(idx, results, strict=True):
+                    line = _to_line(keys[i], r)
+                    done[keys[i]] = json.loads(line)
+                    if fh is not None:
+                        fh.write(line + "\n")
                 if fh is not None:
-                    fh.write(line + "\n")
-            if fh is not None:
-                fh.flush()
-            if bar is not None:
-                bar.update(len(idx))
+                    fh.flush()
+                if bar is not None:
+                    bar.update(len(idx))
     finally:
+        if own:
+            executor.close()
         if fh is not None:
             fh.close()
         if bar is not None:
@@ -95,3 +129,4 @@ def run_cached(physics: Physics, specs: Sequence[ProbeSpec], cache: str | Path |
     out = [_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)]
     assert all(math.isfinite(r.omega_b_deg_s) for r in out)
     return out
+
