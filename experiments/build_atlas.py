@@ -48,6 +48,8 @@ from plate_env import benchmarks as bm
 from plate_env.atlas import FILL_SPREAD, atlas_file, atlas_from_repeats
 from plate_env.atlas_grid import AtlasGrid, result_arrays, run_grid
 from plate_env.executor import BackendSpec, add_executor_argument, make_executor
+from plate_env.forward import fit_sigma_model
+from plate_env.nuisance import Nuisance
 from plate_env.physics.base import PLACEMENT_STD_M
 from plate_env.sweeps import run_cached
 
@@ -59,10 +61,12 @@ GRIDS = {
 }
 
 
-def make_backend(physics_name: str, model: str, **kw) -> tuple[BackendSpec, str]:
+def make_backend(physics_name: str, model: str, nuisance: Nuisance | None = None, **kw) -> tuple[BackendSpec, str]:
     """The backend's description, and the model name its atlas is filed under (tilelink: the model; else the
-    physics name)."""
+    physics name). ``nuisance``: tile-link joint and contact values other than the defaults."""
     if physics_name == "tilelink":
+        if nuisance is not None:
+            return BackendSpec.of("tilelink", **nuisance.tilelink_options(model)), model
         return BackendSpec.of("tilelink", model=model), model
     if physics_name == "pybullet":
         return BackendSpec.of("pybullet", n_workers=1, **kw), physics_name
@@ -119,6 +123,8 @@ def main() -> None:
     ap.add_argument("--chunk", type=int, default=None, help="probes per chunk (default: a sweep for pybullet, "
                     "128 in-process, 16 on workers)")
     add_executor_argument(ap)
+    ap.add_argument("--nuisance", default=None, help="tile-link joint/contact values, e.g. "
+                    "'zeta_bending=0.05,k_inplane=1000' (plate_env.nuisance.Nuisance fields)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--held-out", type=int, default=None,
@@ -129,7 +135,13 @@ def main() -> None:
     if args.grid_file:
         grid = args.grid_file
     n_held = args.held_out if args.held_out is not None else (0 if grid == "pybullet" else 120)
-    backend, model = make_backend(args.physics, args.model)
+    nuisance = None
+    if args.nuisance:
+        try:
+            nuisance = Nuisance(**{k.strip(): float(v) for k, v in (kv.split("=") for kv in args.nuisance.split(","))})
+        except (TypeError, ValueError) as exc:
+            ap.error(f"--nuisance {args.nuisance!r}: {exc}")
+    backend, model = make_backend(args.physics, args.model, nuisance)
     physics = backend.build()  # read-only here: its settings for the provenance (the executor runs its own)
     executor = make_executor(args.executor, backend)
     tag = args.name or f"{args.physics}_{model}"
@@ -153,7 +165,8 @@ def _finish(args, grid, spec_grid, backend, physics, model, tag, res, executor, 
     omega, se, un = result_arrays(res)
     n_probes = res.size
     provenance = {"grid": grid, "f_p_hz": _f_range(f), "a_p_deg": amps, "omega_n_pi": ws, "alpha_deg": als,
-                  "repeats": args.repeats, "seed": args.seed, "b_p_mm": 3.0, "dt_s": getattr(physics, "dt", None),
+                  "repeats": args.repeats, "seed": args.seed, "b_p_mm": spec_grid.b_p_mm, "mass_g": spec_grid.mass_g,
+                  "diameter_mm": spec_grid.diameter_mm, "dt_s": getattr(physics, "dt", None),
                   "ramp_s": 0.2, "settle_s": settle, "measure_s": measure,
                   "backend": {"name": backend.name, "options": {k: repr(v) for k, v in backend.options}},
                   "placement": (f"yaw U(0, pi/2), offset N(0, {PLACEMENT_STD_M * 1e3:g} mm) per axis"
@@ -183,6 +196,11 @@ def _finish(args, grid, spec_grid, backend, physics, model, tag, res, executor, 
         floor = np.maximum(floor_abs, floor_rel * np.abs(atlas.mean))
         spread = np.where(n_st > 0, np.sqrt(own ** 2 + floor ** 2), FILL_SPREAD)
         atlas = dataclasses.replace(atlas, spread=spread)
+    held_lines: list[str] = []
+    if n_held > 0:
+        held_lines, sigma_model = _held_out(args, backend, atlas, spec_grid, tag, n_held, executor)
+        atlas = dataclasses.replace(atlas, provenance={**provenance, "sigma_model_deg_s": sigma_model,
+                                                       "sigma_model_from": f"{n_held} live probes at held-out points"})
     out = f"plate_env/data/{atlas_file(args.physics, model) if not args.name else f'atlas_{args.name}.npz'}"
     atlas.save(out)
     lines = [f"# Response atlas: {args.physics} / {model}", "",
@@ -197,7 +215,7 @@ def _finish(args, grid, spec_grid, backend, physics, model, tag, res, executor, 
         lines += _grid_table(f, ws, als, omega, un), ""
         lines += study_lines
     if n_held > 0:
-        lines += _held_out(args, backend, atlas, amps, tag, n_held, executor)
+        lines += held_lines
     else:
         lines += ["Held-out error: scored on the identification sweeps of held-out objects "
                   "(`experiments/evaluate_pybullet.py`, `experiments/results/identification_pybullet*.md`)."]
@@ -237,25 +255,31 @@ def _study_table(rows, floor_abs, floor_rel) -> list[str]:
     return out
 
 
-def _held_out(args, backend, atlas, amps, tag, n_held, executor) -> list[str]:
-    # held-out points: off-grid frequency, omega_n and alpha
+def _held_out(args, backend, atlas, grid, tag, n_held, executor) -> tuple[list[str], float]:
+    """The atlas against live probes at held-out points (off-grid frequency, omega_n and alpha): a report and the
+    atlas's model error (deg/s, :func:`plate_env.forward.fit_sigma_model`)."""
     hrng = np.random.default_rng(args.seed + 1)
     held = []
+    f_lo, f_hi = grid.f_hz[0], grid.f_hz[-1]
     for _ in range(n_held):
         obj = pe.ObjectSpec.from_paper(float(hrng.choice(bm.HELD_OUT_OMEGAS_PI)),
-                                       float(hrng.choice(bm.HELD_OUT_ALPHAS_DEG)))
-        held.append(pe.ProbeSpec(obj, pe.PlateMotion.from_paper(float(hrng.uniform(10.5, 39.5)),
-                                                                float(hrng.choice(amps)))).perturbed(hrng))
+                                       float(hrng.choice(bm.HELD_OUT_ALPHAS_DEG)), mass_g=grid.mass_g,
+                                       diameter_mm=grid.diameter_mm)
+        held.append(pe.ProbeSpec(obj, pe.PlateMotion.from_paper(float(hrng.uniform(f_lo + 0.5, f_hi - 0.5)),
+                                                                float(hrng.choice(grid.a_p_deg)), grid.b_p_mm),
+                                 settle_s=grid.settle_s, measure_s=grid.measure_s).perturbed(hrng))
     live = run_cached(backend, held, f"experiments/cache/atlas_heldout_{tag}.jsonl", desc="held-out",
                       executor=executor)
     rows = []
     for r in live:
         mu, s, p = atlas.predict(r.spec.motion.freq_hz, r.spec.motion.a_p_deg, r.spec.obj.omega_n, r.spec.obj.alpha)
-        rows.append((r.unstable, r.omega_b_deg_s, float(mu), float(s), float(p)))
-    st = [(y, mu, s) for u, y, mu, s, _ in rows if not u]
+        rows.append((r.unstable, r.omega_b_deg_s, float(mu), float(s), float(p), r.stderr_deg_s))
+    st = [(y, mu, s) for u, y, mu, s, _, _ in rows if not u]
+    sigma_model = fit_sigma_model(np.array([y - mu for y, mu, _ in st]), np.array([s for *_, s in st]),
+                                  np.array([e for u, *_, e in rows if not u]))
     err = np.array([abs(y - mu) for y, mu, _ in st])
     z = np.array([(y - mu) / max(s, 1e-9) for y, mu, s in st])
-    pu = np.array([p for *_, p in rows])
+    pu = np.array([p for *_, p, _ in rows])
     unst = np.array([u for u, *_ in rows], float)
     brier = float(np.mean((pu - unst) ** 2))
     return [f"## Error against {len(live)} live probes at held-out points (off-grid f_p, omega_n, alpha)", "",
@@ -263,7 +287,9 @@ def _held_out(args, backend, atlas, amps, tag, n_held, executor) -> list[str]:
             "instability Brier score (0.25 = coin) | observed unstable share |",
             "|---|---|---|---|---|---|",
             f"| {len(st)} | {np.median(err):.1f} | {np.percentile(err, 90):.1f} | {np.median(np.abs(z)):.2f} | "
-            f"{brier:.3f} | {unst.mean():.2f} |"]
+            f"{brier:.3f} | {unst.mean():.2f} |", "",
+            f"Model error beyond the spread (maximum likelihood, Student-t, `plate_env.forward.fit_sigma_model`): "
+            f"sigma_model = {sigma_model:.2f} deg/s (stored in the atlas's provenance)."], sigma_model
 
 
 if __name__ == "__main__":
