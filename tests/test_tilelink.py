@@ -95,12 +95,6 @@ def test_bad_time_step_rejected():
         pe.make_physics("tilelink", model="fem")
 
 
-def test_same_input_same_numbers(tilelink, cheese):
-    a = tilelink.run([probe(cheese, 22.0)])[0]
-    b = tilelink.run([probe(cheese, 22.0)])[0]
-    assert a.omega_b_deg_s == b.omega_b_deg_s
-
-
 def test_first_hump_peak_in_band_and_not_falling_with_omega_n(tilelink):
     from plate_env.fitting import first_hump_mask
 

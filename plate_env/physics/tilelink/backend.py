@@ -121,6 +121,8 @@ class TileLinkPhysics:
 
         out = allocate_outputs(prm)
         kernel = kn.pointmass_batch_serial if len(prm) == 1 else kn.pointmass_batch_parallel
+        kn.load_first(kn.pointmass_probe, prm[0], ainv[0], rest[0], geom.links, geom.diagonals, geom.triplets,
+                      geom.cells, out["yaw"][0], out["cu"][0], out["cv"][0])
         kernel(prm, ainv, rest, geom.links, geom.diagonals, geom.triplets, geom.cells, out["yaw"], out["cu"],
                out["cv"], out["status"], out["nrec"])
         return out
