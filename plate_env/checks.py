@@ -14,7 +14,8 @@ from numbers import Integral, Real
 
 def interval(lo: float, hi: float, open_lo: bool = False, open_hi: bool = False, unit: str = "") -> str:
     """``"[lo, hi] unit"`` with round brackets on open ends, e.g. ``"(0, 45] deg"``."""
-    text = f"{'(' if open_lo else '['}{lo:g}, {hi:g}{')' if open_hi else ']'}"
+    fmt = "d" if isinstance(lo, int) and isinstance(hi, int) else "g"
+    text = f"{'(' if open_lo else '['}{lo:{fmt}}, {hi:{fmt}}{')' if open_hi else ']'}"
     return f"{text} {unit}" if unit else text
 
 

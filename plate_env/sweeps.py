@@ -8,10 +8,13 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from plate_env.physics.base import Physics, ProbeResult, ProbeSpec
+
+#: Probes per backend call when results are wanted as they finish (the tile-link batch keeps both cores busy).
+CHUNK = 8
 
 
 def backend_tag(physics: Physics) -> str:
@@ -57,6 +60,44 @@ def load_cache(path: Path) -> dict[str, dict]:
     return out
 
 
+def chunk_size(physics: Physics) -> int:
+    """Probes per call for results as they finish: :data:`CHUNK`, or a process pool's worth of PyBullet units."""
+    return max(CHUNK, getattr(physics, "n_workers", 1) * getattr(physics, "sequence_len", 1))
+
+
+def run_chunks(physics: Physics, specs: Sequence[ProbeSpec], chunk: int, progress: bool = True,
+               desc: str = "probes") -> Iterator[list[ProbeResult]]:
+    """Run ``specs`` in order, ``chunk`` probes per backend call, yielding each chunk's results as it finishes
+    (with a progress bar if asked). An interrupt (Ctrl-C) propagates from the chunk that was running; the chunks
+    already yielded are the caller's to keep (printed, cached)."""
+    specs = list(specs)
+    bar = None
+    if progress and specs:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(specs), desc=desc, unit="probe")
+    try:
+        for start in range(0, len(specs), chunk):
+            part = physics.run(specs[start:start + chunk])
+            if bar is not None:
+                bar.update(len(part))
+            yield part
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _open_for_append(path: Path):
+    """``path`` opened for appending (binary), after cutting off a torn last line (an interrupted write), so the
+    next record starts on a line of its own instead of completing the fragment into an invalid line."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = path.read_bytes() if path.exists() else b""
+    if data and not data.endswith(b"\n"):
+        with open(path, "r+b") as fh:
+            fh.truncate(data.rfind(b"\n") + 1)
+    return open(path, "ab")  # noqa: SIM115 - returned to the caller, who closes it
+
+
 def run_cached(physics: Physics, specs: Sequence[ProbeSpec], cache: str | Path | None, chunk: int = 64,
                progress: bool = True, desc: str = "probes") -> list[ProbeResult]:
     """Results for ``specs`` in order, simulating only those not yet in ``cache`` (appended chunk by chunk)."""
@@ -64,33 +105,22 @@ def run_cached(physics: Physics, specs: Sequence[ProbeSpec], cache: str | Path |
     keys = [spec_key(tag, s) for s in specs]
     done = load_cache(Path(cache)) if cache else {}
     todo = [i for i, k in enumerate(keys) if k not in done]
-    bar = None
-    if progress and todo:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=len(todo), desc=desc, unit="probe")
-    fh = None
-    if cache:
-        Path(cache).parent.mkdir(parents=True, exist_ok=True)
-        fh = open(cache, "a")  # noqa: SIM115 - kept open across chunks, closed in finally
+    fh = _open_for_append(Path(cache)) if cache else None
     try:
-        for start in range(0, len(todo), chunk):
-            idx = todo[start:start + chunk]
-            results = physics.run([specs[i] for i in idx])
+        finished = 0
+        for results in run_chunks(physics, [specs[i] for i in todo], chunk, progress, desc):
+            idx = todo[finished:finished + len(results)]
+            finished += len(results)
             for i, r in zip(idx, results, strict=True):
                 line = _to_line(keys[i], r)
                 done[keys[i]] = json.loads(line)
                 if fh is not None:
-                    fh.write(line + "\n")
+                    fh.write((line + "\n").encode())
             if fh is not None:
                 fh.flush()
-            if bar is not None:
-                bar.update(len(idx))
     finally:
         if fh is not None:
             fh.close()
-        if bar is not None:
-            bar.close()
     out = [_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)]
     assert all(math.isfinite(r.omega_b_deg_s) for r in out)
     return out

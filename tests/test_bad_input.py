@@ -143,3 +143,173 @@ def test_step_and_reset_after_close_raise():
         env.step(PROBE)
     with pytest.raises(RuntimeError, match="closed"):
         env.reset(seed=1)
+
+
+# ----------------------------------------------------------------------------------------------------- the CLI
+def run_cli(argv, capsys) -> tuple[int, str, str]:
+    from plate_env.cli import main
+
+    try:
+        code = main(list(argv))
+    except SystemExit as exc:  # argparse refuses a value while parsing: exit 2 with its usage line
+        code = exc.code if isinstance(exc.code, int) else 2
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err
+    return code, out, err
+
+
+@pytest.mark.parametrize("argv, names", [
+    (["identify", "--physics", "atlas", "--omega-n", "17pi", "--seed", "-1"], ("--seed", "[0,")),  # defect 1
+    (["identify", "--physics", "atlas", "--seed", "1.5"], ("--seed", "integer")),
+    (["sweep", "--physics", "atlas", "--omega-n", "10pi", "--freqs", "1:200:1e-12"], ("--freqs", "1.99e+14 probes")),
+    (["sweep", "--physics", "atlas", "--omega-n", "10pi", "--freqs", "1:200:1e-5"], ("--freqs", "1.99e+07 probes")),
+    (["identify", "--physics", "atlas", "--target", "nan"], ("--target", "(0, 1)")),  # defect 9
+    (["identify", "--physics", "atlas", "--target", "-1"], ("--target", "(0, 1)")),
+    (["identify", "--physics", "atlas", "--target", "inf"], ("--target", "(0, 1)")),
+    (["identify", "--physics", "atlas", "--agent", "grid", "--target", "0.1"], ("--target", "bayes")),
+    (["identify", "--physics", "atlas", "--omega-n", "-10pi"], ("--omega-n", "positive")),
+    (["probe", "--physics", "atlas", "--freq", "25", "--alpha", "-5"], ("--alpha", "(0, 90)")),
+    (["probe", "--physics", "atlas", "--freq", "25", "--measure", "-inf"], ("--measure", "[0, 600]")),
+    (["probe", "--freq", "25", "--dt", "1e-9"], ("dt = 1e-09 s", "time steps")),  # defect 5: refused, not hours
+    (["sweep", "--freqs", "10:40:1", "--dt", "1e-9"], ("dt = 1e-09 s", "time steps")),
+    (["identify", "--agent", "grid", "--dt", "1e-9"], ("dt", "time steps")),
+])
+def test_cli_refuses_bad_values_naming_the_option(argv, names, capsys):
+    code, out, err = run_cli(argv, capsys)
+    assert code == 2 and out == ""
+    for name in names:
+        assert name in err
+
+
+def test_cli_warns_when_dt_is_above_the_measured_stability_limit(capsys):
+    code, out, err = run_cli(["probe", "--freq", "25", "--dt", "1e-3"], capsys)  # defect 5
+    assert code == 0 and "UNSTABLE" in out
+    assert "warning: dt = 0.001 s is above the largest time step measured stable" in err
+    assert "0.0004 s" in err and "stress_tilelink_pointmass.md" in err
+    with pytest.warns(UserWarning, match="dt = 0.0003 s is above .* rigid model"):
+        pe.make_physics("tilelink", model="rigid", dt=3e-4)
+
+
+class Interrupting:
+    """Wraps a backend and raises KeyboardInterrupt (Ctrl-C) in its ``interrupt_at``-th run call."""
+
+    def __init__(self, inner, interrupt_at: int) -> None:
+        self.inner, self.name, self.interrupt_at, self.calls = inner, inner.name, interrupt_at, 0
+
+    def run(self, probes, progress=False):
+        self.calls += 1
+        if self.calls == self.interrupt_at:
+            raise KeyboardInterrupt
+        return self.inner.run(probes)
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+@pytest.mark.parametrize("json_out", [False, True])
+def test_cli_sweep_interrupted_prints_the_finished_probes(json_out, monkeypatch, capsys):
+    import json
+
+    import plate_env.cli as cli
+
+    monkeypatch.setattr(cli, "make_physics", lambda name, **kw: Interrupting(pe.make_physics(name, **kw), 3))
+    argv = ["sweep", "--physics", "atlas", "--omega-n", "10pi", "--freqs", "10:40:0.5", "--no-progress"]
+    code, out, err = run_cli(argv + (["--json"] if json_out else []), capsys)  # defect 2
+    assert code == 130 and "interrupted after 16 of 61 probes" in err
+    if json_out:
+        doc = json.loads(out)
+        assert doc["interrupted"] is True
+        assert [p["f_p_hz"] for p in doc["probes"]] == [10.0 + 0.5 * k for k in range(16)]
+    else:
+        rows = [ln for ln in out.splitlines() if ln.strip().endswith("stable")]
+        assert len(rows) == 16 and rows[0].split()[0] == "10.00" and rows[-1].split()[0] == "17.50"
+
+
+@pytest.mark.parametrize("argv", [
+    ["sweep", "--physics", "atlas", "--freqs", "20,25"],
+    ["identify", "--physics", "atlas", "--agent", "grid", "--max-probes", "3"],
+    ["fit", "LAB"],
+])
+@pytest.mark.parametrize("plot, message", [
+    ("/nonexistent/x.png", "does not exist"),
+    ("DIR", "is a directory"),
+    ("x.bogus", "unknown image format"),
+])
+def test_cli_plot_path_checked_before_any_work(argv, plot, message, tmp_path, monkeypatch, capsys):
+    import plate_env.cli as cli
+
+    lab = tmp_path / "lab.csv"
+    lab.write_text("f_p_hz,omega_b_deg_s\n" + "".join(f"{f},{300 + f}\n" for f in range(10, 30)))
+    plot = {"DIR": str(tmp_path), "x.bogus": str(tmp_path / "x.bogus")}.get(plot, plot)
+
+    def no_work(*a, **kw):
+        raise AssertionError("work started before --plot was checked")
+
+    monkeypatch.setattr(cli, "make_physics", no_work)
+    monkeypatch.setattr("plate_env.identify.identify", no_work)
+    monkeypatch.setattr("gymnasium.make", no_work)
+    code, out, err = run_cli([str(lab) if a == "LAB" else a for a in argv] + ["--amp", "3"] * (argv[0] == "fit")
+                             + ["--plot", plot], capsys)  # defect 3
+    assert code == 2 and "--plot" in err and message in err and out == ""
+
+
+@pytest.mark.parametrize("argv", [
+    ["sweep", "--physics", "atlas", "--freqs", "20,25"],
+    ["identify", "--physics", "atlas", "--agent", "grid", "--max-probes", "3"],
+    ["fit", "LAB", "--amp", "3"],
+])
+def test_cli_prints_results_before_plotting_and_names_the_file_written(argv, tmp_path, monkeypatch, capsys):
+    lab = tmp_path / "lab.csv"
+    lab.write_text("f_p_hz,omega_b_deg_s\n" + "".join(f"{f},{600 / (1 + ((f - 25) / 5) ** 2)}\n"
+                                                      for f in range(10, 40)))
+    argv = [str(lab) if a == "LAB" else a for a in argv]
+    code, out, _ = run_cli(argv + ["--plot", str(tmp_path / "somefile")], capsys)  # no extension: .png added
+    assert code in (0, 1) and (tmp_path / "somefile.png").stat().st_size > 5000  # 1: no estimate from 3 probes
+    assert out.rstrip().endswith(f"plot: {tmp_path / 'somefile.png'}")
+
+    def broken(*a, **kw):
+        raise OSError("disk full")
+
+    monkeypatch.setattr("plate_env.plotting.plot_sweep", broken)
+    monkeypatch.setattr("plate_env.plotting.plot_fit", broken)
+    code, out, err = run_cli(argv + ["--plot", str(tmp_path / "again.png")], capsys)
+    assert code == 2 and "disk full" in err
+    assert ("omega_B" in out) or ("omega_n_hat" in out) or ("no estimate" in out)  # the results were printed
+
+
+# -------------------------------------------------------------------------------- defect 10: a torn cache line
+class Counting:
+    """Wraps a backend and counts the probes it simulates."""
+
+    def __init__(self, inner) -> None:
+        self.inner, self.name, self.simulated = inner, inner.name, 0
+
+    def __getattr__(self, name):  # model, dt: the same cache keys as the backend itself
+        return getattr(self.inner, name)
+
+    def run(self, probes, progress=False):
+        self.simulated += len(probes)
+        return self.inner.run(probes)
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+def test_cached_sweep_after_a_torn_last_line_keeps_every_record_valid(tmp_path):
+    import json
+
+    from plate_env.sweeps import load_cache, run_cached
+
+    specs = [spec(f_p_hz=float(f)) for f in range(10, 20)]
+    cache = tmp_path / "sweep.jsonl"
+    run_cached(pe.make_physics("atlas"), specs[:5], cache, chunk=5, progress=False)
+    cache.write_text(cache.read_text()[:-40])  # killed mid-write: the 5th record torn
+    second = Counting(pe.make_physics("atlas"))
+    resumed = run_cached(second, specs, cache, chunk=3, progress=False)
+    assert second.simulated == 6  # the torn record and the 5 new ones
+    lines = cache.read_text().splitlines()
+    assert len(lines) == 10 and all(json.loads(line)["key"] for line in lines)
+    third = Counting(pe.make_physics("atlas"))
+    assert [r.omega_b_deg_s for r in run_cached(third, specs, cache, progress=False)] == [
+        r.omega_b_deg_s for r in resumed]
+    assert third.simulated == 0 and len(load_cache(cache)) == 10  # nothing recomputed on a rerun

@@ -26,6 +26,9 @@ SLIP_LIMIT_M = 0.010
 #: Lowest plate frequency a probe accepts, Hz, and the longest probe, simulated s.
 MIN_PROBE_FREQ_HZ = 0.5
 MAX_PROBE_S = 1200.0
+#: Most time steps one probe may take (a larger dt or shorter windows beyond): ~20 s of wall time a point-mass
+#: probe, minutes a rigid one; dt = 1e-9 s would ask 1.7e9 steps of the default probe and run for hours.
+MAX_PROBE_STEPS = 10_000_000
 #: Allowed settle and measurement windows of a probe, s.
 WINDOW_RANGE_S = (0.0, 600.0)
 #: Default placement error (std per axis) of a repeated probe, m.
@@ -162,6 +165,26 @@ def refuse_early(physics: Physics, probes: Sequence[ProbeSpec]) -> None:
     check = getattr(physics, "check", None)
     if check is not None:
         check(probes)
+
+
+def check_step_counts(probes: Sequence[ProbeSpec], dt: float) -> None:
+    """Refuse (ProbeRefused, quantity ``steps``) a probe that would take more than :data:`MAX_PROBE_STEPS` steps
+    of ``dt`` s."""
+    for i, spec in enumerate(probes):
+        steps = spec.duration_s / dt
+        if steps > MAX_PROBE_STEPS:
+            raise ProbeRefused("steps", f"probe {i}: {steps:.3g} time steps of dt = {dt:g} s for "
+                                        f"{spec.duration_s:.4g} simulated s; at most {MAX_PROBE_STEPS:.0e} a probe "
+                                        f"(use a larger dt or shorter windows)")
+
+
+def warn_above_stable_dt(dt: float, limit: float, what: str, source: str) -> None:
+    """Warn (UserWarning naming dt) when ``dt`` exceeds the largest time step measured stable for ``what``."""
+    if dt > limit * (1 + 1e-9):
+        import warnings
+
+        warnings.warn(f"dt = {dt:g} s is above the largest time step measured stable for {what} ({limit:g} s, "
+                      f"{source}): expect probes to end unstable (runaway_energy) because of dt", stacklevel=3)
 
 
 def check_probes(probes: Sequence[ProbeSpec]) -> list[ProbeSpec]:
