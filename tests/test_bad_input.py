@@ -313,3 +313,70 @@ def test_cached_sweep_after_a_torn_last_line_keeps_every_record_valid(tmp_path):
     assert [r.omega_b_deg_s for r in run_cached(third, specs, cache, progress=False)] == [
         r.omega_b_deg_s for r in resumed]
     assert third.simulated == 0 and len(load_cache(cache)) == 10  # nothing recomputed on a rerun
+
+
+# ----------------------------------------------------------------------------------------------- defect 7: CSV
+def lab_rows(amps=(3.0,), f=range(12, 36)) -> str:
+    return "".join(f"{x},{600 / (1 + ((x - 25) / 5) ** 2):.3f},{a:g}\n" for a in amps for x in f)
+
+
+def test_csv_with_a_utf8_byte_order_mark_is_read(tmp_path):
+    from plate_env.probes import read_lab_csv
+
+    path = tmp_path / "excel.csv"
+    path.write_bytes(("f_p_hz,omega_b_deg_s,a_p_deg\r\n" + lab_rows()).encode("utf-8-sig"))  # Excel "CSV UTF-8"
+    table = read_lab_csv(path)
+    assert len(table) == 24 and table.amplitudes() == [3.0]
+
+
+@pytest.mark.parametrize("cell", ["-3", "0", "0.0", "46"])
+def test_csv_amplitude_outside_0_45_refused_naming_line_and_column(cell, tmp_path):
+    from plate_env.probes import CsvError, read_lab_csv
+
+    path = tmp_path / "lab.csv"
+    path.write_text(f"f_p_hz,omega_b_deg_s,a_p_deg\n20,300,3\n21,310,{cell}\n")
+    with pytest.raises(CsvError, match="line 3, column a_p_deg.*outside the allowed range \\(0, 45\\]"):
+        read_lab_csv(path)
+
+
+def test_fit_amp_option_must_be_a_positive_magnitude(tmp_path, capsys):
+    path = tmp_path / "lab.csv"
+    path.write_text("f_p_hz,omega_b_deg_s\n" + "".join(f"{x},{x}\n" for x in range(10, 30)))
+    code, _, err = run_cli(["fit", str(path), "--amp", "-3"], capsys)
+    assert code == 2 and "--amp" in err and "(0, 45]" in err
+
+
+def test_csv_duplicated_column_refused_naming_it(tmp_path):
+    from plate_env.probes import CsvError, read_lab_csv
+
+    path = tmp_path / "lab.csv"
+    path.write_text("f_p_hz,omega_b_deg_s,f_p_hz\n20,300,20\n")
+    with pytest.raises(CsvError, match="line 1: column\\(s\\) \\['f_p_hz'\\] appear more than once"):
+        read_lab_csv(path, a_p_deg=3.0)
+
+
+def test_mixed_amplitudes_without_a_calibration_are_not_dropped_silently(tmp_path, capsys):
+    from plate_env.identify import identify
+    from plate_env.probes import read_lab_csv
+
+    path = tmp_path / "lab.csv"
+    path.write_text("f_p_hz,omega_b_deg_s,a_p_deg\n" + lab_rows(amps=(3.0, 7.0)))
+    est = identify(read_lab_csv(path), method="lorentz")
+    assert not est.ok and "A_p = 7 deg" in est.reason and "no calibration" in est.reason
+    code, out, _ = run_cli(["fit", str(path)], capsys)
+    assert code == 1 and "no estimate: A_p = 7 deg" in out
+    alone = identify(read_lab_csv(path).subset(np.isclose(read_lab_csv(path).a_p_deg, 3.0)), method="lorentz")
+    assert alone.ok  # the calibrated amplitude alone does give an estimate
+
+
+def test_negative_plate_amplitude_probes_identify_like_positive_ones():
+    from plate_env.identify import identify
+    from plate_env.probes import ProbeTable
+
+    physics = pe.make_physics("atlas")
+    freqs = np.arange(12.0, 36.0, 1.0)
+    pos = physics.run([spec(f_p_hz=f) for f in freqs])
+    neg = physics.run([spec(f_p_hz=f, a_p_deg=-3.0) for f in freqs])
+    assert ProbeTable.from_results(neg).amplitudes() == [3.0]
+    a, b = identify(pos, method="lorentz"), identify(neg, method="lorentz")
+    assert a.ok and b.ok and b.omega_n == pytest.approx(a.omega_n, rel=0.2)
