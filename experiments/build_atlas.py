@@ -12,9 +12,10 @@ Grids (plate_env.benchmarks), chosen by ``--grid`` (default: ``pybullet`` for ``
 * ``pybullet``: f_p 10-26 Hz (2 Hz) x A_p 3 deg x omega_n {5, 7, 10, 14, 20, 28, 33}pi x alpha {30, 40, 50, 60} deg,
   windows 0.3 s settle + 0.6 s measure (recorded in the provenance; the evaluation uses the same). Probes run as
   sweeps per object (ascending f_p, the backend's scene carried over within a sequence, as in the evaluation).
-  PyBullet ignores ProbeSpec.initial_yaw/initial_offset, so repeats would be identical: use ``--repeats 1``. The
-  between-placement spread is measured instead by re-running a few grid sweeps with other
-  ``PyBulletPhysics(initial_pose=...)`` placements, and folded into every grid point's spread (see below). The
+  The grid is run centred (``--repeats 1``: a sweep carries one scene over its probes, which random placements
+  would break up). The between-placement spread is measured instead by re-running a few grid sweeps at other
+  placements (``ProbeSpec.initial_yaw``/``initial_offset``, one per sweep), and folded into every grid point's
+  spread (see below). The
   held-out scoring is done on the identification sweeps (``experiments/evaluate_pybullet.py``).
 
 Batched, resumable (probes are appended to experiments/cache/atlas_*.jsonl as they finish; Ctrl-C and re-run
@@ -72,8 +73,9 @@ def placement_spread(physics_name: str, grid_res: dict, settle: float, measure: 
     rows = []
     runs = {}
     for i, pose in enumerate(bm.PYBULLET_PLACEMENT_POSES):
-        phys, _ = make_backend(physics_name, "", initial_pose=pose)
-        specs = [s for w, a in bm.PYBULLET_PLACEMENT_OBJECTS
+        phys, _ = make_backend(physics_name, "")
+        specs = [dataclasses.replace(s, initial_yaw=pose[0], initial_offset=(pose[1], pose[2]))
+                 for w, a in bm.PYBULLET_PLACEMENT_OBJECTS
                  for s in bm.sweep_specs(pe.ObjectSpec.from_paper(w, a), f, amp, settle_s=settle, measure_s=measure)]
         runs[i] = run_cached(phys, specs, f"experiments/cache/atlas_pybullet_pose{i}.jsonl", chunk=len(f),
                              desc=f"placement {i}")
@@ -122,7 +124,7 @@ def main() -> None:
         i_f, i_a, i_w, i_al, _ = idx
         base = pe.ProbeSpec(pe.ObjectSpec.from_paper(ws[i_w], als[i_al]), pe.PlateMotion.from_paper(f[i_f], amps[i_a]),
                             settle_s=settle, measure_s=measure)
-        # PyBullet ignores the placement fields: keep them at 0 there (and the cache keys clean)
+        # PyBullet: centred sweeps (one scene per sequence); its placement spread is measured separately below
         specs.append(base.perturbed(rng) if args.physics != "pybullet" else base)
     tag = f"{args.physics}_{model}"
     t0 = time.perf_counter()
@@ -135,10 +137,12 @@ def main() -> None:
     se = np.vectorize(lambda r: r.stderr_deg_s, otypes=[float])(res)
     un = np.vectorize(lambda r: r.unstable, otypes=[bool])(res)
     provenance = {"grid": grid, "f_p_hz": _f_range(f), "a_p_deg": amps, "omega_n_pi": ws, "alpha_deg": als,
-                  "repeats": args.repeats, "seed": args.seed, "b_p_mm": 3.0, "dt_s": getattr(physics, "dt", None),
+                  "repeats": args.repeats, "seed": args.seed, "b_p_mm": 3.0, "mass_g": pe.ObjectSpec().mass * 1e3,
+                  "diameter_mm": pe.ObjectSpec().diameter * 1e3, "dt_s": getattr(physics, "dt", None),
                   "ramp_s": 0.2, "settle_s": settle, "measure_s": measure,
                   "placement": ("yaw U(0, pi/2), offset N(0, 1 mm) per axis" if args.physics != "pybullet" else
-                                "centred (PyBulletPhysics initial_pose (0, 0, 0)); sweeps per object, ascending f_p, "
+                                "centred (ProbeSpec initial_yaw 0, initial_offset (0, 0)); sweeps per object, "
+                                "ascending f_p, "
                                 f"sequence_len {getattr(physics, 'sequence_len', None)}"),
                   "plate_env": pe.__version__, "date": datetime.date.today().isoformat()}
     study_lines: list[str] = []
@@ -202,10 +206,9 @@ def _grid_table(f, ws, als, omega, un) -> str:
 
 def _study_table(rows, floor_abs, floor_rel) -> list[str]:
     out = ["## Between-placement spread (1 repeat per grid point)", "",
-           "PyBullet ignores ProbeSpec.initial_yaw/initial_offset, so the grid has one (centred) run per point and "
-           "atlas_from_repeats would fall back to a 1 deg/s spread. The sweeps of "
-           f"{bm.PYBULLET_PLACEMENT_OBJECTS} (omega_n pi, alpha deg) were re-run with PyBulletPhysics(initial_pose="
-           f"...) at {bm.PYBULLET_PLACEMENT_POSES} (yaw rad, dx m, dy m):", "",
+           "The grid has one (centred) run per point, so atlas_from_repeats would fall back to a 1 deg/s spread. "
+           f"The sweeps of {bm.PYBULLET_PLACEMENT_OBJECTS} (omega_n pi, alpha deg) were re-run with the disc placed "
+           f"at {bm.PYBULLET_PLACEMENT_POSES} (ProbeSpec initial_yaw rad, initial_offset m):", "",
            "| omega_n, alpha | f_p | centred / placements [deg/s] | sd |", "|---|---|---|---|"]
     for w, a, fk, ys in rows:
         st = [y for y in ys if y is not None]
