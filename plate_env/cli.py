@@ -354,6 +354,13 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         res = run_episode(env, agent, seed=args.seed,
                           options={"omega_n": obj.omega_n, "alpha": obj.alpha, "mass": obj.mass},
                           on_probe=None if args.json else show)
+    except KeyboardInterrupt:  # the probes so far were shown as they finished; with --json, print them now
+        done = env.unwrapped.table()
+        if args.json:
+            print(json.dumps({"physics": args.physics, "object": obj.name, "interrupted": True,
+                              "probes": done.to_rows()}), flush=True)
+        print(f"plate-env identify: interrupted after {len(done)} probes", file=sys.stderr)
+        return 130
     finally:
         env.close()
     est = res.estimate

@@ -62,6 +62,12 @@ class ProbeTable:
     def amplitudes(self) -> list[float]:
         return sorted({float(a) for a in np.round(self.a_p_deg, 6)})
 
+    def to_rows(self) -> list[dict]:
+        """One JSON-ready dict per probe (edge units, the field names of the columns)."""
+        return [{"f_p_hz": float(f), "a_p_deg": float(a), "omega_b_deg_s": float(w), "stderr_deg_s": float(s),
+                 "unstable": bool(u)} for f, a, w, s, u in zip(self.f_p_hz, self.a_p_deg, self.omega_b_deg_s,
+                                                               self.stderr_deg_s, self.unstable, strict=True)]
+
 
 class CsvError(ValueError):
     """A malformed lab CSV: the message names the line and column."""

@@ -380,3 +380,47 @@ def test_negative_plate_amplitude_probes_identify_like_positive_ones():
     assert ProbeTable.from_results(neg).amplitudes() == [3.0]
     a, b = identify(pos, method="lorentz"), identify(neg, method="lorentz")
     assert a.ok and b.ok and b.omega_n == pytest.approx(a.omega_n, rel=0.2)
+
+
+def test_cli_identify_interrupted_with_json_prints_the_finished_probes(monkeypatch, capsys):
+    import json
+
+    import plate_env.env as env_module
+
+    real = env_module.make_physics
+    monkeypatch.setattr(env_module, "make_physics", lambda name, **kw: Interrupting(real(name, **kw), 4))
+    code, out, err = run_cli(["identify", "--physics", "atlas", "--agent", "grid", "--max-probes", "8", "--json"],
+                             capsys)
+    assert code == 130 and "interrupted after 3 probes" in err
+    doc = json.loads(out)
+    assert doc["interrupted"] is True and len(doc["probes"]) == 3 and doc["probes"][0]["f_p_hz"] == 10.0
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_a_live_sweep_prints_the_finished_probes():
+    """The real thing: SIGINT to ``plate-env sweep`` once its progress bar shows a finished chunk (defect 2)."""
+    import re
+    import signal
+    import subprocess
+    import sys
+    import threading
+    import time
+    from pathlib import Path
+
+    argv = [sys.executable, "-m", "plate_env", "sweep", "--omega-n", "10pi", "--freqs", "10:40:0.5", "--measure", "40"]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=Path(__file__).resolve().parents[1],  # so Ctrl-C is not ignored as in a background job:
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    err: list[str] = []
+    reader = threading.Thread(target=lambda: err.extend(iter(lambda: proc.stderr.read(1), "")), daemon=True)
+    reader.start()
+    deadline = time.monotonic() + 600
+    while time.monotonic() < deadline and not re.search(r"\b([1-9]\d*)/61\b", "".join(err)):
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    out = proc.stdout.read()
+    assert proc.wait(timeout=600) == 130
+    reader.join(timeout=10)
+    done = int(re.search(r"interrupted after (\d+) of 61 probes", "".join(err)).group(1))
+    rows = [ln for ln in out.splitlines() if ln.strip().endswith("stable") or "unstable:" in ln]
+    assert done >= 8 and len(rows) == done
