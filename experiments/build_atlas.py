@@ -2,6 +2,8 @@
 
     python experiments/build_atlas.py [--physics tilelink] [--model pointmass] [--repeats 3] [--seed 0]
     python experiments/build_atlas.py --physics pybullet --repeats 1 [--grid pybullet]
+    python experiments/build_atlas.py --model rigid_limit --grid-file grid.json --repeats 2 --executor ray \
+        [--name rigid_limit_f10_40] [--held-out 0]
 
 Grids (plate_env.benchmarks), chosen by ``--grid`` (default: ``pybullet`` for ``--physics pybullet``, else
 ``tilelink``):
@@ -18,10 +20,16 @@ Grids (plate_env.benchmarks), chosen by ``--grid`` (default: ``pybullet`` for ``
   spread (see below). The
   held-out scoring is done on the identification sweeps (``experiments/evaluate_pybullet.py``).
 
-Batched, resumable (probes are appended to experiments/cache/atlas_*.jsonl as they finish; Ctrl-C and re-run
-resumes), with a progress bar. Writes plate_env/data/atlas_<physics>_<model>.npz and
-experiments/results/atlas_<physics>_<model>.md (<model> = the backend's ``model`` attribute, else the physics name:
-``atlas_pybullet_pybullet`` for PyBullet).
+Or a grid named by data: ``--grid-file`` (JSON, :class:`plate_env.atlas_grid.AtlasGrid`: ``f_p_hz`` as a list or
+``"start:stop:step"``, ``a_p_deg``, ``omega_n_pi``, ``alpha_deg``, optional ``settle_s``/``measure_s``), e.g.
+``{"f_p_hz": "10:40:1", "a_p_deg": [3], "omega_n_pi": [3.5, 5, ...], "alpha_deg": [30, 40, 50, 60]}``.
+
+Chunks of probes run on ``--executor`` (``plate_env.executor``: ``local`` = in-process for the point-mass model, a
+process pool for rigid tiles and PyBullet; ``ray``; ``ray://HOST:PORT``), resumable (each finished chunk is appended
+to experiments/cache/atlas_<name>.jsonl as it completes; Ctrl-C and re-run resumes), with a progress bar. Writes
+plate_env/data/atlas_<physics>_<model>.npz and experiments/results/atlas_<physics>_<model>.md (<model> = the
+backend's ``model`` attribute, else the physics name: ``atlas_pybullet_pybullet`` for PyBullet); ``--name`` files
+cache, atlas and report under another name instead (so a new grid does not overwrite the shipped atlas).
 """
 
 from __future__ import annotations
@@ -31,6 +39,7 @@ import dataclasses
 import datetime
 import math
 import os
+import sys
 import time
 
 import numpy as np
@@ -38,25 +47,27 @@ import numpy as np
 import plate_env as pe
 from plate_env import benchmarks as bm
 from plate_env.atlas import FILL_SPREAD, atlas_file, atlas_from_repeats
+from plate_env.atlas_grid import AtlasGrid, result_arrays, run_grid
+from plate_env.executor import BackendSpec, add_executor_argument, make_executor
+from plate_env.physics.base import PLACEMENT_STD_M
 from plate_env.sweeps import run_cached
 
-#: Named grids: (f_p Hz, A_p deg, omega_n pi rad/s, alpha deg, settle s, measure s).
+#: Named grids.
 GRIDS = {
-    "tilelink": (bm.ATLAS_F_HZ, bm.ATLAS_AMPS_DEG, bm.ATLAS_OMEGAS_PI, bm.ATLAS_ALPHAS_DEG, 0.5, 1.0),
-    "pybullet": (bm.PYBULLET_ATLAS_F_HZ, bm.PYBULLET_ATLAS_AMPS_DEG, bm.PYBULLET_ATLAS_OMEGAS_PI,
-                 bm.PYBULLET_ATLAS_ALPHAS_DEG, bm.PYBULLET_SETTLE_S, bm.PYBULLET_MEASURE_S),
+    "tilelink": AtlasGrid(bm.ATLAS_F_HZ, bm.ATLAS_AMPS_DEG, bm.ATLAS_OMEGAS_PI, bm.ATLAS_ALPHAS_DEG, 0.5, 1.0),
+    "pybullet": AtlasGrid(bm.PYBULLET_ATLAS_F_HZ, bm.PYBULLET_ATLAS_AMPS_DEG, bm.PYBULLET_ATLAS_OMEGAS_PI,
+                          bm.PYBULLET_ATLAS_ALPHAS_DEG, bm.PYBULLET_SETTLE_S, bm.PYBULLET_MEASURE_S),
 }
 
 
-def make_backend(physics_name: str, model: str, **kw):
-    """The backend, and the model name its atlas is filed under (``getattr(physics, "model", physics_name)``)."""
+def make_backend(physics_name: str, model: str, **kw) -> tuple[BackendSpec, str]:
+    """The backend's description, and the model name its atlas is filed under (tilelink: the model; else the
+    physics name)."""
     if physics_name == "tilelink":
-        physics = pe.make_physics("tilelink", model=model)
-    elif physics_name == "pybullet":
-        physics = pe.make_physics("pybullet", n_workers=1, **kw)
-    else:
-        physics = pe.make_physics(physics_name)
-    return physics, getattr(physics, "model", physics_name)
+        return BackendSpec.of("tilelink", model=model), model
+    if physics_name == "pybullet":
+        return BackendSpec.of("pybullet", n_workers=1, **kw), physics_name
+    return BackendSpec.of(physics_name), physics_name
 
 
 def _f_range(f) -> str:
@@ -64,7 +75,8 @@ def _f_range(f) -> str:
     return f"{f[0]:g}:{f[-1]:g}:{step:g}"
 
 
-def placement_spread(physics_name: str, grid_res: dict, settle: float, measure: float, f, amp: float):
+def placement_spread(physics_name: str, grid_res: dict, settle: float, measure: float, f, amp: float,
+                     executor=None):
     """Sweeps of a few grid objects re-run at other initial placements; returns (rows, abs floor, rel floor).
 
     rows: (omega_pi, alpha_deg, f, [omega_B per placement, None if unstable]). The floors are the medians of the
@@ -73,13 +85,12 @@ def placement_spread(physics_name: str, grid_res: dict, settle: float, measure: 
     rows = []
     runs = {}
     for i, pose in enumerate(bm.PYBULLET_PLACEMENT_POSES):
-        phys, _ = make_backend(physics_name, "")
+        backend, _ = make_backend(physics_name, "")
         specs = [dataclasses.replace(s, initial_yaw=pose[0], initial_offset=(pose[1], pose[2]))
                  for w, a in bm.PYBULLET_PLACEMENT_OBJECTS
                  for s in bm.sweep_specs(pe.ObjectSpec.from_paper(w, a), f, amp, settle_s=settle, measure_s=measure)]
-        runs[i] = run_cached(phys, specs, f"experiments/cache/atlas_pybullet_pose{i}.jsonl", chunk=len(f),
-                             desc=f"placement {i}")
-        phys.close()
+        runs[i] = run_cached(backend, specs, f"experiments/cache/atlas_pybullet_pose{i}.jsonl", chunk=len(f),
+                             desc=f"placement {i}", executor=executor)
     n = len(f)
     sds, rels = [], []
     for j, (w, a) in enumerate(bm.PYBULLET_PLACEMENT_OBJECTS):
@@ -103,44 +114,53 @@ def main() -> None:
     ap.add_argument("--model", default="pointmass")
     ap.add_argument("--grid", choices=sorted(GRIDS), default=None,
                     help="named grid (default: pybullet for --physics pybullet, else tilelink)")
+    ap.add_argument("--grid-file", default=None, help="a grid as JSON (plate_env.atlas_grid.AtlasGrid); "
+                    "overrides --grid")
+    ap.add_argument("--name", default=None, help="file cache, atlas and report as atlas_<name> (default: "
+                    "<physics>_<model>)")
+    ap.add_argument("--chunk", type=int, default=None, help="probes per chunk (default: a sweep for pybullet, "
+                    "128 in-process, 16 on workers)")
+    add_executor_argument(ap)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--held-out", type=int, default=None,
                     help="live probes at held-out points to score the atlas (default 120; 0 for the pybullet grid)")
     args = ap.parse_args()
     grid = args.grid or ("pybullet" if args.physics == "pybullet" else "tilelink")
+    spec_grid = AtlasGrid.from_json(args.grid_file) if args.grid_file else GRIDS[grid]
+    if args.grid_file:
+        grid = args.grid_file
     n_held = args.held_out if args.held_out is not None else (0 if grid == "pybullet" else 120)
-    physics, model = make_backend(args.physics, args.model)
-    rng = np.random.default_rng(args.seed)
-    f, amps, ws, als, settle, measure = GRIDS[grid]
-    shape = (len(f), len(amps), len(ws), len(als), args.repeats)
+    backend, model = make_backend(args.physics, args.model)
+    physics = backend.build()  # read-only here: its settings for the provenance (the executor runs its own)
+    executor = make_executor(args.executor, backend)
+    tag = args.name or f"{args.physics}_{model}"
+    t0 = time.perf_counter()
     # object-major order with ascending f_p inside (sweeps) for the pybullet grid: its backend carries the sheet's
     # state over a sequence of probes of one object; the tile-link order (f_p outermost) is kept as it was.
-    order = list(np.ndindex(shape))
-    if grid == "pybullet":
-        order.sort(key=lambda ix: (ix[2], ix[3], ix[1], ix[4], ix[0]))
-    specs = []
-    for idx in order:
-        i_f, i_a, i_w, i_al, _ = idx
-        base = pe.ProbeSpec(pe.ObjectSpec.from_paper(ws[i_w], als[i_al]), pe.PlateMotion.from_paper(f[i_f], amps[i_a]),
-                            settle_s=settle, measure_s=measure)
-        # PyBullet: centred sweeps (one scene per sequence); its placement spread is measured separately below
-        specs.append(base.perturbed(rng) if args.physics != "pybullet" else base)
-    tag = f"{args.physics}_{model}"
-    t0 = time.perf_counter()
-    res_list = run_cached(physics, specs, f"experiments/cache/atlas_{tag}.jsonl",
-                          chunk=len(f) if grid == "pybullet" else 128, desc="atlas")
-    res = np.empty(shape, dtype=object)
-    for idx, r in zip(order, res_list, strict=True):
-        res[idx] = r
-    omega = np.vectorize(lambda r: r.omega_b_deg_s, otypes=[float])(res)
-    se = np.vectorize(lambda r: r.stderr_deg_s, otypes=[float])(res)
-    un = np.vectorize(lambda r: r.unstable, otypes=[bool])(res)
+    # PyBullet: centred sweeps (one scene per sequence); its placement spread is measured separately
+    try:
+        res = run_grid(backend, spec_grid, args.repeats, args.seed, f"experiments/cache/atlas_{tag}.jsonl",
+                       executor=executor, chunk=args.chunk, placed=args.physics != "pybullet",
+                       sweeps=args.physics == "pybullet")
+        _finish(args, grid, spec_grid, backend, physics, model, tag, res, executor, t0, n_held)
+    finally:
+        executor.close()
+        physics.close()
+
+
+def _finish(args, grid, spec_grid, backend, physics, model, tag, res, executor, t0, n_held) -> None:
+    f, amps, ws, als = spec_grid.f_hz, spec_grid.a_p_deg, spec_grid.omega_n_pi, spec_grid.alpha_deg
+    settle, measure = spec_grid.settle_s, spec_grid.measure_s
+    omega, se, un = result_arrays(res)
+    n_probes = res.size
     provenance = {"grid": grid, "f_p_hz": _f_range(f), "a_p_deg": amps, "omega_n_pi": ws, "alpha_deg": als,
                   "repeats": args.repeats, "seed": args.seed, "b_p_mm": 3.0, "mass_g": pe.ObjectSpec().mass * 1e3,
                   "diameter_mm": pe.ObjectSpec().diameter * 1e3, "dt_s": getattr(physics, "dt", None),
                   "ramp_s": 0.2, "settle_s": settle, "measure_s": measure,
-                  "placement": ("yaw U(0, pi/2), offset N(0, 1 mm) per axis" if args.physics != "pybullet" else
+                  "backend": {"name": backend.name, "options": {k: repr(v) for k, v in backend.options}},
+                  "placement": (f"yaw U(0, pi/2), offset N(0, {PLACEMENT_STD_M * 1e3:g} mm) per axis"
+                                if args.physics != "pybullet" else
                                 "centred (ProbeSpec initial_yaw 0, initial_offset (0, 0)); sweeps per object, "
                                 "ascending f_p, "
                                 f"sequence_len {getattr(physics, 'sequence_len', None)}"),
@@ -150,7 +170,8 @@ def main() -> None:
     if grid == "pybullet":
         grid_res = {(ws[i_w], als[i_al], f[i_f]): res[i_f, 0, i_w, i_al, 0]
                     for i_f, i_w, i_al in np.ndindex(len(f), len(ws), len(als))}
-        rows, floor_abs, floor_rel = placement_spread(args.physics, grid_res, settle, measure, f, amps[0])
+        rows, floor_abs, floor_rel = placement_spread(args.physics, grid_res, settle, measure, f, amps[0],
+                                                      executor=executor)
         provenance["spread_floor"] = {"abs_deg_s": floor_abs, "rel": floor_rel,
                                       "poses": bm.PYBULLET_PLACEMENT_POSES,
                                       "objects": bm.PYBULLET_PLACEMENT_OBJECTS}
@@ -166,21 +187,21 @@ def main() -> None:
         floor = np.maximum(floor_abs, floor_rel * np.abs(atlas.mean))
         spread = np.where(n_st > 0, np.sqrt(own ** 2 + floor ** 2), FILL_SPREAD)
         atlas = dataclasses.replace(atlas, spread=spread)
-    out = f"plate_env/data/{atlas_file(args.physics, model)}"
+    out = f"plate_env/data/{atlas_file(args.physics, model) if not args.name else f'atlas_{args.name}.npz'}"
     atlas.save(out)
     lines = [f"# Response atlas: {args.physics} / {model}", "",
              f"Grid `{grid}`: {len(f)} frequencies ({_f_range(f)} Hz) x A_p {amps} deg x {len(ws)} omega_n "
-             f"({ws[0]}pi-{ws[-1]}pi) x alpha {als} deg x {args.repeats} repeats = {len(specs)} probes; windows "
+             f"({ws[0]}pi-{ws[-1]}pi) x alpha {als} deg x {args.repeats} repeats = {n_probes} probes; windows "
              f"0.2 s ramp + {settle} s settle + {measure} s measure. File: `{out}` "
              f"({os.path.getsize(out) / 1e3:.0f} kB). Regenerate: `python experiments/build_atlas.py "
-             f"--physics {args.physics}" + (" --repeats 1" if grid == "pybullet" else "") + "`.", "",
+             f"{' '.join(sys.argv[1:])}`.", "",
              f"Share of unstable probes in the grid: {un.mean():.1%}. Build wall time (this run, grid and placement "
-             f"study, cache hits excluded): {build_s / 60:.1f} min.", ""]
+             f"study, cache hits excluded, executor `{args.executor}`): {build_s / 60:.1f} min.", ""]
     if grid == "pybullet":
         lines += _grid_table(f, ws, als, omega, un), ""
         lines += study_lines
     if n_held > 0:
-        lines += _held_out(args, physics, atlas, amps, tag, n_held)
+        lines += _held_out(args, backend, atlas, amps, tag, n_held, executor)
     else:
         lines += ["Held-out error: scored on the identification sweeps of held-out objects "
                   "(`experiments/evaluate_pybullet.py`, `experiments/results/identification_pybullet*.md`)."]
@@ -188,8 +209,6 @@ def main() -> None:
     with open(path, "w") as fh:
         fh.write("\n".join(lines) + "\n")
     print("\n".join(lines))
-    if hasattr(physics, "close"):
-        physics.close()
 
 
 def _grid_table(f, ws, als, omega, un) -> str:
@@ -221,7 +240,7 @@ def _study_table(rows, floor_abs, floor_rel) -> list[str]:
     return out
 
 
-def _held_out(args, physics, atlas, amps, tag, n_held) -> list[str]:
+def _held_out(args, backend, atlas, amps, tag, n_held, executor) -> list[str]:
     # held-out points: off-grid frequency, omega_n and alpha
     hrng = np.random.default_rng(args.seed + 1)
     held = []
@@ -230,7 +249,8 @@ def _held_out(args, physics, atlas, amps, tag, n_held) -> list[str]:
                                        float(hrng.choice(bm.HELD_OUT_ALPHAS_DEG)))
         held.append(pe.ProbeSpec(obj, pe.PlateMotion.from_paper(float(hrng.uniform(10.5, 39.5)),
                                                                 float(hrng.choice(amps)))).perturbed(hrng))
-    live = run_cached(physics, held, f"experiments/cache/atlas_heldout_{tag}.jsonl", desc="held-out")
+    live = run_cached(backend, held, f"experiments/cache/atlas_heldout_{tag}.jsonl", desc="held-out",
+                      executor=executor)
     rows = []
     for r in live:
         mu, s, p = atlas.predict(r.spec.motion.freq_hz, r.spec.motion.a_p_deg, r.spec.obj.omega_n, r.spec.obj.alpha)

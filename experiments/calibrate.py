@@ -1,6 +1,6 @@
 """Fit the paper's Eq. (10) calibration per plate amplitude from simulated sweeps; compare fit-window rules.
 
-    python experiments/calibrate.py [--physics tilelink] [--model pointmass] [--amps 3,12]
+    python experiments/calibrate.py [--physics tilelink] [--model pointmass] [--amps 3,12] [--executor local|ray|...]
 
 Sweeps 10-40 Hz (1 Hz) for the calibration objects (plate_env.benchmarks), cached in experiments/cache (a re-run
 only simulates what is missing), then:
@@ -27,6 +27,7 @@ from plate_env.calibration import (
     paper_calibration,
     save_calibrations,
 )
+from plate_env.executor import BackendSpec, add_executor_argument, make_executor
 from plate_env.fitting import DEFAULT_DROP, DEFAULT_FLOOR, fit_results
 from plate_env.sweeps import run_cached
 
@@ -39,8 +40,19 @@ def main() -> None:
     ap.add_argument("--physics", default="tilelink")
     ap.add_argument("--model", default="pointmass")
     ap.add_argument("--amps", default="3,12")
+    add_executor_argument(ap)
     args = ap.parse_args()
-    physics = pe.make_physics(args.physics, **({"model": args.model} if args.physics == "tilelink" else {}))
+    backend = BackendSpec.of(args.physics, **({"model": args.model} if args.physics == "tilelink" else {}))
+    physics = backend.build()  # its settings for the provenance; the probes run on the executor
+    executor = make_executor(args.executor, backend)
+    try:
+        _calibrate(args, backend, physics, executor)
+    finally:
+        executor.close()
+        physics.close()
+
+
+def _calibrate(args, backend, physics, executor) -> None:
     objs = bm.objects(bm.CALIBRATION_OMEGAS_PI, bm.CALIBRATION_ALPHAS_DEG)
     lines = [f"# Eq. (10) calibration: {args.physics} / {args.model}", "",
              f"Objects: omega_n in {bm.CALIBRATION_OMEGAS_PI} pi rad/s x alpha in {bm.CALIBRATION_ALPHAS_DEG} deg; "
@@ -49,8 +61,8 @@ def main() -> None:
     plots = {}
     for amp in (float(a) for a in args.amps.split(",")):
         specs = [s for o in objs for s in bm.sweep_specs(o, bm.SWEEP_F_HZ, amp)]
-        res = run_cached(physics, specs, f"experiments/cache/sweeps_{args.physics}_{args.model}.jsonl",
-                         desc=f"A_p={amp:g}")
+        res = run_cached(backend, specs, f"experiments/cache/sweeps_{args.physics}_{args.model}.jsonl",
+                         desc=f"A_p={amp:g}", executor=executor)
         n = len(bm.SWEEP_F_HZ)
         sweeps = [res[i * n:(i + 1) * n] for i in range(len(objs))]
         lines += [f"## A_p = {amp:g} deg", "", "| fit window | drop | floor | R^2 (omega_n on f0) | p1 [pi rad/s/Hz] "

@@ -16,9 +16,9 @@ import math
 
 import numpy as np
 
-import plate_env as pe
 from plate_env import benchmarks as bm
 from plate_env.calibration import paper_calibration
+from plate_env.executor import BackendSpec, add_executor_argument
 from plate_env.identify import identify
 from plate_env.probes import ProbeTable
 from plate_env.sweeps import run_cached
@@ -49,16 +49,17 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--placement", default="random", choices=("random", "centred"),
                     help="random: seeded yaw and 0.2 mm offset per probe; centred: the paper's start")
+    add_executor_argument(ap)
     args = ap.parse_args()
-    physics = pe.make_physics(args.physics, **({"model": args.model} if args.physics == "tilelink" else {}))
+    backend = BackendSpec.of(args.physics, **({"model": args.model} if args.physics == "tilelink" else {}))
     rng = np.random.default_rng(args.seed)
     objs = bm.objects(bm.HELD_OUT_OMEGAS_PI, bm.HELD_OUT_ALPHAS_DEG)
     tables: dict[tuple[int, float], ProbeTable] = {}
     for amp in (3.0, 12.0):
         specs = [s.perturbed(rng) if args.placement == "random" else s
                  for o in objs for s in bm.sweep_specs(o, bm.SWEEP_F_HZ, amp)]
-        res = run_cached(physics, specs, f"experiments/cache/heldout_{args.physics}_{args.model}.jsonl",
-                         desc=f"held-out A_p={amp:g}")
+        res = run_cached(backend, specs, f"experiments/cache/heldout_{args.physics}_{args.model}.jsonl",
+                         desc=f"held-out A_p={amp:g}", executor=args.executor)
         n = len(bm.SWEEP_F_HZ)
         for i in range(len(objs)):
             tables[(i, amp)] = ProbeTable.from_results(res[i * n:(i + 1) * n])

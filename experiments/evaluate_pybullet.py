@@ -4,7 +4,7 @@
 
 Held-out objects (plate_env.benchmarks.PYBULLET_HELD_OUT_OBJECTS: no omega_n or alpha value on the pybullet atlas
 grid) are swept over the atlas's frequencies (10-26 Hz, 2 Hz) at A_p = 3 deg, B_p = 3 mm, with the atlas's probe
-windows (read from its provenance), centred placement (PyBullet ignores ProbeSpec.initial_yaw/initial_offset), one
+windows (read from its provenance), centred placement (as the atlas grid was run), one
 process. Each sweep is identified with ``identify(..., method="atlas", physics="pybullet", model=...)``: median and
 90th-percentile relative error of omega_n_hat, 1-sigma coverage, alpha error. Also scores the atlas itself on
 these probes (prediction error at held-out (omega_n, alpha)). Resumable cache:
@@ -21,6 +21,7 @@ import numpy as np
 import plate_env as pe
 from plate_env import benchmarks as bm
 from plate_env.atlas import Atlas, load_atlas
+from plate_env.executor import BackendSpec, add_executor_argument
 from plate_env.identify import identify
 from plate_env.inference import SIGMA_MODEL
 from plate_env.probes import ProbeTable
@@ -51,8 +52,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sigma-model", type=float, nargs="*", default=[SIGMA_MODEL],
                     help="atlas model error(s), deg/s, to score (the first is the headline)")
+    add_executor_argument(ap)
     args = ap.parse_args()
-    physics = pe.make_physics("pybullet", n_workers=1)
+    backend = BackendSpec.of("pybullet", n_workers=1)
+    physics = backend.build()  # its settings for the report; the probes run on the executor
     model = getattr(physics, "model", "pybullet")
     atlas = load_atlas("pybullet", model)
     prov = atlas.provenance
@@ -61,7 +64,8 @@ def main() -> None:
     amp = float(atlas.a_p_deg[0])
     objs = [pe.ObjectSpec.from_paper(w, a) for w, a in bm.PYBULLET_HELD_OUT_OBJECTS]
     specs = [s for o in objs for s in bm.sweep_specs(o, f, amp, settle_s=settle, measure_s=measure)]
-    res = run_cached(physics, specs, f"experiments/cache/heldout_pybullet_{model}.jsonl", chunk=len(f),
+    res = run_cached(backend, specs, f"experiments/cache/heldout_pybullet_{model}.jsonl", chunk=len(f),
+                     executor=args.executor,
                      desc="held-out sweeps")
     physics.close()
     n = len(f)

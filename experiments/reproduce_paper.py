@@ -34,6 +34,7 @@ import numpy as np  # noqa: E402
 
 import plate_env as pe  # noqa: E402
 from plate_env import benchmarks as bm  # noqa: E402
+from plate_env.executor import BackendSpec, add_executor_argument, make_executor  # noqa: E402
 from plate_env.fitting import LorentzFit, fit_results, lorentzian  # noqa: E402
 from plate_env.identify import identify  # noqa: E402
 from plate_env.physics.base import ProbeResult  # noqa: E402
@@ -42,6 +43,8 @@ from plate_env.sweeps import run_cached  # noqa: E402
 
 SCRIPT = "experiments/reproduce_paper.py"
 FREQS_HZ = bm.SWEEP_F_HZ
+#: Where the probes run (``--executor``): "local" (per backend), or one pool / Ray executor for the whole run.
+EXECUTOR = "local"
 ALPHA_CHEESE = 36.9
 #: Fig. 7 fits in the paper: (omega_n [pi rad/s], alpha [deg]) -> (f0 [Hz], b [Hz], omega_max [deg/s], R^2).
 PAPER_FIG7 = {(10.0, 36.9): (25.1, 5.1, 598.7, 0.99), (33.0, 36.9): (28.2, 5.8, 746.9, 0.99),
@@ -64,13 +67,13 @@ FIG8_ALPHAS_DEG = (30.0, 36.9, 45.0, 56.3)
 def sweep(physics, cache: Path, obj: pe.ObjectSpec, a_p_deg: float, freqs=FREQS_HZ, **kw) -> list[ProbeResult]:
     """One cached frequency sweep (B_p = 3 mm) of ``obj`` at ``a_p_deg`` degrees."""
     specs = bm.sweep_specs(obj, freqs, a_p_deg, **kw)
-    return run_cached(physics, specs, cache, progress=False)
+    return run_cached(physics, specs, cache, progress=False, executor=EXECUTOR)
 
 
 def sweeps(physics, cache: Path, jobs: list[tuple[pe.ObjectSpec, float]], **kw) -> list[list[ProbeResult]]:
     """Several sweeps in one batched, cached call (the backend batches across objects)."""
     specs = [s for o, a in jobs for s in bm.sweep_specs(o, FREQS_HZ, a, **kw)]
-    res = run_cached(physics, specs, cache, chunk=256, desc="reproduce_paper")
+    res = run_cached(physics, specs, cache, chunk=256, desc="reproduce_paper", executor=EXECUTOR)
     n = len(FREQS_HZ)
     return [res[i * n:(i + 1) * n] for i in range(len(jobs))]
 
@@ -263,7 +266,8 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
         for col, a in enumerate((3.0, 12.0)):
             specs = [s.perturbed(rng) if placement == "random" else s
                      for o in objs for s in bm.sweep_specs(o, FREQS_HZ, a)]
-            res = run_cached(physics, specs, cache, chunk=256, desc=f"held-out {placement} {a:g} deg")
+            res = run_cached(physics, specs, cache, chunk=256, desc=f"held-out {placement} {a:g} deg",
+                             executor=EXECUTOR)
             n = len(FREQS_HZ)
             ax = axes[row_i, col]
             for method, marker in (("lorentz", "o"), ("atlas", "s")):
@@ -299,11 +303,10 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
 
 def pybullet_tiny(out_dir: Path, cache: Path) -> list[str]:
     """One tiny PyBullet sweep (10pi, 3 deg, 6 frequencies, 30 points/layer, dt 8e-4 s): shape only."""
-    physics = pe.make_physics("pybullet", n_layer=30, dt=8e-4)
+    physics = BackendSpec.of("pybullet", n_layer=30, dt=8e-4)
     freqs = (14.0, 18.0, 22.0, 26.0, 30.0, 34.0)
     res = sweep(physics, cache, pe.ObjectSpec.from_paper(10.0, ALPHA_CHEESE), 3.0, freqs=freqs, settle_s=0.4,
                 measure_s=0.6)
-    physics.close()
     fig, ax = plt.subplots(figsize=(4.5, 3.2))
     plot_curves(ax, [("pybullet 30 pts/layer", res)])
     ax.set_title(f"PyBullet Fig. 5(b)-like, 10pi, 3 deg - {SCRIPT} --pybullet", fontsize=7)
@@ -323,7 +326,19 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0, help="placement seed of the held-out probes (Fig. 11)")
     ap.add_argument("--out-dir", default="experiments/results")
     ap.add_argument("--cache-dir", default="experiments/cache")
+    add_executor_argument(ap)
     args = ap.parse_args()
+    global EXECUTOR
+    if args.executor != "local":
+        EXECUTOR = make_executor(args.executor)
+    try:
+        _run(args)
+    finally:
+        if not isinstance(EXECUTOR, str):
+            EXECUTOR.close()
+
+
+def _run(args) -> None:
     out_dir, cache_dir = Path(args.out_dir), Path(args.cache_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     backends = [("tilelink_pointmass", {"model": "pointmass"}, True)]
@@ -331,7 +346,7 @@ def main() -> None:
         backends.append(("tilelink_rigid", {"model": "rigid"}, False))
         backends.append(("tilelink_rigid_limit", {"model": "rigid_limit"}, False))
     for tag, options, full in backends:
-        physics = pe.make_physics("tilelink", **options)
+        physics = BackendSpec.of("tilelink", **options)
         md = reproduce(physics, tag, out_dir, cache_dir / f"reproduce_paper_{tag}.jsonl", args.seed, full)
         (out_dir / f"reproduce_paper_{tag}.md").write_text("\n".join(md) + "\n")
         print("\n".join(md))

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from plate_env import checks
+from plate_env.executor import BackendSpec, add_executor_argument, make_executor
 from plate_env.motion import AMP_RANGE_RAD, B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
 from plate_env.objects import ObjectSpec, preset
 from plate_env.physics import PHYSICS_NAMES, ProbeSpec, make_physics
@@ -185,6 +186,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--freqs", default="10:40:1", help="start:stop:step or a comma list, Hz")
     s.add_argument("--plot", default=None, help="write a PNG of omega_B vs f_p (after the results are printed)")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    s.add_argument("--cache", default=None, help="JSON-lines file: finished chunks are appended, a rerun resumes")
+    s.add_argument("--chunk", type=_arg(checks.integer, 1, MAX_SWEEP_PROBES), default=8,
+                   help="probes per chunk (a unit of work and of persistence)")
+    add_executor_argument(s)
     i = sub.add_parser("identify", help="identify a hidden object with a probing agent (the main job)")
     i.add_argument("--agent", default="bayes", choices=("grid", "coarse_to_fine", "bayes", "ppo"))
     i.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
@@ -244,23 +249,30 @@ def _print_sweep(args: argparse.Namespace, obj: ObjectSpec, results: list, inter
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from plate_env.sweeps import chunk_size, run_chunks
+    from plate_env.sweeps import SweepInterrupted, run_cached
 
     obj = _object(args)
     freqs = parse_freqs(args.freqs)
     plot = plot_path(args.plot) if args.plot else None
     specs = [_spec(args, obj, f) for f in freqs]
-    physics = _physics(args)
-    results: list = []
+    backend = BackendSpec.of(args.physics, **_physics_options(args))
+    built = backend.build()  # bad options and probes the backend cannot run: refused here, before any worker starts
+    try:
+        refuse_early(built, specs)
+    finally:
+        built.close()
+    try:
+        executor = make_executor(args.executor, backend)
+    except ImportError as exc:
+        raise CliError(str(exc)) from None
     interrupted = False
     try:
-        refuse_early(physics, specs)  # every probe, before the first one runs
-        for part in run_chunks(physics, specs, chunk_size(physics), progress=not (args.json or args.no_progress)):
-            results.extend(part)
-    except KeyboardInterrupt:
-        interrupted = True
+        results = run_cached(backend, specs, args.cache, chunk=args.chunk,
+                             progress=not (args.json or args.no_progress), desc="sweep", executor=executor)
+    except SweepInterrupted as exc:  # Ctrl-C: the finished probes are printed (and cached with --cache)
+        results, interrupted = exc.results, True
     finally:
-        physics.close()
+        executor.close()
     _print_sweep(args, obj, results, interrupted)
     if interrupted:
         print(f"plate-env sweep: interrupted after {len(results)} of {len(specs)} probes (printed above)",

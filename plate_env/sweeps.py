@@ -1,26 +1,33 @@
 """Run many probes with a resumable on-disk cache: every finished chunk is appended to a JSON-lines file.
 
 Interrupting a long sweep (Ctrl-C) keeps the probes already written; running it again only simulates the rest.
-Used by the experiment scripts (calibration, atlas, paper reproduction).
+Chunks run on an executor (:mod:`plate_env.executor`: in-process, a process pool or Ray) and are written as they
+finish, in any order. Used by the CLI's ``sweep`` and the experiment scripts (calibration, atlas, paper reproduction).
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
+from plate_env.executor import BackendSpec, Executor, InProcessExecutor, make_executor
 from plate_env.physics.base import Physics, ProbeResult, ProbeSpec
 
-#: Probes per backend call when results are wanted as they finish (the tile-link batch keeps both cores busy).
-CHUNK = 8
 
-
-def backend_tag(physics: Physics) -> str:
-    """A string naming the backend and its settings (part of every cache key)."""
+def backend_tag(physics: Physics | BackendSpec) -> str:
+    """A string naming the backend and its settings (part of every cache key): every setting that changes a
+    result (model, time step, mesh, joint and contact parameters) is in it. A :class:`BackendSpec` is built
+    (cheaply: no client or kernel is touched) to read them."""
+    if isinstance(physics, BackendSpec):
+        built = physics.build()
+        try:
+            return backend_tag(built)
+        finally:
+            built.close()
     parts = [physics.name]
-    for attr in ("model", "dt", "n_layer", "mesh"):
+    for attr in ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact"):
         if hasattr(physics, attr):
             parts.append(f"{attr}={getattr(physics, attr)}")
     return ",".join(parts)
@@ -60,31 +67,13 @@ def load_cache(path: Path) -> dict[str, dict]:
     return out
 
 
-def chunk_size(physics: Physics) -> int:
-    """Probes per call for results as they finish: :data:`CHUNK`, or a process pool's worth of PyBullet units."""
-    return max(CHUNK, getattr(physics, "n_workers", 1) * getattr(physics, "sequence_len", 1))
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C during :func:`run_cached`: ``results`` are the probes finished by then (this run's chunks and those
+    found in the cache), in the order of the specs, so a caller can print them before it exits."""
 
-
-def run_chunks(physics: Physics, specs: Sequence[ProbeSpec], chunk: int, progress: bool = True,
-               desc: str = "probes") -> Iterator[list[ProbeResult]]:
-    """Run ``specs`` in order, ``chunk`` probes per backend call, yielding each chunk's results as it finishes
-    (with a progress bar if asked). An interrupt (Ctrl-C) propagates from the chunk that was running; the chunks
-    already yielded are the caller's to keep (printed, cached)."""
-    specs = list(specs)
-    bar = None
-    if progress and specs:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=len(specs), desc=desc, unit="probe")
-    try:
-        for start in range(0, len(specs), chunk):
-            part = physics.run(specs[start:start + chunk])
-            if bar is not None:
-                bar.update(len(part))
-            yield part
-    finally:
-        if bar is not None:
-            bar.close()
+    def __init__(self, results: list[ProbeResult]) -> None:
+        super().__init__()
+        self.results = results
 
 
 def _open_for_append(path: Path):
@@ -98,29 +87,66 @@ def _open_for_append(path: Path):
     return open(path, "ab")  # noqa: SIM115 - returned to the caller, who closes it
 
 
-def run_cached(physics: Physics, specs: Sequence[ProbeSpec], cache: str | Path | None, chunk: int = 64,
-               progress: bool = True, desc: str = "probes") -> list[ProbeResult]:
-    """Results for ``specs`` in order, simulating only those not yet in ``cache`` (appended chunk by chunk)."""
+def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache: str | Path | None,
+               chunk: int = 64, progress: bool = True, desc: str = "probes",
+               executor: Executor | str | None = None) -> list[ProbeResult]:
+    """Results for ``specs`` in order, simulating only those not yet in ``cache`` (appended chunk by chunk).
+
+    Chunks are cut from the whole ``specs`` list every ``chunk`` probes (so an interrupted and resumed run runs the
+    same chunks, less the finished ones; a chunk is a PyBullet object sequence's boundary) and run on ``executor``
+    (an :class:`~plate_env.executor.Executor` or a name for :func:`~plate_env.executor.make_executor`; default
+    ``"local"``), each written to the cache and counted on the progress bar as it finishes. ``physics`` is a
+    :class:`BackendSpec` (any executor) or a built backend (in this process only).
+    """
+    if not (isinstance(chunk, int) and chunk >= 1):
+        raise ValueError(f"chunk = {chunk!r} must be a positive int")
     tag = backend_tag(physics)
     keys = [spec_key(tag, s) for s in specs]
     done = load_cache(Path(cache)) if cache else {}
-    todo = [i for i, k in enumerate(keys) if k not in done]
-    fh = _open_for_append(Path(cache)) if cache else None
+    chunks = [[i for i in range(start, min(start + chunk, len(specs))) if keys[i] not in done]
+              for start in range(0, len(specs), chunk)]
+    chunks = [c for c in chunks if c]
+    own = executor is None or isinstance(executor, str)  # an executor object passed in stays the caller's
+    if isinstance(physics, BackendSpec):
+        backend = physics
+        if own:
+            executor = make_executor(executor, backend)
+    else:
+        backend = None
+        if executor not in (None, "local", "inprocess"):
+            raise TypeError(f"executor {executor!r} needs a BackendSpec (a built {physics.name} backend cannot be "
+                            "sent to workers): pass BackendSpec.of(name, **options)")
+        executor, own = InProcessExecutor(physics), True
+    bar = None
+    if progress and chunks:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=sum(map(len, chunks)), desc=desc, unit="probe")
+    fh = _open_for_append(Path(cache)) if cache and chunks else None
     try:
-        finished = 0
-        for results in run_chunks(physics, [specs[i] for i in todo], chunk, progress, desc):
-            idx = todo[finished:finished + len(results)]
-            finished += len(results)
-            for i, r in zip(idx, results, strict=True):
-                line = _to_line(keys[i], r)
-                done[keys[i]] = json.loads(line)
+        if chunks:
+            for j, results in executor.map(backend, [[specs[i] for i in c] for c in chunks]):
+                idx = chunks[j]
+                for i, r in zip(idx, results, strict=True):
+                    line = _to_line(keys[i], r)
+                    done[keys[i]] = json.loads(line)
+                    if fh is not None:
+                        fh.write((line + "\n").encode())
                 if fh is not None:
-                    fh.write((line + "\n").encode())
-            if fh is not None:
-                fh.flush()
+                    fh.flush()
+                if bar is not None:
+                    bar.update(len(idx))
+    except KeyboardInterrupt:
+        raise SweepInterrupted([_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)
+                                if k in done]) from None
     finally:
+        if own:
+            executor.close()
         if fh is not None:
             fh.close()
+        if bar is not None:
+            bar.close()
     out = [_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)]
     assert all(math.isfinite(r.omega_b_deg_s) for r in out)
     return out
+

@@ -211,8 +211,9 @@ def test_cli_sweep_interrupted_prints_the_finished_probes(json_out, monkeypatch,
     import json
 
     import plate_env.cli as cli
+    from plate_env.executor import InProcessExecutor
 
-    monkeypatch.setattr(cli, "make_physics", lambda name, **kw: Interrupting(pe.make_physics(name, **kw), 3))
+    monkeypatch.setattr(cli, "make_executor", lambda name, backend: InProcessExecutor(Interrupting(backend.build(), 3)))
     argv = ["sweep", "--physics", "atlas", "--omega-n", "10pi", "--freqs", "10:40:0.5", "--no-progress"]
     code, out, err = run_cli(argv + (["--json"] if json_out else []), capsys)  # defect 2
     assert code == 130 and "interrupted after 16 of 61 probes" in err
@@ -246,6 +247,7 @@ def test_cli_plot_path_checked_before_any_work(argv, plot, message, tmp_path, mo
         raise AssertionError("work started before --plot was checked")
 
     monkeypatch.setattr(cli, "make_physics", no_work)
+    monkeypatch.setattr("plate_env.executor.make_physics", no_work)
     monkeypatch.setattr("plate_env.identify.identify", no_work)
     monkeypatch.setattr("gymnasium.make", no_work)
     code, out, err = run_cli([str(lab) if a == "LAB" else a for a in argv] + ["--amp", "3"] * (argv[0] == "fit")

@@ -26,6 +26,7 @@ from plate_env.physics.base import (
     check_step_counts,
     warn_above_stable_dt,
 )
+from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
 from plate_env.physics.tilelink.params import (
     P_CIN,
     P_KB,
@@ -54,12 +55,20 @@ PROGRESS_CHUNK = 8
 
 @lru_cache(maxsize=256)
 def _pointmass_params(obj: ObjectSpec, config: PointMassConfig):
-    return build_params(obj, config)
+    # one BLAS thread: the modal analysis' eigensolve differs in the last bits with the BLAS thread count, which
+    # the kernel grows to ~1e-10 of omega_B; with it a probe repeats bit for bit in any process (plate_env.executor)
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return build_params(obj, config)
 
 
 @lru_cache(maxsize=256)
 def _ainv(obj: ObjectSpec, config: PointMassConfig, dt: float) -> np.ndarray:
-    return implicit_damping_matrix(_pointmass_params(obj, config), dt)
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return implicit_damping_matrix(_pointmass_params(obj, config), dt)
 
 
 class TileLinkPhysics:
@@ -73,11 +82,13 @@ class TileLinkPhysics:
         dt: time step, s; None takes the model's default (:data:`DEFAULT_DT`). Point mass at 2e-4 s: omega_B
             0.85 % median / 3.6 % max from its dt -> 0 value (``experiments/bench_physics.py``).
         slip_limit: centre displacement (m, plate frame) beyond which a probe is unstable (the paper: 10 mm).
-        config: joint parameters the paper does not give.
+        config: joint parameters the paper does not give (point mass); rigid_config: those of the rigid tiles.
+        contact: the plate contact law's coefficients (default: the paper's).
     """
 
     def __init__(self, model: str = "pointmass", dt: float | None = None, slip_limit: float = SLIP_LIMIT_M,
-                 config: PointMassConfig | None = None, rigid_config: RigidTileConfig | None = None) -> None:
+                 config: PointMassConfig | None = None, rigid_config: RigidTileConfig | None = None,
+                 contact: ContactLaw = PAPER_CONTACT) -> None:
         if model not in MODELS:
             raise ValueError(f"unknown tilelink model {model!r}; choose one of {MODELS}")
         if dt is None:
@@ -96,6 +107,9 @@ class TileLinkPhysics:
         if rigid_config is None:
             rigid_config = RIGID_LIMIT_CONFIG if model == "rigid_limit" else RigidTileConfig()
         self.rigid_config = rigid_config
+        if not isinstance(contact, ContactLaw):
+            raise TypeError(f"contact must be a ContactLaw, got {type(contact).__name__}")
+        self.contact = contact
 
     def __repr__(self) -> str:
         return f"TileLinkPhysics(model={self.model!r}, dt={self.dt:g})"
@@ -106,7 +120,7 @@ class TileLinkPhysics:
     # ------------------------------------------------------------------ arrays
     def _param_vector(self, spec: ProbeSpec) -> np.ndarray:
         params = _pointmass_params(spec.obj, self.config)
-        prm = common_vector(spec, self.dt, self.slip_limit, params.node_mass)
+        prm = common_vector(spec, self.dt, self.slip_limit, params.node_mass, law=self.contact)
         prm[P_KB] = params.k_bending
         prm[P_KIN] = params.k_inplane
         prm[P_CIN] = params.c_inplane
@@ -117,7 +131,7 @@ class TileLinkPhysics:
         if self.model in ("rigid", "rigid_limit"):
             from plate_env.physics.tilelink.rigid_kernels import run_rigid_arrays
 
-            return run_rigid_arrays(probes, self.dt, self.slip_limit, config=self.rigid_config)
+            return run_rigid_arrays(probes, self.dt, self.slip_limit, config=self.rigid_config, law=self.contact)
         prm = np.stack([self._param_vector(s) for s in probes])
         geom = _pointmass_params(probes[0].obj, self.config).geom
         rest = np.stack([_pointmass_params(s.obj, self.config).geom.rest for s in probes])

@@ -1,0 +1,325 @@
+"""Where batches of probes run: one executor seam for sweeps, atlases, calibrations and benchmark suites.
+
+The unit of work is a *chunk*: a list of :class:`ProbeSpec` plus a :class:`BackendSpec`, the picklable description of
+a backend (``make_physics`` name and options). A worker process builds the backend once and keeps it for every later
+chunk of the same description (numba's kernels load once per worker, a PyBullet worker keeps its client and builds a
+scene per object sequence of the chunk) and returns the chunk's :class:`ProbeResult` list. Executors yield finished
+chunks as they complete (in any order); :func:`plate_env.sweeps.run_cached` persists each one on arrival, so a
+killed driver or worker loses at most the chunks in flight.
+
+Executors (:func:`make_executor`):
+
+* ``"local"`` (default): ``"inprocess"`` for the tile-link point-mass model and the atlas (numba already spreads a
+  batch over the cores), ``"pool"`` for PyBullet and the rigid tile models.
+* ``"inprocess"``: chunks run one after another in this process.
+* ``"pool"`` / ``"pool:N"``: a spawned process pool (N workers, default one per core); a chunk whose worker died is
+  resubmitted to a fresh pool (at most ``max_retries`` times).
+* ``"ray"``: Ray tasks (``pip install "plate-env[ray]"``): joins the cluster named by ``RAY_ADDRESS`` (as set by
+  ``ray job submit``) or one started with ``ray start``, else starts a local one; ``"ray://HOST:PORT"``: a Ray
+  cluster through Ray Client. Ray retries a chunk whose worker died (``max_retries``). Ray is imported only here.
+
+Workers run with one BLAS and one numba thread (``WORKER_ENV``): one chunk per core.
+
+Determinism: a chunk's results depend only on its probes and its backend description, not on the executor, the
+process or the other chunks: bit for bit for the point-mass kernel and PyBullet; for the rigid kernels bit for bit
+between processes that run the same machine code (numba's first compile and its cached reload differ in the last
+bits, see the README), which the tests pin.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections import deque
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from plate_env.physics import Physics, ProbeResult, ProbeSpec, make_physics
+
+#: Environment of every pool / Ray worker: one thread for numpy's BLAS (its spinning threads cost ~3.5 % of a
+#: PyBullet step) and for numba (one chunk per core).
+WORKER_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
+#: Executor names accepted by :func:`make_executor` (plus ``pool:N`` and ``ray://HOST:PORT``).
+EXECUTOR_NAMES = ("local", "inprocess", "pool", "ray")
+#: tilelink models that run in a process pool under the ``local`` executor.
+POOLED_TILELINK_MODELS = ("rigid", "rigid_limit")
+
+
+@dataclass(frozen=True)
+class BackendSpec:
+    """A picklable, hashable description of a backend: ``make_physics(name, **dict(options))``.
+
+    Build with :meth:`of`: ``BackendSpec.of("tilelink", model="rigid_limit", contact=ContactLaw(...))``. Option values
+    must be hashable (frozen dataclasses, numbers, strings, tuples).
+    """
+
+    name: str
+    options: tuple[tuple[str, Any], ...] = ()
+
+    @classmethod
+    def of(cls, name: str, **options: Any) -> BackendSpec:
+        spec = cls(name, tuple(sorted(options.items())))
+        try:
+            hash(spec)
+        except TypeError:
+            bad = [k for k, v in options.items() if not _hashable(v)]
+            raise TypeError(f"backend options {bad} must be hashable (use tuples, frozen dataclasses)") from None
+        return spec
+
+    def build(self) -> Physics:
+        """A fresh backend (the caller closes it)."""
+        return make_physics(self.name, **dict(self.options))
+
+    def option(self, key: str, default: Any = None) -> Any:
+        return dict(self.options).get(key, default)
+
+
+def _hashable(v: Any) -> bool:
+    try:
+        hash(v)
+    except TypeError:
+        return False
+    return True
+
+
+# --------------------------------------------------------------------------- the worker side
+#: Backends built in this process, by description (a worker keeps a few; the oldest is closed beyond that).
+_BACKENDS: dict[BackendSpec, Physics] = {}
+_MAX_BACKENDS = 4
+
+
+def worker_backend(backend: BackendSpec) -> Physics:
+    """This process's backend for ``backend``: built on first use, then reused."""
+    phys = _BACKENDS.get(backend)
+    if phys is None:
+        if len(_BACKENDS) >= _MAX_BACKENDS:
+            old = next(iter(_BACKENDS))
+            _BACKENDS.pop(old).close()
+        phys = _BACKENDS[backend] = backend.build()
+    return phys
+
+
+def run_chunk(backend: BackendSpec, probes: Sequence[ProbeSpec]) -> list[ProbeResult]:
+    """Run one chunk on this process's backend (the task every executor runs)."""
+    return worker_backend(backend).run(list(probes))
+
+
+# --------------------------------------------------------------------------- executors
+class Executor(Protocol):
+    """Runs chunks of probes on a described backend and yields ``(chunk index, results)`` as chunks finish."""
+
+    name: str
+
+    def map(self, backend: BackendSpec,
+            chunks: Sequence[Sequence[ProbeSpec]]) -> Iterator[tuple[int, list[ProbeResult]]]:
+        """Every chunk's results, in completion order. Closing the iterator early (Ctrl-C, an error in the
+        consumer) cancels the chunks not yet finished."""
+        ...
+
+    def close(self) -> None:
+        """Release workers (processes, a Ray session this executor started). Safe to call twice."""
+        ...
+
+
+class InProcessExecutor:
+    """Chunks one after another in this process; ``physics`` (optional) is an already built backend to use.
+
+    Each chunk runs with numpy's and scipy's BLAS held to one thread (``threadpoolctl``), as in the pool and Ray
+    workers (linear algebra's last bits depend on the BLAS thread count: the point-mass modal analysis grew such a
+    difference to ~1e-10 of omega_B, so its builders hold BLAS to one thread themselves). Numba's threads are not
+    limited (the point-mass kernel spreads a chunk over the cores).
+    """
+
+    name = "inprocess"
+
+    def __init__(self, physics: Physics | None = None) -> None:
+        self.physics = physics
+
+    def map(self, backend: BackendSpec | None, chunks):
+        from threadpoolctl import threadpool_limits
+
+        for i, chunk in enumerate(chunks):
+            phys = self.physics if self.physics is not None else worker_backend(backend)
+            with threadpool_limits(limits=1, user_api="blas"):
+                res = phys.run(list(chunk))
+            yield i, res
+
+    def close(self) -> None:
+        """Nothing to release (backends built here stay cached for the process)."""
+
+
+@contextlib.contextmanager
+def _env(values: dict[str, str]):
+    """``os.environ`` updated while the block runs (spawned children inherit it), restored after."""
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+class PoolExecutor:
+    """A spawned process pool; each worker keeps its backends between chunks.
+
+    A worker that dies (killed, out of memory) breaks the pool: the chunks not yet returned are resubmitted to a
+    fresh pool, at most ``max_retries`` times each, then :class:`RuntimeError`.
+    """
+
+    name = "pool"
+
+    def __init__(self, workers: int | None = None, max_retries: int = 3) -> None:
+        if workers is None:
+            workers = os.cpu_count() or 1
+        if not (isinstance(workers, int) and workers >= 1):
+            raise ValueError(f"pool workers = {workers!r} must be a positive int")
+        self.workers = workers
+        self.max_retries = max_retries
+        self.restarts = 0  #: pools replaced after a worker died
+        self._pool = None
+
+    def _new_pool(self):
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        return ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"))
+
+    def worker_pids(self) -> list[int]:
+        """Process ids of the live workers (for fault tests)."""
+        procs = getattr(self._pool, "_processes", None) or {}
+        return [p.pid for p in procs.values() if p.is_alive()]
+
+    def map(self, backend: BackendSpec, chunks):
+        from concurrent.futures import as_completed
+        from concurrent.futures.process import BrokenProcessPool
+
+        pending = list(range(len(chunks)))
+        failures = dict.fromkeys(pending, 0)
+        while pending:
+            if self._pool is None:
+                self._pool = self._new_pool()
+            with _env(WORKER_ENV):  # workers spawn during submit and inherit this environment
+                futures = {self._pool.submit(run_chunk, backend, list(chunks[i])): i for i in pending}
+            try:
+                for fut in as_completed(futures):
+                    i = futures[fut]
+                    res = fut.result()
+                    pending.remove(i)
+                    yield i, res
+            except BrokenProcessPool:
+                self._pool.shutdown(wait=False, cancel_futures=True)
+                self._pool = None
+                self.restarts += 1
+                for i in pending:
+                    failures[i] += 1
+                worst = max(pending, key=failures.__getitem__)
+                if failures[worst] > self.max_retries:
+                    raise RuntimeError(f"chunk {worst} lost its worker {failures[worst]} times; giving up") from None
+            finally:
+                if pending and self._pool is not None:
+                    for fut in futures:
+                        fut.cancel()
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+
+class RayExecutor:
+    """Chunks as Ray tasks (``num_cpus=1`` each, retried ``max_retries`` times when their worker dies).
+
+    ``address``: None joins the cluster named by ``RAY_ADDRESS`` or a running ``ray start`` head, else starts a local
+    Ray (``num_cpus`` CPUs, default all); ``"ray://HOST:PORT"`` connects through Ray Client (driver here, workers
+    there: the cluster's nodes need plate-env installed at the same version). A Ray session this executor started is
+    shut down by :meth:`close`. At most ``max_in_flight`` chunks are submitted at once (default 2 per cluster CPU).
+    """
+
+    name = "ray"
+
+    def __init__(self, address: str | None = None, num_cpus: int | None = None, max_retries: int = 3,
+                 max_in_flight: int | None = None) -> None:
+        try:
+            import ray
+        except ImportError:
+            raise ImportError('the ray executor needs Ray: pip install "plate-env[ray]"') from None
+        self._ray = ray
+        self._owns = False
+        if not ray.is_initialized():
+            kw: dict[str, Any] = {"runtime_env": {"env_vars": dict(WORKER_ENV)}, "log_to_driver": False}
+            if address is None and not os.environ.get("RAY_ADDRESS"):
+                kw.update(num_cpus=num_cpus, include_dashboard=False, object_store_memory=200 * 2**20)
+            ray.init(address=address, **kw)
+            self._owns = True
+        self._task = ray.remote(num_cpus=1, max_retries=max_retries)(run_chunk)
+        cpus = int(ray.cluster_resources().get("CPU", 1))
+        self.max_in_flight = max_in_flight or 2 * max(cpus, 1)
+
+    def map(self, backend: BackendSpec, chunks):
+        ray = self._ray
+        backend_ref = ray.put(backend)
+        pending = deque(range(len(chunks)))
+        refs: dict[Any, int] = {}
+        try:
+            while pending or refs:
+                while pending and len(refs) < self.max_in_flight:
+                    i = pending.popleft()
+                    refs[self._task.remote(backend_ref, list(chunks[i]))] = i
+                ready, _ = ray.wait(list(refs), num_returns=1)
+                for ref in ready:
+                    i = refs.pop(ref)
+                    yield i, ray.get(ref)
+        finally:
+            for ref in refs:
+                with contextlib.suppress(Exception):
+                    ray.cancel(ref, force=True)
+
+    def close(self) -> None:
+        if self._owns and self._ray.is_initialized():
+            self._ray.shutdown()
+        self._owns = False
+
+
+def default_local(backend: BackendSpec) -> str:
+    """What ``"local"`` means for a backend: ``"pool"`` for PyBullet and the rigid tile models, else ``"inprocess"``."""
+    if backend.name == "pybullet" or (backend.name == "tilelink" and backend.option("model") in POOLED_TILELINK_MODELS):
+        return "pool"
+    return "inprocess"
+
+
+def make_executor(name: str | None = "local", backend: BackendSpec | None = None, **kw: Any) -> Executor:
+    """An executor by name: ``local`` (default, by backend), ``inprocess``, ``pool[:N]``, ``ray`` or
+    ``ray://HOST:PORT``; ``kw`` go to its constructor. Refuses an unknown name before any work starts."""
+    name = name or "local"
+    if name == "local":
+        name = default_local(backend) if backend is not None else "inprocess"
+    if name == "inprocess":
+        return InProcessExecutor(**kw)
+    if name == "pool" or name.startswith("pool:"):
+        workers = None
+        if name != "pool":
+            try:
+                workers = int(name.split(":", 1)[1])
+            except ValueError:
+                workers = -1
+            if workers < 1:
+                raise ValueError(f"executor {name!r}: pool:N needs a positive number of workers N")
+        return PoolExecutor(workers=workers, **kw)
+    if name == "ray":
+        return RayExecutor(**kw)
+    if name.startswith("ray://"):
+        return RayExecutor(address=name, **kw)
+    raise ValueError(f"unknown executor {name!r}; choose local, inprocess, pool, pool:N, ray or ray://HOST:PORT")
+
+
+def add_executor_argument(parser) -> None:
+    """The ``--executor`` option of the CLI and the experiment scripts."""
+    parser.add_argument("--executor", default="local",
+                        help="where chunks of probes run: local (default: in-process for the point-mass model, a "
+                             "process pool for pybullet and rigid tiles), inprocess, pool, pool:N, ray (local Ray or "
+                             "the cluster in RAY_ADDRESS) or ray://HOST:PORT")
