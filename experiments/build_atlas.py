@@ -14,9 +14,10 @@ Grids (plate_env.benchmarks), chosen by ``--grid`` (default: ``pybullet`` for ``
 * ``pybullet``: f_p 10-26 Hz (2 Hz) x A_p 3 deg x omega_n {5, 7, 10, 14, 20, 28, 33}pi x alpha {30, 40, 50, 60} deg,
   windows 0.3 s settle + 0.6 s measure (recorded in the provenance; the evaluation uses the same). Probes run as
   sweeps per object (ascending f_p, the backend's scene carried over within a sequence, as in the evaluation).
-  PyBullet ignores ProbeSpec.initial_yaw/initial_offset, so repeats would be identical: use ``--repeats 1``. The
-  between-placement spread is measured instead by re-running a few grid sweeps with other
-  ``PyBulletPhysics(initial_pose=...)`` placements, and folded into every grid point's spread (see below). The
+  The grid is run centred (``--repeats 1``: a sweep carries one scene over its probes, which random placements
+  would break up). The between-placement spread is measured instead by re-running a few grid sweeps at other
+  placements (``ProbeSpec.initial_yaw``/``initial_offset``, one per sweep), and folded into every grid point's
+  spread (see below). The
   held-out scoring is done on the identification sweeps (``experiments/evaluate_pybullet.py``).
 
 Or a grid named by data: ``--grid-file`` (JSON, :class:`plate_env.atlas_grid.AtlasGrid`: ``f_p_hz`` as a list or
@@ -88,8 +89,9 @@ def placement_spread(physics_name: str, grid_res: dict, settle: float, measure: 
     rows = []
     runs = {}
     for i, pose in enumerate(bm.PYBULLET_PLACEMENT_POSES):
-        backend, _ = make_backend(physics_name, "", initial_pose=pose)
-        specs = [s for w, a in bm.PYBULLET_PLACEMENT_OBJECTS
+        backend, _ = make_backend(physics_name, "")
+        specs = [dataclasses.replace(s, initial_yaw=pose[0], initial_offset=(pose[1], pose[2]))
+                 for w, a in bm.PYBULLET_PLACEMENT_OBJECTS
                  for s in bm.sweep_specs(pe.ObjectSpec.from_paper(w, a), f, amp, settle_s=settle, measure_s=measure)]
         runs[i] = run_cached(backend, specs, f"experiments/cache/atlas_pybullet_pose{i}.jsonl", chunk=len(f),
                              desc=f"placement {i}", executor=executor)
@@ -148,7 +150,7 @@ def main() -> None:
     t0 = time.perf_counter()
     # object-major order with ascending f_p inside (sweeps) for the pybullet grid: its backend carries the sheet's
     # state over a sequence of probes of one object; the tile-link order (f_p outermost) is kept as it was.
-    # PyBullet ignores the placement fields: keep them at 0 there (and the cache keys clean)
+    # PyBullet: centred sweeps (one scene per sequence); its placement spread is measured separately
     try:
         res = run_grid(backend, spec_grid, args.repeats, args.seed, f"experiments/cache/atlas_{tag}.jsonl",
                        executor=executor, chunk=args.chunk, placed=args.physics != "pybullet",
@@ -171,7 +173,8 @@ def _finish(args, grid, spec_grid, backend, physics, model, tag, res, executor, 
                   "backend": {"name": backend.name, "options": {k: repr(v) for k, v in backend.options}},
                   "placement": (f"yaw U(0, pi/2), offset N(0, {PLACEMENT_STD_M * 1e3:g} mm) per axis"
                                 if args.physics != "pybullet" else
-                                "centred (PyBulletPhysics initial_pose (0, 0, 0)); sweeps per object, ascending f_p, "
+                                "centred (ProbeSpec initial_yaw 0, initial_offset (0, 0)); sweeps per object, "
+                                "ascending f_p, "
                                 f"sequence_len {getattr(physics, 'sequence_len', None)}"),
                   "plate_env": pe.__version__, "date": datetime.date.today().isoformat()}
     study_lines: list[str] = []
@@ -239,10 +242,9 @@ def _grid_table(f, ws, als, omega, un) -> str:
 
 def _study_table(rows, floor_abs, floor_rel) -> list[str]:
     out = ["## Between-placement spread (1 repeat per grid point)", "",
-           "PyBullet ignores ProbeSpec.initial_yaw/initial_offset, so the grid has one (centred) run per point and "
-           "atlas_from_repeats would fall back to a 1 deg/s spread. The sweeps of "
-           f"{bm.PYBULLET_PLACEMENT_OBJECTS} (omega_n pi, alpha deg) were re-run with PyBulletPhysics(initial_pose="
-           f"...) at {bm.PYBULLET_PLACEMENT_POSES} (yaw rad, dx m, dy m):", "",
+           "The grid has one (centred) run per point, so atlas_from_repeats would fall back to a 1 deg/s spread. "
+           f"The sweeps of {bm.PYBULLET_PLACEMENT_OBJECTS} (omega_n pi, alpha deg) were re-run with the disc placed "
+           f"at {bm.PYBULLET_PLACEMENT_POSES} (ProbeSpec initial_yaw rad, initial_offset m):", "",
            "| omega_n, alpha | f_p | centred / placements [deg/s] | sd |", "|---|---|---|---|"]
     for w, a, fk, ys in rows:
         st = [y for y in ys if y is not None]

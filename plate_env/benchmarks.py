@@ -49,7 +49,7 @@ PYBULLET_ATLAS_ALPHAS_DEG = (30.0, 40.0, 50.0, 60.0)
 #: Shorter probe windows for the pybullet atlas and its evaluation (s): the ramp stays 0.2 s.
 PYBULLET_SETTLE_S = 0.3
 PYBULLET_MEASURE_S = 0.6
-#: Placements (yaw rad, dx m, dy m of PyBulletPhysics(initial_pose=...)) and grid objects (omega_n pi, alpha deg)
+#: Placements (ProbeSpec initial_yaw rad, initial_offset u, v m) and grid objects (omega_n pi, alpha deg)
 #: whose sweeps measure the pybullet atlas's between-placement spread (1 repeat per grid point otherwise).
 PYBULLET_PLACEMENT_POSES = ((0.4, 3e-4, -2e-4), (1.0, -2e-4, 3e-4))
 PYBULLET_PLACEMENT_OBJECTS = ((10.0, 40.0), (20.0, 50.0))

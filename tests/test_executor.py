@@ -33,8 +33,8 @@ def test_backend_spec_is_a_hashable_picklable_description():
     assert pickle.loads(pickle.dumps(a)) == a
     phys = a.build()
     assert phys.model == "rigid_limit" and phys.contact == PAPER_CONTACT
-    with pytest.raises(TypeError, match="initial_pose"):
-        BackendSpec.of("pybullet", initial_pose=[0.0, 0.0, 0.0])
+    with pytest.raises(TypeError, match="stderr_tol_deg_s"):
+        BackendSpec.of("pybullet", stderr_tol_deg_s=[1.0])
 
 
 def test_make_executor_names_and_the_local_default():
@@ -140,8 +140,9 @@ def test_cli_sweep_on_an_executor_with_a_resumable_cache(tmp_path, capsys):
     assert len(load_cache(cache)) == 3
     assert main([*base, "--executor", "dask"]) == 2
     assert "unknown executor 'dask'" in capsys.readouterr().err
-    assert main([*base, "--chunk", "0"]) == 2
-    assert "--chunk 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as refused:  # refused while parsing, as every option's range (issue 16)
+        main([*base, "--chunk", "0"])
+    assert refused.value.code == 2 and "argument --chunk: '0' is outside the allowed range" in capsys.readouterr().err
 
 
 def test_pool_workers_run_with_one_blas_and_numba_thread():
