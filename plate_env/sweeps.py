@@ -14,10 +14,14 @@ from pathlib import Path
 from plate_env.physics.base import Physics, ProbeResult, ProbeSpec
 
 
+#: Backend settings that change results and so enter the cache key (each where the backend has it).
+TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "record_interval_s")
+
+
 def backend_tag(physics: Physics) -> str:
     """A string naming the backend and its settings (part of every cache key)."""
     parts = [physics.name]
-    for attr in ("model", "dt", "n_layer", "mesh"):
+    for attr in TAG_SETTINGS:
         if hasattr(physics, attr):
             parts.append(f"{attr}={getattr(physics, attr)}")
     return ",".join(parts)

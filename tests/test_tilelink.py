@@ -73,16 +73,17 @@ def test_huge_dt_is_reported_unstable_not_nan(cheese):
 
 
 def test_injected_nan_is_reported_non_finite(tilelink, cheese):
-    from plate_env.physics.tilelink import kernels as kn
+    from plate_env.physics.base import Status
     from plate_env.physics.tilelink.backend import _ainv, _pointmass_params, result_from_arrays
+    from plate_env.physics.tilelink.params import P_KB
 
     spec = probe(cheese, 25.0)
     prm = tilelink._param_vector(spec)[None, :]
-    prm[0, kn.P_KB] = float("nan")
+    prm[0, P_KB] = float("nan")
     params = _pointmass_params(cheese, tilelink.config)
     raw = tilelink.run_param_arrays(prm, _ainv(cheese, tilelink.config, tilelink.dt)[None], params.geom.rest[None],
                                     params.geom)
-    assert raw["status"][0] == kn.NON_FINITE
+    assert raw["status"][0] == Status.NON_FINITE
     result = result_from_arrays(spec, raw, 0, tilelink.dt)
     assert result.unstable and result.reason == "non_finite"
     assert result.omega_b_deg_s == 0.0

@@ -11,20 +11,10 @@ import numpy as np
 
 from plate_env.measure import measure_omega_b
 from plate_env.objects import ObjectSpec
-from plate_env.physics.base import (
-    FOLDED,
-    LEFT_PLATE,
-    NON_FINITE,
-    OVERTURNED,
-    RUNAWAY,
-    SLIP_LIMIT_M,
-    SLIPPED,
-    ProbeResult,
-    ProbeSpec,
-    YawTrace,
-    check_probes,
-)
+from plate_env.physics.base import SLIP_LIMIT_M, ProbeResult, ProbeSpec, Status, YawTrace, check_probes
 from plate_env.physics.tilelink.params import (
+    DEFAULT_DT,
+    DEFAULT_RECORD_INTERVAL_S,
     P_CIN,
     P_KB,
     P_KIN,
@@ -37,9 +27,6 @@ from plate_env.physics.tilelink.pointmass import PointMassConfig, build_params, 
 from plate_env.physics.tilelink.rigid import RIGID_LIMIT_CONFIG, RigidTileConfig
 
 MODELS = ("pointmass", "rigid", "rigid_limit")
-#: Default time step of each model, s.
-DEFAULT_DT = {"pointmass": 2e-4, "rigid": 2e-4, "rigid_limit": 2.5e-5}
-_REASONS = {1: OVERTURNED, 2: SLIPPED, 3: NON_FINITE, 4: RUNAWAY, 5: LEFT_PLATE, 6: FOLDED}
 #: Probes per kernel call when a progress bar is shown.
 PROGRESS_CHUNK = 8
 
@@ -62,14 +49,18 @@ class TileLinkPhysics:
             joints' held motions as stiff rows at 5000 rad/s: ~8x slower than point masses) or ``"rigid_limit"``
             (the same tiles with the rows in their converged rigid limit, :data:`rigid.RIGID_LIMIT_CONFIG`, at
             dt = 2.5e-5 s: the paper's model, ~1x real time). See ``experiments/bench_models.py``.
-        dt: time step, s; None takes the model's default (:data:`DEFAULT_DT`). Point mass at 2e-4 s: omega_B
-            0.85 % median / 3.6 % max from its dt -> 0 value (``experiments/bench_physics.py``).
+        dt: time step, s; None takes the model's default (:data:`params.DEFAULT_DT`; its error against
+            smaller steps: ``experiments/results/bench_physics.md`` and ``bench_models.md``).
         slip_limit: centre displacement (m, plate frame) beyond which a probe is unstable (the paper: 10 mm).
         config: joint parameters the paper does not give.
+        record_interval_s: simulated seconds between recorded yaw/centre samples (rounded to whole steps, at
+            least one); omega_B interpolates the records at the plate periods' boundaries, so this is part of
+            a result's provenance (and of the sweep cache key, :func:`plate_env.sweeps.backend_tag`).
     """
 
     def __init__(self, model: str = "pointmass", dt: float | None = None, slip_limit: float = SLIP_LIMIT_M,
-                 config: PointMassConfig | None = None, rigid_config: RigidTileConfig | None = None) -> None:
+                 config: PointMassConfig | None = None, rigid_config: RigidTileConfig | None = None,
+                 record_interval_s: float = DEFAULT_RECORD_INTERVAL_S) -> None:
         if model not in MODELS:
             raise ValueError(f"unknown tilelink model {model!r}; choose one of {MODELS}")
         if dt is None:
@@ -78,10 +69,14 @@ class TileLinkPhysics:
             raise ValueError(f"time step dt = {dt!r} s is outside the allowed range (0, 0.01]")
         if not (math.isfinite(slip_limit) and slip_limit > 0):
             raise ValueError(f"slip_limit = {slip_limit!r} m must be a positive distance")
+        if not (isinstance(record_interval_s, (int, float)) and math.isfinite(record_interval_s)
+                and 0.0 < record_interval_s <= 0.1):
+            raise ValueError(f"record_interval_s = {record_interval_s!r} s is outside the allowed range (0, 0.1]")
         self.name = "tilelink"
         self.model = model
         self.dt = float(dt)
         self.slip_limit = float(slip_limit)
+        self.record_interval_s = float(record_interval_s)
         self.config = config or PointMassConfig()
         if rigid_config is None:
             rigid_config = RIGID_LIMIT_CONFIG if model == "rigid_limit" else RigidTileConfig()
@@ -96,7 +91,8 @@ class TileLinkPhysics:
     # ------------------------------------------------------------------ arrays
     def _param_vector(self, spec: ProbeSpec) -> np.ndarray:
         params = _pointmass_params(spec.obj, self.config)
-        prm = common_vector(spec, self.dt, self.slip_limit, params.node_mass)
+        prm = common_vector(spec, self.dt, self.slip_limit, params.node_mass,
+                            record_interval_s=self.record_interval_s)
         prm[P_KB] = params.k_bending
         prm[P_KIN] = params.k_inplane
         prm[P_CIN] = params.c_inplane
@@ -107,7 +103,8 @@ class TileLinkPhysics:
         if self.model in ("rigid", "rigid_limit"):
             from plate_env.physics.tilelink.rigid_kernels import run_rigid_arrays
 
-            return run_rigid_arrays(probes, self.dt, self.slip_limit, config=self.rigid_config)
+            return run_rigid_arrays(probes, self.dt, self.slip_limit, config=self.rigid_config,
+                                    record_interval_s=self.record_interval_s)
         prm = np.stack([self._param_vector(s) for s in probes])
         geom = _pointmass_params(probes[0].obj, self.config).geom
         rest = np.stack([_pointmass_params(s.obj, self.config).geom.rest for s in probes])
@@ -158,14 +155,12 @@ def result_from_arrays(spec: ProbeSpec, raw: dict[str, np.ndarray], b: int, dt: 
     """The :class:`ProbeResult` of probe ``b`` of a tile-link kernel's raw arrays (``run_arrays`` or
     ``run_rigid_param_arrays`` output) run at time step ``dt`` (s): omega_B from the yaw trace by
     :func:`measure_omega_b`, status, simulated time; ``wall``: wall seconds charged to the probe."""
-    from plate_env.physics.tilelink import kernels as kn
-
     rec_dt = raw["prm"][b, P_RECEVERY] * dt
     nrec = int(raw["nrec"][b])
     t = np.arange(nrec) * rec_dt
     yaw = raw["yaw"][b, :nrec]
-    status = int(raw["status"][b])
-    unstable = status != kn.OK
+    status = Status(int(raw["status"][b]))
+    unstable = status != Status.OK
     t_end = nrec * rec_dt if unstable else None
     period = 1.0 / spec.motion.freq_hz
     if nrec >= 2:
@@ -178,5 +173,5 @@ def result_from_arrays(spec: ProbeSpec, raw: dict[str, np.ndarray], b: int, dt: 
         trace = YawTrace(t=t, yaw=yaw.copy(), centre_u=raw["cu"][b, :nrec].copy(),
                          centre_v=raw["cv"][b, :nrec].copy())
     return ProbeResult(spec=spec, omega_b_deg_s=math.degrees(omega), stderr_deg_s=math.degrees(se),
-                       unstable=unstable, reason=_REASONS.get(status), sim_s=float(max(sim_s, 0.0)),
+                       unstable=unstable, reason=status.reason, sim_s=float(max(sim_s, 0.0)),
                        wall_s=wall, periods_measured=used, trace=trace)

@@ -36,13 +36,20 @@ from functools import lru_cache
 import numba
 import numpy as np
 
-from plate_env.physics.base import ProbeSpec
+from plate_env.physics.base import SLIP_LIMIT_M, ProbeSpec, Status
 from plate_env.physics.tilelink import contact
-from plate_env.physics.tilelink import kernels as kn
 from plate_env.physics.tilelink.kernels import (
     FAST,
-    FOLDED,
-    OK,
+    damped_normal_force,
+    friction_scale,
+    plate_state,
+    record,
+    spring_force,
+)
+from plate_env.physics.tilelink.params import (
+    DEFAULT_DT,
+    DEFAULT_RECORD_INTERVAL_S,
+    N_PARAMS,
     P_AMP,
     P_BP,
     P_CC,
@@ -60,26 +67,20 @@ from plate_env.physics.tilelink.kernels import (
     P_NSTEPS,
     P_RAMP,
     P_RECEVERY,
+    P_U0,
+    P_V0,
     P_VT,
-    RUNAWAY,
-    damped_normal_force,
-    friction_scale,
-    plate_state,
-    record,
-    spring_force,
+    P_YAW0,
+    allocate_outputs,
+    common_vector,
 )
-from plate_env.physics.tilelink.params import P_U0, P_V0, P_YAW0, allocate_outputs, common_vector
 from plate_env.physics.tilelink.rigid import RigidTileConfig, RigidTileParams, build_params, joint_order
 
 # Extra entries of the rigid parameter vector (after the point-mass layout, whose meaning they share:
 # P_MASS tile mass, P_KB bending k_b, P_KIN/P_CIN compression row).
 (R_H, R_IXX, R_IZZ, R_CB, R_KT2, R_CT2, R_KN, R_CN, R_KRN, R_CRN, R_NITER, R_FOLD, R_FOLDW, R_EREL, R_EABS,
- R_CORNERW, R_REFRESH) = range(kn.N_PARAMS, kn.N_PARAMS + 17)
-N_RIGID_PARAMS = kn.N_PARAMS + 17
-
-#: Default time step, s. Against dt = 1.25e-5 s omega_B is +0.5 / -1.1 / -4.4 % at 18 / 22 / 25 Hz (10pi), so the
-#: 1 % goal is missed; dt = 5e-5 s gives 1.1 % at 4x the cost, 2.5e-5 s 0.5 % (experiments/bench_models.py).
-DEFAULT_DT = 2e-4
+ R_CORNERW, R_REFRESH) = range(N_PARAMS, N_PARAMS + 17)
+N_RIGID_PARAMS = N_PARAMS + 17
 
 
 @numba.njit(cache=True, inline="always")
@@ -185,7 +186,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
         q[i, 3] = math.sin(0.5 * prm[P_YAW0])
     yaw = prm[P_YAW0]
     n_rec = 0
-    status = OK
+    status = Status.OK
     work = 0.0
     work_abs = 0.0
     e0 = 0.0
@@ -243,14 +244,14 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
             e_last = e_kin - e0
             if excess > excess_max:
                 excess_max = excess
-            extra = OK
+            extra = Status.OK
             if bend_max > fold or tile_w_min < foldw:
-                extra = FOLDED
+                extra = Status.FOLDED
             elif not (excess <= prm[R_EREL] * work_abs + prm[R_EABS]):
-                extra = RUNAWAY
+                extra = Status.RUNAWAY
             status, yaw, n_rec = record(x, rest, cells, xp, s_th, c_th, yaw, vmax2, extra, prm, yaw_out, cu_out,
                                         cv_out, n_rec)
-            if status != OK:
+            if status != Status.OK:
                 break
         if step == n_steps:
             break
@@ -575,12 +576,13 @@ def _params(obj, config: RigidTileConfig) -> RigidTileParams:
     return build_params(obj, config)
 
 
-def param_vector(spec: ProbeSpec, dt: float, slip_limit: float,
-                 config: RigidTileConfig | None = None) -> np.ndarray:
+def param_vector(spec: ProbeSpec, dt: float, slip_limit: float, config: RigidTileConfig | None = None,
+                 record_interval_s: float = DEFAULT_RECORD_INTERVAL_S) -> np.ndarray:
     """The rigid kernel's parameter vector (``N_RIGID_PARAMS``) for one probe; SI units."""
     config = config or RigidTileConfig()
     p = _params(spec.obj, config)
-    prm = common_vector(spec, dt, slip_limit, p.tile_mass, N_RIGID_PARAMS, contact_weight=0.25)
+    prm = common_vector(spec, dt, slip_limit, p.tile_mass, N_RIGID_PARAMS, contact_weight=0.25,
+                        record_interval_s=record_interval_s)
     prm[P_KB] = p.k_bending
     prm[P_KIN] = p.row_k[0]
     prm[P_CIN] = p.row_c[0]
@@ -619,19 +621,20 @@ def run_rigid_param_arrays(prm: np.ndarray, rest: np.ndarray, geom, parallel: bo
     return out
 
 
-def run_rigid_arrays(probes: Sequence[ProbeSpec], dt: float = DEFAULT_DT, slip_limit: float = 0.010,
-                     config: RigidTileConfig | None = None, parallel: bool | None = None
-                     ) -> dict[str, np.ndarray]:
+def run_rigid_arrays(probes: Sequence[ProbeSpec], dt: float = DEFAULT_DT["rigid"], slip_limit: float = SLIP_LIMIT_M,
+                     config: RigidTileConfig | None = None, parallel: bool | None = None,
+                     record_interval_s: float = DEFAULT_RECORD_INTERVAL_S) -> dict[str, np.ndarray]:
     """Run a batch of probes with the rigid-tile model.
 
     Returns the keys of ``TileLinkPhysics.run_param_arrays`` ("prm" with ``P_NSTEPS``/``P_RECEVERY`` filled,
-    "yaw" rad, "cu"/"cv" m traces every ~1 ms, "status" codes of :mod:`kernels`, "nrec") plus "diag" (B, 4):
+    "yaw" rad, "cu"/"cv" m traces every ``record_interval_s``, "status" codes of
+    :class:`~plate_env.physics.base.Status`, "nrec") plus "diag" (B, 4):
     max energy excess over the plate's work (J), max |bending angle| (rad), plate work (J), final E - E0 (J),
     and "wall_s", the kernel's wall time.
     """
     config = config or RigidTileConfig()
     probes = list(probes)
-    prm = np.stack([param_vector(s, dt, slip_limit, config) for s in probes])
+    prm = np.stack([param_vector(s, dt, slip_limit, config, record_interval_s) for s in probes])
     geom = _params(probes[0].obj, config).geom
     rest = np.stack([_params(s.obj, config).geom.rest for s in probes])
     t0 = time.perf_counter()
