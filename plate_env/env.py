@@ -38,6 +38,7 @@ import numpy as np
 from gymnasium import spaces
 
 from plate_env.camera import camera_omega_b
+from plate_env.estimate import Estimate
 from plate_env.motion import PlateMotion
 from plate_env.objects import ObjectSpec
 from plate_env.physics import make_physics
@@ -223,9 +224,9 @@ class PlateRotationEnv(gym.Env):
         f, a, w, se, un, _ = zip(*self._rows, strict=True)
         return ProbeTable.from_arrays(f, a, w, se, un)
 
-    def estimate(self):
+    def estimate(self) -> Estimate:
         """The current omega_n estimate from the probes so far."""
-        from plate_env.identify import Estimate, identify
+        from plate_env.identify import identify
 
         if not self._rows:
             return Estimate(ok=False, method=self.method, reason="no probes")

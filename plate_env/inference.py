@@ -14,13 +14,12 @@ one-sided data, curves without a Lorentzian peak.
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
 from plate_env.atlas import Atlas, load_atlas
+from plate_env.estimate import Estimate, Posterior
 from plate_env.probes import ProbeTable
 
 P_MIN = 0.02
@@ -28,41 +27,6 @@ P_MIN = 0.02
 NU = 4.0
 #: Default model error of the atlas, deg/s (measured against live probes by experiments/build_atlas.py).
 SIGMA_MODEL = 15.0
-
-
-@dataclass(frozen=True)
-class Posterior:
-    """A normalised posterior on a grid: ``prob[i, j]`` for ``omega_n[i]`` (rad/s) and ``alpha[j]`` (rad)."""
-
-    omega_n: np.ndarray
-    alpha: np.ndarray
-    prob: np.ndarray
-
-    def marginal_omega(self) -> np.ndarray:
-        return self.prob.sum(1)
-
-    def marginal_alpha(self) -> np.ndarray:
-        return self.prob.sum(0)
-
-    @staticmethod
-    def _stats(x: np.ndarray, p: np.ndarray) -> tuple[float, float, tuple[float, float], tuple[float, float]]:
-        mean = float(np.sum(p * x))
-        std = float(math.sqrt(max(np.sum(p * (x - mean) ** 2), 0.0)))
-        cdf = np.cumsum(p)
-        cdf = cdf / cdf[-1]
-
-        def q(level: float) -> float:
-            return float(np.interp(level, cdf, x))
-
-        return mean, std, (q(0.16), q(0.84)), (q(0.025), q(0.975))
-
-    def omega_stats(self):
-        """(mean, std, 68 % interval, 95 % interval) of omega_n, rad/s."""
-        return self._stats(self.omega_n, self.marginal_omega())
-
-    def alpha_stats(self):
-        """(mean, std, 68 % interval, 95 % interval) of alpha, rad."""
-        return self._stats(self.alpha, self.marginal_alpha())
 
 
 def posterior_grid(atlas: Atlas, n_omega: int = 161, n_alpha: int = 31) -> tuple[np.ndarray, np.ndarray]:
@@ -128,10 +92,8 @@ def posterior(atlas: Atlas, table: ProbeTable, sigma_model: float = SIGMA_MODEL,
 
 
 def identify_atlas(table: ProbeTable, physics: str = "tilelink", model: str = "pointmass", atlas: Atlas | None = None,
-                   sigma_model: float = SIGMA_MODEL):
+                   sigma_model: float = SIGMA_MODEL) -> Estimate:
     """Estimate omega_n and alpha as posterior means, with posterior std and credible intervals."""
-    from plate_env.identify import Estimate
-
     atlas = atlas if atlas is not None else load_atlas(physics, model)
     n_un = int(table.unstable.sum())
     try:

@@ -13,7 +13,6 @@ from pathlib import Path
 
 from plate_env.physics.base import Physics, ProbeResult, ProbeSpec
 
-
 #: Backend settings that change results and so enter the cache key (each where the backend has it).
 TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "record_interval_s")
 
