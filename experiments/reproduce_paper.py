@@ -26,19 +26,16 @@ import argparse
 import math
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-import plate_env as pe  # noqa: E402
-from plate_env import benchmarks as bm  # noqa: E402
-from plate_env.fitting import LorentzFit, fit_results, lorentzian  # noqa: E402
-from plate_env.identify import identify  # noqa: E402
-from plate_env.physics.base import ProbeResult  # noqa: E402
-from plate_env.probes import ProbeTable  # noqa: E402
-from plate_env.sweeps import run_cached  # noqa: E402
+import plate_env as pe
+from plate_env import benchmarks as bm
+from plate_env.fitting import LorentzFit, fit_results, lorentzian
+from plate_env.identify import identify
+from plate_env.physics.base import ProbeResult
+from plate_env.plotting import new_figure, save_figure
+from plate_env.probes import ProbeTable
+from plate_env.sweeps import run_cached
 
 SCRIPT = "experiments/reproduce_paper.py"
 FREQS_HZ = bm.SWEEP_F_HZ
@@ -124,15 +121,13 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
     jobs.append((pe.ObjectSpec.from_paper(10.0, 56.3), 3.0))
     res = sweeps(physics, cache, jobs)
     fig5a, fig5b, fig7c = res[:len(amps)], res[len(amps):len(amps) + len(omegas5)], res[-1]
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.4))
+    fig, axes = new_figure(1, 2, figsize=(9, 3.4))
     plot_curves(axes[0], [(f"A_p={a:g} deg", r) for a, r in zip(amps, fig5a, strict=True)])
     axes[0].set_title("Fig. 5(a): 10pi, alpha 36.9 deg", fontsize=9)
     plot_curves(axes[1], [(f"{w:g}pi", r) for w, r in zip(omegas5, fig5b, strict=True)])
     axes[1].set_title("Fig. 5(b): A_p = 3 deg", fontsize=9)
     fig.suptitle(f"{tag} (x: unstable probe) - {SCRIPT}", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out_dir / f"reproduce_paper_{tag}_fig5.png", dpi=90)
-    plt.close(fig)
+    save_figure(fig, out_dir / f"reproduce_paper_{tag}_fig5.png", dpi=90)
     md += ["## Fig. 5: omega_B vs f_p", "", f"Plot: `reproduce_paper_{tag}_fig5.png`.", "",
            "| curve | peak omega_B [deg/s] | at f_p [Hz] | unstable probes / 31 |", "|---|---|---|---|"]
     for label, r in [(f"5(a) A_p = {a:g} deg", x) for a, x in zip(amps, fig5a, strict=True)] + \
@@ -145,7 +140,7 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
     # ---------------------------------------------------------------- Fig. 7
     fits7 = {(10.0, 36.9): fit_results(fig5b[1]), (33.0, 36.9): fit_results(fig5b[3]), (10.0, 56.3): fit_results(fig7c)}
     data7 = {(10.0, 36.9): fig5b[1], (33.0, 36.9): fig5b[3], (10.0, 56.3): fig7c}
-    fig, axes = plt.subplots(1, 3, figsize=(10, 3))
+    fig, axes = new_figure(1, 3, figsize=(10, 3))
     for ax, (key, fit) in zip(axes, fits7.items(), strict=True):
         f, w, un = xy(data7[key])
         ax.plot(f[~un], w[~un], "o", ms=3, color="0.6", label="probes")
@@ -161,9 +156,7 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
     axes[0].set_ylabel("omega_B [deg/s]")
     axes[0].legend(fontsize=6)
     fig.suptitle(f"{tag} - {SCRIPT}", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out_dir / f"reproduce_paper_{tag}_fig7.png", dpi=90)
-    plt.close(fig)
+    save_figure(fig, out_dir / f"reproduce_paper_{tag}_fig7.png", dpi=90)
     md += ["## Fig. 7: first-hump Lorentzian fits (A_p = 3 deg)", "", f"Plot: `reproduce_paper_{tag}_fig7.png`.", "",
            "| object | f0 [Hz] ours | b [Hz] ours | omega_max [deg/s] ours | R^2 ours "
            "| paper f0 / b / omega_max / R^2 |",
@@ -179,7 +172,7 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
             for al in FIG8_ALPHAS_DEG]
     res8 = sweeps(physics, cache, jobs)
     fits8 = [(o, a, fit_results(r), r) for (o, a), r in zip(jobs, res8, strict=True)]
-    fig, axes = plt.subplots(3, 2, figsize=(9, 9))
+    fig, axes = new_figure(3, 2, figsize=(9, 9))
     md += ["## Figs. 8-10: omega_max and f0 against omega_n", "", f"Plot: `reproduce_paper_{tag}_fig8_10.png` "
            f"(alpha = {', '.join(f'{a:g}' for a in FIG8_ALPHAS_DEG)} deg).", "",
            "| A_p [deg] | fits ok | R^2 omega_max~omega_n (paper) | R^2 f0~omega_n (paper) | "
@@ -222,9 +215,7 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
             ax.grid(alpha=0.3)
             ax.legend(fontsize=6)
     fig.suptitle(f"{tag} - {SCRIPT}", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out_dir / f"reproduce_paper_{tag}_fig8_10.png", dpi=80)
-    plt.close(fig)
+    save_figure(fig, out_dir / f"reproduce_paper_{tag}_fig8_10.png", dpi=80)
     md.append("")
     # ---------------------------------------------------------------- Table 1
     md += ["## Table 1: bending frequency and frequency of rotation", "",
@@ -257,7 +248,7 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
            "centred, bottom random).", "",
            "| placement | A_p [deg] | method | estimates ok | R^2 | slope | intercept [pi rad/s] | median rel. error | "
            "paper R^2 / slope / intercept |", "|---|---|---|---|---|---|---|---|---|"]
-    fig, axes = plt.subplots(2, 2, figsize=(8, 7))
+    fig, axes = new_figure(2, 2, figsize=(8, 7))
     for row_i, placement in enumerate(("centred", "random")):
         rng = np.random.default_rng(seed)
         for col, a in enumerate((3.0, 12.0)):
@@ -290,9 +281,7 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7)
     fig.suptitle(f"{tag} - {SCRIPT}", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out_dir / f"reproduce_paper_{tag}_fig11.png", dpi=80)
-    plt.close(fig)
+    save_figure(fig, out_dir / f"reproduce_paper_{tag}_fig11.png", dpi=80)
     md.append("")
     return md
 
@@ -304,12 +293,10 @@ def pybullet_tiny(out_dir: Path, cache: Path) -> list[str]:
     res = sweep(physics, cache, pe.ObjectSpec.from_paper(10.0, ALPHA_CHEESE), 3.0, freqs=freqs, settle_s=0.4,
                 measure_s=0.6)
     physics.close()
-    fig, ax = plt.subplots(figsize=(4.5, 3.2))
+    fig, ax = new_figure(figsize=(4.5, 3.2))
     plot_curves(ax, [("pybullet 30 pts/layer", res)])
     ax.set_title(f"PyBullet Fig. 5(b)-like, 10pi, 3 deg - {SCRIPT} --pybullet", fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out_dir / "reproduce_paper_pybullet_fig5.png", dpi=90)
-    plt.close(fig)
+    save_figure(fig, out_dir / "reproduce_paper_pybullet_fig5.png", dpi=90)
     md = ["# Paper reproduction on a tiny PyBullet sheet", "", f"Regenerate: `python {SCRIPT} --pybullet`.", "",
           "| f_p [Hz] | omega_B [deg/s] | unstable |", "|---|---|---|"]
     md += [f"| {r.spec.motion.freq_hz:g} | {r.omega_b_deg_s:.0f} | {r.reason or ''} |" for r in res]

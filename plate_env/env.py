@@ -40,7 +40,7 @@ from gymnasium import spaces
 from plate_env.camera import camera_omega_b
 from plate_env.estimate import Estimate
 from plate_env.motion import PlateMotion
-from plate_env.objects import ObjectSpec
+from plate_env.objects import ObjectPrior, ObjectSpec
 from plate_env.physics import make_physics
 from plate_env.physics.base import ProbeResult, ProbeSpec
 from plate_env.probes import ProbeTable
@@ -54,8 +54,8 @@ class PlateRotationEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
 
     def __init__(self, physics: str = "tilelink", physics_options: dict | None = None, method: str = "atlas",
-                 omega_n_range_pi: tuple[float, float] = (3.5, 33.0),
-                 alpha_range_deg: tuple[float, float] = (30.0, 60.0),
+                 omega_n_range_pi: tuple[float, float] = ObjectPrior.omega_n_range_pi,
+                 alpha_range_deg: tuple[float, float] = ObjectPrior.alpha_range_deg,
                  mass_variation: float = 0.0, f_band_hz: tuple[float, float] = (10.0, 40.0),
                  amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = 3.0, max_probes: int = 20,
                  max_sim_s: float | None = None, measure_range_s: tuple[float, float] = (0.25, 2.0),
@@ -121,9 +121,10 @@ class PlateRotationEnv(gym.Env):
         super().reset(seed=seed)
         rng = self.np_random
         options = options or {}
-        lo, hi = self.omega_n_range_pi
-        omega = options.get("omega_n", math.pi * math.exp(rng.uniform(math.log(lo), math.log(hi))))
-        alpha = options.get("alpha", math.radians(rng.uniform(*self.alpha_range_deg)))
+        # the same draws whether or not options fix the object, so options never shift the later random stream
+        drawn_omega, drawn_alpha = ObjectPrior(self.omega_n_range_pi, self.alpha_range_deg).draw(rng)
+        omega = options.get("omega_n", drawn_omega)
+        alpha = options.get("alpha", drawn_alpha)
         mass = options.get("mass", 0.0136 * (1.0 + self.mass_variation * rng.uniform(-1.0, 1.0)))
         self._obj = ObjectSpec(omega_n=float(omega), alpha=float(alpha), mass=mass, name="hidden")
         self._rows, self._results = [], []

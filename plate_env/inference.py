@@ -14,13 +14,16 @@ one-sided data, curves without a Lorentzian peak.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from collections.abc import Callable
 
 import numpy as np
 
 from plate_env.atlas import Atlas, load_atlas
 from plate_env.estimate import Estimate, Posterior
 from plate_env.probes import ProbeTable
+
+#: A function f_p (Hz) -> (mean deg/s, spread deg/s, p_unstable) on the posterior grid, each (n_omega, n_alpha).
+GridResponse = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 P_MIN = 0.02
 #: Degrees of freedom of the Student-t likelihood.
@@ -41,15 +44,20 @@ def log_student(resid: np.ndarray, var: np.ndarray, nu: float = NU) -> np.ndarra
     return -0.5 * (nu + 1.0) * np.log1p(resid ** 2 / (nu * var)) - 0.5 * np.log(var)
 
 
-@lru_cache(maxsize=32)
-def grid_response(atlas: Atlas, a_p_deg: float, n_omega: int = 161, n_alpha: int = 31):
+def grid_response(atlas: Atlas, a_p_deg: float, n_omega: int = 161, n_alpha: int = 31) -> GridResponse:
     """The atlas on the posterior grid for one amplitude, as cubic-spline interpolators along f_p.
 
     The atlas surface is evaluated once on (atlas f_p nodes) x (posterior grid); a probe then interpolates along
     f_p alone (a not-a-knot cubic spline, the same kind the atlas uses along f_p), which is exact at the nodes
-    and costs a few microseconds per probe instead of an N-D interpolation of the whole grid.
+    and costs a few microseconds per probe instead of an N-D interpolation of the whole grid. Built once per
+    atlas, amplitude and grid (kept on the atlas).
     Returns a function ``f_hz -> (mean, spread, p_unstable)``, each (n_omega, n_alpha).
     """
+    key = ("grid_response", float(a_p_deg), int(n_omega), int(n_alpha))
+    return atlas.cached(key, lambda: _grid_response(atlas, float(a_p_deg), int(n_omega), int(n_alpha)))
+
+
+def _grid_response(atlas: Atlas, a_p_deg: float, n_omega: int, n_alpha: int) -> GridResponse:
     from scipy.interpolate import CubicSpline
 
     w, a = posterior_grid(atlas, n_omega, n_alpha)

@@ -140,6 +140,13 @@ def test_parameter_indices_are_imported_from_params_only():
     assert wrong == []
 
 
+def test_the_library_does_not_choose_a_matplotlib_backend():
+    calls = [f"{name}:{node.lineno}" for name, (_, tree) in _sources(PACKAGE).items() for node in ast.walk(tree)
+             if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "use"
+             and isinstance(node.func.value, ast.Name) and node.func.value.id == "matplotlib"]
+    assert calls == []
+
+
 if __name__ == "__main__":
     print("import cycles in plate_env:", cycles(import_graph()) or "none")
     print(f"longest functions (limit {MAX_FUNCTION_LINES} lines):")

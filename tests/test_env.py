@@ -72,6 +72,17 @@ def test_same_seed_same_episode(physics):
     assert not np.array_equal(a[0][0], c[0][0]) or a[0][2] != c[0][2]
 
 
+def test_reset_draws_the_hidden_object_from_the_object_prior():
+    from plate_env.objects import ObjectPrior
+
+    env = PlateRotationEnv(physics="atlas", omega_n_range_pi=(5.0, 20.0), alpha_range_deg=(35.0, 50.0))
+    for seed in (0, 9):
+        _, info = env.reset(seed=seed)
+        drawn = ObjectPrior((5.0, 20.0), (35.0, 50.0)).draw(np.random.default_rng(seed))
+        assert (info["omega_n_true"], info["alpha_true"]) == drawn
+    env.close()
+
+
 def test_reward_formula_on_a_hand_made_case():
     env = PlateRotationEnv(physics="atlas", max_probes=3, cost_per_sim_s=0.01, error_cap=1.0)
     env.reset(seed=0, options={"omega_n": 10 * np.pi, "alpha": np.radians(40)})
