@@ -220,41 +220,6 @@ def modal(obj: ObjectSpec, k_bending: float, config: RigidTileConfig = RigidTile
     return modal_analysis(linear_stiffness(geom, row_k), mass_matrix(geom, m), out_of_plane_dofs(geom))
 
 
-def modal_constrained(obj: ObjectSpec, k_bending: float, config: RigidTileConfig = RigidTileConfig()) -> ModalResult:
-    """Modal analysis with the rigid rows as exact constraints (null-space reduction), for comparison.
-
-    At the flat rest state the in-plane (x, y, rot_z) and out-of-plane (z, rot_x, rot_y) dofs decouple, so the
-    null space is built per block and the out-of-plane flag is kept per reduced coordinate.
-    """
-    import scipy.linalg
-
-    geom = disc_geometry(obj.diameter)
-    m = obj.mass / geom.n_nodes
-    row_k, _ = _row_values(geom, m, k_bending, obj.omega_n, config)
-    soft_k = row_k.copy()
-    soft_k[[1, 2, 4]] = 0.0
-    stiff = linear_stiffness(geom, soft_k)
-    mass = mass_matrix(geom, m)
-    jac = joint_jacobian(geom)
-    rigid_rows = np.array([5 * j + r for j in range(len(geom.links)) for r in (1, 2, 4)])
-    jr = jac[rigid_rows]
-    oop = out_of_plane_dofs(geom)
-    bases, flags = [], []
-    for block in (oop, ~oop):
-        cols = np.flatnonzero(block)
-        sub = jr[:, cols]
-        sub = sub[np.abs(sub).sum(axis=1) > 0]
-        ns = scipy.linalg.null_space(sub)
-        basis = np.zeros((len(oop), ns.shape[1]))
-        basis[cols] = ns
-        bases.append(basis)
-        flags.append(np.full(ns.shape[1], block is oop))
-    basis = np.hstack(bases)
-    kr = basis.T @ stiff @ basis
-    mr = basis.T @ mass @ basis
-    return modal_analysis(0.5 * (kr + kr.T), 0.5 * (mr + mr.T), np.concatenate(flags))
-
-
 @lru_cache(maxsize=256)
 def bending_stiffness(obj: ObjectSpec, config: RigidTileConfig = RigidTileConfig(), rel_tol: float = 1e-4) -> float:
     """Joint bending stiffness k_b (N m/rad) whose first free bending eigenfrequency is ``obj.omega_n``.
