@@ -1,0 +1,91 @@
+"""The atlas posterior (plate_env.inference): the likelihood of stable and unstable probes, pinned term by term."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from plate_env.inference import (
+    NU,
+    P_MIN,
+    SIGMA_MODEL,
+    grid_response,
+    identify_atlas,
+    log_likelihood,
+    log_student,
+    posterior,
+    posterior_grid,
+)
+from plate_env.probes import ProbeTable
+
+N_OMEGA, N_ALPHA = 41, 7
+
+
+def test_log_student_is_the_student_t_density_up_to_a_constant():
+    rng = np.random.default_rng(0)
+    resid = rng.normal(0, 40, 200)
+    var = rng.uniform(10, 2000, 200)
+    ours = log_student(resid, var)
+    ref = stats.t.logpdf(resid, df=NU, scale=np.sqrt(var))
+    assert NU == 4.0
+    assert np.ptp(ours - ref) < 1e-9  # the same function of (resid, var), shifted by one constant
+
+
+def test_an_unstable_probe_contributes_the_clipped_instability_probability(toy_atlas):
+    atlas = toy_atlas(unstable_above_pi=10.0)
+    table = ProbeTable.from_arrays([30.0], 3.0, [0.0], [0.0], [True])
+    _, _, p = grid_response(atlas, 3.0, N_OMEGA, N_ALPHA)(30.0)
+    expected = np.log(np.clip(p, P_MIN, 1 - P_MIN))
+    np.testing.assert_allclose(log_likelihood(atlas, table, N_OMEGA, N_ALPHA), expected, rtol=0, atol=1e-12)
+    assert expected.min() == pytest.approx(math.log(P_MIN)) and expected.max() == pytest.approx(math.log(1 - P_MIN))
+
+
+def test_a_stable_probe_contributes_stability_times_student_t(toy_atlas):
+    atlas = toy_atlas(unstable_above_pi=10.0)
+    y, e, sigma = 310.0, 6.0, 12.0
+    table = ProbeTable.from_arrays([30.0], 3.0, [y], [e], [False])
+    mu, s, p = grid_response(atlas, 3.0, N_OMEGA, N_ALPHA)(30.0)
+    pc = np.clip(p, P_MIN, 1 - P_MIN)
+    expected = np.log1p(-pc) + log_student(y - mu, s ** 2 + e ** 2 + sigma ** 2)
+    np.testing.assert_allclose(log_likelihood(atlas, table, N_OMEGA, N_ALPHA, sigma), expected, rtol=0, atol=1e-12)
+
+
+def test_probes_add_their_log_likelihoods(toy_atlas):
+    atlas = toy_atlas(unstable_above_pi=10.0)
+    rows = [(18.0, 150.0, 3.0, False), (30.0, 0.0, 0.0, True), (24.0, 400.0, 5.0, False)]
+    f, w, se, un = (list(c) for c in zip(*rows, strict=True))
+    total = log_likelihood(atlas, ProbeTable.from_arrays(f, 3.0, w, se, un), N_OMEGA, N_ALPHA)
+    parts = sum(log_likelihood(atlas, ProbeTable.from_arrays([f], 3.0, [w], [se], [u]), N_OMEGA, N_ALPHA)
+                for f, w, se, u in rows)
+    np.testing.assert_allclose(total, parts, rtol=0, atol=1e-9)
+
+
+def test_unstable_probes_move_the_posterior_to_objects_that_go_unstable(toy_atlas):
+    atlas = toy_atlas(unstable_above_pi=10.0)
+    w, _ = posterior_grid(atlas, N_OMEGA, N_ALPHA)
+    stiff = w > 12 * math.pi
+    unstable = posterior(atlas, ProbeTable.from_arrays([28.0, 32.0, 36.0], 3.0, [0.0] * 3, [0.0] * 3, [True] * 3),
+                         n_omega=N_OMEGA, n_alpha=N_ALPHA)
+    assert unstable.marginal_omega()[stiff].sum() > 0.9
+    mu, _, _ = atlas.predict(np.array([28.0, 32.0, 36.0]), 3.0, 4 * math.pi, 0.7)
+    stable = posterior(atlas, ProbeTable.from_arrays([28.0, 32.0, 36.0], 3.0, mu, [2.0] * 3, [False] * 3),
+                       n_omega=N_OMEGA, n_alpha=N_ALPHA)
+    assert stable.marginal_omega()[stiff].sum() < 0.1
+
+
+def test_identify_atlas_reports_its_probes_and_refuses_foreign_amplitudes(toy_atlas):
+    atlas = toy_atlas(unstable_above_pi=10.0)
+    table = ProbeTable.from_arrays([20.0, 28.0, 32.0], 3.0, [300.0, 0.0, 0.0], [3.0, 0.0, 0.0], [False, True, True])
+    est = identify_atlas(table, atlas=atlas)
+    assert est.ok and est.method == "atlas" and est.n_probes == 3 and est.n_unstable == 2
+    lo, hi = est.omega_n_ci95
+    assert lo < est.omega_n_ci68[0] <= est.omega_n <= est.omega_n_ci68[1] < hi
+    assert est.posterior is not None and est.posterior.prob.sum() == pytest.approx(1.0)
+    bad = identify_atlas(ProbeTable.from_arrays([20.0], 12.0, [100.0]), atlas=atlas)
+    assert not bad.ok and "not in this atlas" in bad.reason and bad.n_probes == 1
+    empty = identify_atlas(ProbeTable.from_arrays([], [], []), atlas=atlas)
+    assert not empty.ok and empty.reason == "no probes"
+    assert SIGMA_MODEL == 15.0
