@@ -7,11 +7,10 @@ high f_p while more and more probes end unstable. Only the first hump tracks ome
 default window is ``"first_hump"``: stable probes in frequency order up to and including the first one that falls
 more than ``drop`` (5 %) below the running maximum, or up to two unstable probes in a row, without the flat base
 below ``floor`` (40 %) of the hump's height. ``"all"`` uses every stable probe. ``experiments/calibrate.py``
-measures the rules: on the point-mass tile-link model at A_p = 3 deg (36 sweeps, 3.5pi-33pi, alpha 30-56 deg) the
-R^2 of omega_n on f0 was 0.01 for "all", 0.007 for the first hump with its base, 0.90 with floor 0.2, 0.91 with
-floor 0.4 (chosen) and 0.92 with floor 0.6 (but 2 of 36 sweeps then cannot be fitted). Fits whose peak lies over
-``MAX_PEAK_RATIO`` times above every fitted probe (a narrow Lorentzian's tail fitted to the foot of a hump) are
-refused, not returned.
+measures the rules (the R^2 of omega_n on f0 and the sweeps each cannot fit, per window, drop and floor) in
+``experiments/results/calibration_tilelink_pointmass.md``; the first hump with floor 0.4 is chosen there. Fits
+whose peak lies over ``MAX_PEAK_RATIO`` times above every fitted probe (a narrow Lorentzian's tail fitted to the
+foot of a hump) are refused, not returned.
 """
 
 from __future__ import annotations

@@ -69,8 +69,8 @@ class ProbeSpec:
     The plate ramps up over ``motion.ramp_s``, the disc settles for ``settle_s`` more, then omega_B is measured
     over ``measure_s`` rounded to whole plate periods (at least 2). Times in seconds. The disc starts flat at
     rest, turned by ``initial_yaw`` (rad) and shifted by ``initial_offset`` (u, v in m, plate frame).
-    The default windows (0.5 s, 1.0 s) agree with 3 s + 6 s windows within 0.1 % median / 0.3 % max
-    (``experiments/bench_physics.py``).
+    How the default windows (0.5 s, 1.0 s) compare with 3 s + 6 s windows is measured in
+    ``experiments/results/bench_physics.md`` (``experiments/bench_physics.py``).
     ``record_trace`` keeps the yaw trace in the result (for camera models and plots).
     """
 

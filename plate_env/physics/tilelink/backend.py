@@ -46,9 +46,9 @@ class TileLinkPhysics:
 
     Args:
         model: ``"pointmass"`` (the fast point-mass reduction, default), ``"rigid"`` (52 rigid tiles with the
-            joints' held motions as stiff rows at 5000 rad/s: ~8x slower than point masses) or ``"rigid_limit"``
-            (the same tiles with the rows in their converged rigid limit, :data:`rigid.RIGID_LIMIT_CONFIG`, at
-            dt = 2.5e-5 s: the paper's model, ~1x real time). See ``experiments/bench_models.py``.
+            joints' held motions as stiff rows at 5000 rad/s) or ``"rigid_limit"`` (the same tiles with the rows
+            in their converged rigid limit, :data:`rigid.RIGID_LIMIT_CONFIG`, at dt = 2.5e-5 s: the paper's
+            model). Their speeds and first-hump fits: ``experiments/results/bench_models.md``.
         dt: time step, s; None takes the model's default (:data:`params.DEFAULT_DT`; its error against
             smaller steps: ``experiments/results/bench_physics.md`` and ``bench_models.md``).
         slip_limit: centre displacement (m, plate frame) beyond which a probe is unstable (the paper: 10 mm).
