@@ -74,18 +74,26 @@ def _grid_response(atlas: Atlas, a_p_deg: float, n_omega: int, n_alpha: int) -> 
     return at
 
 
+def probe_log_likelihood(mu: np.ndarray, s: np.ndarray, p: np.ndarray, omega_b_deg_s: float, stderr_deg_s: float,
+                         unstable: bool, sigma_model: float = SIGMA_MODEL) -> np.ndarray:
+    """One probe's log-likelihood (module docstring) given the atlas's mean ``mu``, spread ``s`` (deg/s) and
+    instability probability ``p`` at each grid object: ``log p`` for an unstable probe, ``log(1 - p)`` plus the
+    Student-t term for a stable one, with p clipped to [P_MIN, 1 - P_MIN]."""
+    p = np.clip(p, P_MIN, 1.0 - P_MIN)
+    if unstable:
+        return np.log(p)
+    var = s ** 2 + stderr_deg_s ** 2 + sigma_model ** 2
+    return np.log1p(-p) + log_student(omega_b_deg_s - mu, var)
+
+
 def log_likelihood(atlas: Atlas, table: ProbeTable, n_omega: int = 161, n_alpha: int = 31,
                    sigma_model: float = SIGMA_MODEL) -> np.ndarray:
     """Sum of the probes' log-likelihoods on the posterior grid (shape (n_omega, n_alpha))."""
     total = np.zeros((n_omega, n_alpha))
     for k in range(len(table)):
         mu, s, p = grid_response(atlas, float(table.a_p_deg[k]), n_omega, n_alpha)(table.f_p_hz[k])
-        p = np.clip(p, P_MIN, 1.0 - P_MIN)
-        if table.unstable[k]:
-            total += np.log(p)
-        else:
-            var = s ** 2 + table.stderr_deg_s[k] ** 2 + sigma_model ** 2
-            total += np.log1p(-p) + log_student(table.omega_b_deg_s[k] - mu, var)
+        total += probe_log_likelihood(mu, s, p, table.omega_b_deg_s[k], table.stderr_deg_s[k],
+                                      bool(table.unstable[k]), sigma_model)
     return total
 
 
