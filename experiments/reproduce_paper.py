@@ -108,11 +108,9 @@ def linreg(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
     return float(slope), float(icpt), r2
 
 
-def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bool) -> list[str]:
-    """Run every figure for one backend; return markdown lines. ``full`` False: Figs. 5 and 7 only."""
-    md = [f"# Paper reproduction on {tag}", "", f"Regenerate: `python {SCRIPT}`"
-          + (" --rigid" if "rigid" in tag else "") + ". Sweeps 10-40 Hz (1 Hz), B_p = 3 mm, windows 0.5 s + 1.0 s, "
-          "centred disc unless said. Paper numbers beside ours.", ""]
+def figs_5_and_7(physics, tag: str, out_dir: Path, cache: Path) -> list[str]:
+    """Fig. 5 (omega_B against f_p over amplitudes and objects) and Fig. 7 (first-hump fits): markdown."""
+    md: list[str] = []
     cheese = pe.ObjectSpec.from_paper(10.0, ALPHA_CHEESE)
     # ---------------------------------------------------------------- Fig. 5
     amps = (1.0, 3.0, 6.0, 12.0, 24.0)
@@ -165,8 +163,14 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
         pf0, pb, pmax, pr2 = PAPER_FIG7[key]
         md.append(f"| {key[0]:g}pi, {key[1]:g} deg | {fit_row(fit)} {pf0} / {pb} / {pmax} / {pr2} |")
     md.append("")
-    if not full:
-        return md
+    return md
+
+
+def figs_8_to_10(physics, tag: str, out_dir: Path, cache: Path
+                 ) -> tuple[list[str], dict[float, dict[float, list[float]]], dict[tuple[float, float, float], float]]:
+    """Figs. 8-10 (omega_max and f0 against omega_n): markdown, and the fitted omega_max per amplitude and
+    omega_n (all alphas) and per (amplitude, omega_n, alpha) for Table 1."""
+    md: list[str] = []
     # ---------------------------------------------------------------- Figs. 8-10
     jobs = [(pe.ObjectSpec.from_paper(w, al), a) for a in (3.0, 12.0) for w in FIG8_OMEGAS_PI[a]
             for al in FIG8_ALPHAS_DEG]
@@ -179,7 +183,7 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
            "Eq. 10 p1, q1 ours [rad/s/Hz, rad/s] | paper p1, q1 | f0 range ours [Hz] | paper f0 range |",
            "|---|---|---|---|---|---|---|---|"]
     table1: dict[float, dict[float, list[float]]] = {3.0: {}, 12.0: {}}
-    table1_cheese: dict[tuple[float, float], float] = {}
+    table1_cheese: dict[tuple[float, float, float], float] = {}
     for col, a in enumerate((3.0, 12.0)):
         rows = [(o, fit, r) for o, aa, fit, r in fits8 if aa == a]
         for k, al in enumerate(FIG8_ALPHAS_DEG):
@@ -217,6 +221,13 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
     fig.suptitle(f"{tag} - {SCRIPT}", fontsize=8)
     save_figure(fig, out_dir / f"reproduce_paper_{tag}_fig8_10.png", dpi=80)
     md.append("")
+    return md, table1, table1_cheese
+
+
+def table_1(table1: dict[float, dict[float, list[float]]],
+            table1_cheese: dict[tuple[float, float, float], float]) -> list[str]:
+    """Table 1 (bending frequency against frequency of rotation) from the Figs. 8-10 fits: markdown."""
+    md: list[str] = []
     # ---------------------------------------------------------------- Table 1
     md += ["## Table 1: bending frequency and frequency of rotation", "",
            "f_n = omega_n / 2pi; f_B = omega_Brmax / 360 (deg/s -> revolutions per second). Check on the paper's "
@@ -238,6 +249,12 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
                 if mean is not None else "no fit | - | -"
             md.append(f"| {a:g} | {wn:g} | {wn / 2:.2f} | {pmax} | {pfb} | {ch_txt} | {mean_txt} |")
     md.append("")
+    return md
+
+
+def fig_11(physics, tag: str, out_dir: Path, cache: Path, seed: int) -> list[str]:
+    """Fig. 11 (omega_n_hat against omega_n on held-out objects, centred and random placement): markdown."""
+    md: list[str] = []
     # ---------------------------------------------------------------- Fig. 11
     objs = bm.objects(bm.HELD_OUT_OMEGAS_PI, bm.HELD_OUT_ALPHAS_DEG)
     md += ["## Fig. 11: omega_n_hat against omega_n on held-out objects", "",
@@ -283,6 +300,21 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
     fig.suptitle(f"{tag} - {SCRIPT}", fontsize=8)
     save_figure(fig, out_dir / f"reproduce_paper_{tag}_fig11.png", dpi=80)
     md.append("")
+    return md
+
+
+
+
+def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bool) -> list[str]:
+    """Run every figure for one backend; return markdown lines. ``full`` False: Figs. 5 and 7 only."""
+    md = [f"# Paper reproduction on {tag}", "", f"Regenerate: `python {SCRIPT}`"
+          + (" --rigid" if "rigid" in tag else "") + ". Sweeps 10-40 Hz (1 Hz), B_p = 3 mm, windows 0.5 s + 1.0 s, "
+          "centred disc unless said. Paper numbers beside ours.", ""]
+    md += figs_5_and_7(physics, tag, out_dir, cache)
+    if not full:
+        return md
+    figs, table1, table1_cheese = figs_8_to_10(physics, tag, out_dir, cache)
+    md += figs + table_1(table1, table1_cheese) + fig_11(physics, tag, out_dir, cache, seed)
     return md
 
 
