@@ -214,6 +214,8 @@ def fit_lorentzian(f_hz, omega_deg_s, stderr_deg_s=None, unstable=None, window: 
         return fail("non-finite parameter uncertainties")
     ss_tot = float(np.sum((wu - wu.mean()) ** 2))
     r2 = 1.0 - float(np.sum(res ** 2)) / ss_tot if ss_tot > 0 else 0.0
+    if not math.isfinite(r2):
+        return fail("non-finite R^2: the data overflow double precision")
     return LorentzFit(ok=True, reason=None, omega_max=omega_max, f0=f0, b=b, stderr=tuple(float(e) for e in errs),
                       cov=cov, r2=r2, residuals=sign * res, n_used=n, n_unstable=n_unstable, used=used, sign=sign)
 
