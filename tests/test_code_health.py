@@ -147,6 +147,12 @@ def test_the_library_does_not_choose_a_matplotlib_backend():
     assert calls == []
 
 
+def test_no_function_longer_than_the_limit():
+    lengths = function_lengths()
+    assert lengths[0][0] > 50  # the walk measured real functions
+    assert [f for f in lengths if f[0] > MAX_FUNCTION_LINES] == []
+
+
 if __name__ == "__main__":
     print("import cycles in plate_env:", cycles(import_graph()) or "none")
     print(f"longest functions (limit {MAX_FUNCTION_LINES} lines):")
