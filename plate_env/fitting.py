@@ -73,35 +73,100 @@ class LorentzFit:
 RISE_STEP = 0.1
 
 
-def first_hump_mask(f_hz: np.ndarray, omega: np.ndarray, usable: np.ndarray, drop: float = DEFAULT_DROP,
-                    floor: float = DEFAULT_FLOOR) -> np.ndarray:
-    """Probes of the first hump: usable probes in frequency order up to the first that falls ``drop`` below the
-    running maximum (that probe included, it pins the falling side) or up to a run of ``UNSTABLE_RUN`` unstable
-    probes (the paper: past the peak "the object becomes unstable"), unless omega_B was still rising steeply
-    into the run (the last two stable probes differ by more than ``RISE_STEP`` of the last: the hump's top is
-    still ahead, so the run is bridged), leaving out those below ``floor`` times the hump's maximum (the flat
-    low-frequency base, which a Lorentzian cannot follow)."""
+#: A drop ends the first hump only if it is also this many noise standard deviations deep.
+DROP_SIGNIFICANCE = 3.0
+#: An unstable run below this fraction of the highest usable omega_B (anywhere in the sweep) is on the hump's
+#: foot and is bridged: slips there say nothing about where the hump ends.
+FOOT_FRACTION = 0.5
+#: Frequencies closer than this (Hz) count as one frequency (repeated probes).
+SAME_FREQ_HZ = 1e-6
+
+
+def curve_by_frequency(f_hz: np.ndarray, omega: np.ndarray, usable: np.ndarray,
+                       stderr: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                                  np.ndarray]:
+    """The probes reduced to one point per distinct frequency, in frequency order. Pure.
+
+    Returns ``(freqs, mean, noise, has_usable, group)``: each distinct frequency (Hz), the mean omega_B of its
+    usable probes (0 where none), the standard deviation of that mean, whether any probe there was usable, and
+    for every input probe the index of its frequency. The noise of a frequency is the largest of: the probes'
+    own standard errors over sqrt(n), the scatter between its repeats over sqrt(n), and the curve's roughness (a
+    robust scale of the second differences of the means, which is what a smooth hump shows of noise) over sqrt(n).
+    """
     f_hz = np.asarray(f_hz, dtype=float)
     omega = np.asarray(omega, dtype=float)
+    usable = np.asarray(usable, dtype=bool)
+    order = np.argsort(f_hz, kind="stable")
+    fs = f_hz[order]
+    new = np.ones(fs.size, dtype=bool)
+    new[1:] = np.diff(fs) > SAME_FREQ_HZ
+    group_sorted = np.cumsum(new) - 1
+    group = np.empty(f_hz.size, dtype=int)
+    group[order] = group_sorted
+    n_g = int(group_sorted[-1]) + 1 if fs.size else 0
+    freqs = fs[new]
+    count = np.bincount(group, weights=usable.astype(float), minlength=n_g)
+    total = np.bincount(group, weights=np.where(usable, omega, 0.0), minlength=n_g)
+    has = count > 0
+    mean = np.where(has, total / np.maximum(count, 1), 0.0)
+    dev2 = np.bincount(group, weights=np.where(usable, (omega - mean[group]) ** 2, 0.0), minlength=n_g)
+    scatter = np.sqrt(dev2 / np.maximum(count - 1, 1)) * (count >= 2)
+    own = np.zeros(n_g)
+    if stderr is not None:
+        se = np.where(usable & np.isfinite(stderr), np.asarray(stderr, dtype=float), 0.0)
+        own = np.sqrt(np.bincount(group, weights=se ** 2, minlength=n_g) / np.maximum(count, 1))
+    rough = 0.0
+    m = mean[has]
+    if m.size >= 5:
+        d2 = m[2:] - 2 * m[1:-1] + m[:-2]
+        rough = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
+    noise = np.maximum.reduce([own, scatter, np.full(n_g, rough)]) / np.sqrt(np.maximum(count, 1))
+    return freqs, mean, noise, has, group
+
+
+def first_hump_mask(f_hz: np.ndarray, omega: np.ndarray, usable: np.ndarray, drop: float = DEFAULT_DROP,
+                    floor: float = DEFAULT_FLOOR, stderr: np.ndarray | None = None) -> np.ndarray:
+    """Probes of the first hump. Pure.
+
+    Repeated probes of one frequency are taken together (:func:`curve_by_frequency`); walking up in frequency,
+    the hump ends at the first frequency whose mean falls below the running maximum by more than ``drop`` of it
+    *and* by more than ``DROP_SIGNIFICANCE`` noise standard deviations (so noise at the foot does not end it;
+    that frequency is included, it pins the falling side), or at a run of ``UNSTABLE_RUN`` frequencies with no
+    usable probe (the paper: past the peak "the object becomes unstable"), unless omega_B was still rising
+    steeply into the run (the last two usable frequencies differ by more than ``RISE_STEP`` of the last: the
+    hump's top is still ahead) or the run lies on the hump's foot (the running maximum below ``FOOT_FRACTION`` of
+    the sweep's highest usable omega_B); such runs are bridged. Frequencies below ``floor`` times the hump's maximum
+    (the flat low-frequency base, which a Lorentzian cannot follow) are left out."""
+    f_hz = np.asarray(f_hz, dtype=float)
+    usable = np.asarray(usable, dtype=bool)
     mask = np.zeros(len(f_hz), dtype=bool)
+    if not usable.any():
+        return mask
+    freqs, mean, noise, has, group = curve_by_frequency(f_hz, omega, usable, stderr)
+    keep = np.zeros(freqs.size, dtype=bool)
+    foot = FOOT_FRACTION * float(mean[has].max())
     running = -math.inf
+    running_noise = 0.0
     last = prev = math.nan
     bad_run = 0
-    for i in np.argsort(f_hz, kind="stable"):
-        if not usable[i]:
+    for g in range(freqs.size):
+        if not has[g]:
             bad_run += 1
-            rising = last - prev > RISE_STEP * abs(last)  # False while fewer than two stable probes were seen
-            if running > -math.inf and bad_run >= UNSTABLE_RUN and not rising:
+            rising = last - prev > RISE_STEP * abs(last)  # False while fewer than two usable frequencies
+            if running > -math.inf and bad_run >= UNSTABLE_RUN and not rising and running >= foot:
                 break
             continue
         bad_run = 0
-        prev, last = last, omega[i]
-        mask[i] = True
-        if omega[i] < (1.0 - drop) * running:
+        prev, last = last, mean[g]
+        keep[g] = True
+        fall = running - mean[g]
+        if fall > drop * running and fall > DROP_SIGNIFICANCE * math.hypot(noise[g], running_noise):
             break
-        running = max(running, omega[i])
-    if floor > 0 and mask.any():
-        mask &= omega >= floor * omega[mask].max()
+        if mean[g] > running:
+            running, running_noise = mean[g], noise[g]
+    if floor > 0 and keep.any():
+        keep &= mean >= floor * mean[keep].max()
+    mask = keep[group] & usable
     return mask
 
 
@@ -141,7 +206,8 @@ def fit_lorentzian(f_hz, omega_deg_s, stderr_deg_s=None, unstable=None, window: 
     usable = ~bad & np.isfinite(f) & np.isfinite(w)
     sign = 1.0 if np.sum(w[usable]) >= 0 else -1.0
     wa = sign * w
-    used = first_hump_mask(f, wa, usable, drop, floor) if window == "first_hump" else usable.copy()
+    used = (first_hump_mask(f, wa, usable, drop, floor, se if weighted else None) if window == "first_hump"
+            else usable.copy())
 
     def fail(reason: str) -> LorentzFit:
         return LorentzFit(ok=False, reason=reason, n_used=int(used.sum()), n_unstable=n_unstable, used=used,

@@ -14,11 +14,12 @@ from pathlib import Path
 from plate_env.physics.base import Physics, ProbeResult, ProbeSpec
 
 #: Backend settings that change results and so enter the cache key (each where the backend has it).
-TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "record_interval_s")
+TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact", "record_interval_s")
 
 
 def backend_tag(physics: Physics) -> str:
-    """A string naming the backend and its settings (part of every cache key)."""
+    """A string naming the backend and its settings (part of every cache key): every setting that changes a
+    result (:data:`TAG_SETTINGS`: model, time step, mesh, joint and contact parameters, record interval) is in it."""
     parts = [physics.name]
     for attr in TAG_SETTINGS:
         if hasattr(physics, attr):

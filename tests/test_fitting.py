@@ -20,40 +20,41 @@ def _mask(y, unstable=(), f=None):
     return dict(zip(f.tolist(), first_hump_mask(f, y, usable).tolist(), strict=True))
 
 
+RAMP = [10.0 * k for k in range(1, 11)]  # 10 .. 100 deg/s at 10 .. 19 Hz: straight, so the curve's roughness is 0
+
+
 def test_one_unstable_probe_does_not_end_the_hump_two_do():
-    # top at 14 Hz, a single unstable probe at 15 past the top: the window goes on to the falling probe at 16
-    y = [40, 60, 80, 95, 100, 0, 90, 300, 300]
-    m = _mask(y, unstable=(15.0,))
-    assert m[16.0] and not m[17.0]  # 90 < 95 % of 100 ends it (included, it pins the falling side)
-    # two unstable probes in a row past the top end it even though later probes stay high (no drop)
-    y = [40, 60, 80, 95, 100, 0, 0, 100, 100, 100]
-    m = _mask(y, unstable=(15.0, 16.0))
-    assert m[14.0] and not any(m[f] for f in (17.0, 18.0, 19.0))
-    # three in a row as well
-    m = _mask([40, 60, 80, 95, 100, 0, 0, 0, 100, 100], unstable=(15.0, 16.0, 17.0))
-    assert not m[18.0]
+    # top 100 at 19 Hz, one unstable probe at 20, then 90 at 21 (10 % down): that drop ends the hump, included
+    # (later probes stay below twice the top, so the run is not on the hump's foot)
+    m = _mask(RAMP + [0, 90, 150, 150], unstable=(20.0,))
+    assert m[19.0] and m[21.0] and not m[22.0] and not m[23.0]
+    # two unstable probes in a row past the top end it although later probes stay at the top (no drop)
+    m = _mask(RAMP + [100, 0, 0, 100, 100, 100], unstable=(21.0, 22.0))
+    assert m[20.0] and not any(m[f] for f in (23.0, 24.0, 25.0))
+    m = _mask(RAMP + [100, 0, 0, 0, 100, 100], unstable=(21.0, 22.0, 23.0))
+    assert m[20.0] and not m[24.0]
 
 
 def test_unstable_probes_before_any_stable_one_do_not_end_the_hump():
-    m = _mask([0, 0, 50, 80, 100, 90], unstable=(10.0, 11.0))
-    assert all(m[f] for f in (12.0, 13.0, 14.0, 15.0))
+    m = _mask([0, 0] + RAMP + [80], unstable=(10.0, 11.0))
+    assert all(m[f] for f in (17.0, 18.0, 19.0, 20.0, 21.0, 22.0))
 
 
 def test_rising_into_an_unstable_run_bridges_it_exactly_above_the_rise_step():
     assert RISE_STEP == 0.1
     # 90 -> 100 is a rise of exactly RISE_STEP of the last probe: not "still rising", the run ends the window
-    m = _mask([50, 90, 100, 0, 0, 200, 300], unstable=(13.0, 14.0))
-    assert m[12.0] and not m[15.0]
+    m = _mask(RAMP + [0, 0, 150, 160], unstable=(20.0, 21.0))
+    assert m[19.0] and not m[22.0] and not m[23.0]
     # 89 -> 100 is more: the run is bridged
-    m = _mask([50, 89, 100, 0, 0, 200, 300], unstable=(13.0, 14.0))
-    assert m[15.0] and m[16.0]
+    m = _mask(RAMP[:8] + [89.0, 100.0] + [0, 0, 150, 160], unstable=(20.0, 21.0))
+    assert m[22.0] and m[23.0]
 
 
 def test_a_probe_exactly_at_the_drop_does_not_end_the_hump():
     assert DEFAULT_DROP == 0.05
-    m = _mask([20, 40, 60, 80, 100, 95, 97, 80, 100])  # 95 is not below 95 % of 100; 80 is
-    assert m[15.0] and m[16.0] and m[17.0] and not m[18.0]
-    assert not m[10.0]  # 20 < floor 0.4 x 100
+    m = _mask(RAMP + [95, 97, 80, 100])  # 95 is not below 95 % of 100; 80 is
+    assert m[20.0] and m[21.0] and m[22.0] and not m[23.0]
+    assert not m[10.0] and not m[12.0] and m[13.0]  # below / at the floor, 0.4 x 100
 
 
 def _results(f, y, se, unstable, b_p_mm=3.0):

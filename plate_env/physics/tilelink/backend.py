@@ -12,6 +12,7 @@ import numpy as np
 from plate_env.measure import measure_omega_b
 from plate_env.objects import ObjectSpec
 from plate_env.physics.base import SLIP_LIMIT_M, ProbeResult, ProbeSpec, Status, YawTrace, check_probes
+from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
 from plate_env.physics.tilelink.params import (
     DEFAULT_DT,
     DEFAULT_RECORD_INTERVAL_S,
@@ -52,7 +53,8 @@ class TileLinkPhysics:
         dt: time step, s; None takes the model's default (:data:`params.DEFAULT_DT`; its error against
             smaller steps: ``experiments/results/bench_physics.md`` and ``bench_models.md``).
         slip_limit: centre displacement (m, plate frame) beyond which a probe is unstable (the paper: 10 mm).
-        config: joint parameters the paper does not give.
+        config: joint parameters the paper does not give (point mass); rigid_config: those of the rigid tiles.
+        contact: the plate contact law's coefficients (default: the paper's).
         record_interval_s: simulated seconds between recorded yaw/centre samples (rounded to whole steps, at
             least one); omega_B interpolates the records at the plate periods' boundaries, so this is part of
             a result's provenance (and of the sweep cache key, :func:`plate_env.sweeps.backend_tag`).
@@ -60,7 +62,7 @@ class TileLinkPhysics:
 
     def __init__(self, model: str = "pointmass", dt: float | None = None, slip_limit: float = SLIP_LIMIT_M,
                  config: PointMassConfig | None = None, rigid_config: RigidTileConfig | None = None,
-                 record_interval_s: float = DEFAULT_RECORD_INTERVAL_S) -> None:
+                 contact: ContactLaw = PAPER_CONTACT, record_interval_s: float = DEFAULT_RECORD_INTERVAL_S) -> None:
         if model not in MODELS:
             raise ValueError(f"unknown tilelink model {model!r}; choose one of {MODELS}")
         if dt is None:
@@ -81,6 +83,9 @@ class TileLinkPhysics:
         if rigid_config is None:
             rigid_config = RIGID_LIMIT_CONFIG if model == "rigid_limit" else RigidTileConfig()
         self.rigid_config = rigid_config
+        if not isinstance(contact, ContactLaw):
+            raise TypeError(f"contact must be a ContactLaw, got {type(contact).__name__}")
+        self.contact = contact
 
     def __repr__(self) -> str:
         return f"TileLinkPhysics(model={self.model!r}, dt={self.dt:g})"
@@ -91,7 +96,7 @@ class TileLinkPhysics:
     # ------------------------------------------------------------------ arrays
     def _param_vector(self, spec: ProbeSpec) -> np.ndarray:
         params = _pointmass_params(spec.obj, self.config)
-        prm = common_vector(spec, self.dt, self.slip_limit, params.node_mass,
+        prm = common_vector(spec, self.dt, self.slip_limit, params.node_mass, law=self.contact,
                             record_interval_s=self.record_interval_s)
         prm[P_KB] = params.k_bending
         prm[P_KIN] = params.k_inplane
@@ -103,7 +108,7 @@ class TileLinkPhysics:
         if self.model in ("rigid", "rigid_limit"):
             from plate_env.physics.tilelink.rigid_kernels import run_rigid_arrays
 
-            return run_rigid_arrays(probes, self.dt, self.slip_limit, config=self.rigid_config,
+            return run_rigid_arrays(probes, self.dt, self.slip_limit, config=self.rigid_config, law=self.contact,
                                     record_interval_s=self.record_interval_s)
         prm = np.stack([self._param_vector(s) for s in probes])
         geom = _pointmass_params(probes[0].obj, self.config).geom

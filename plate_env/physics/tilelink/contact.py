@@ -19,6 +19,7 @@ These are plain scalar functions so that numba compiles the same code into every
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 #: Contact stiffness, N / m^2.2 (11.86 N/mm^2.2).
 K_CONTACT = 11.86 * 1000.0**2.2
@@ -30,6 +31,29 @@ CONTACT_EXPONENT = 2.2
 V_TRANSITION = 0.1
 #: Gravity, m/s^2.
 GRAVITY = 9.81
+
+
+@dataclass(frozen=True)
+class ContactLaw:
+    """The coefficients of the plate contact law (SI): ``k`` N/m^2.2, ``c`` N s/m, ``v_transition`` m/s.
+
+    The defaults are the paper's values (read in its mm units, see the module docstring). They were measured for
+    the paper's own set-up; :mod:`plate_env.nuisance` states the band over which a forward model integrates them.
+    """
+
+    k: float = K_CONTACT
+    c: float = C_CONTACT
+    v_transition: float = V_TRANSITION
+
+    def __post_init__(self) -> None:
+        for name in ("k", "c", "v_transition"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"ContactLaw {name} = {value!r} must be a positive finite number")
+
+
+#: The paper's contact law.
+PAPER_CONTACT = ContactLaw()
 
 
 def spring_force(depth: float, k: float) -> float:

@@ -29,11 +29,12 @@ DEFAULT_RECORD_INTERVAL_S = 1e-3
 
 
 def common_vector(spec: ProbeSpec, dt: float, slip_limit: float, node_mass: float, size: int = N_PARAMS,
-                  contact_weight: float = 1.0, record_interval_s: float = DEFAULT_RECORD_INTERVAL_S) -> np.ndarray:
+                  contact_weight: float = 1.0, law: contact.ContactLaw = contact.PAPER_CONTACT,
+                  record_interval_s: float = DEFAULT_RECORD_INTERVAL_S) -> np.ndarray:
     """A parameter vector of ``size`` entries with the shared ones filled (SI units).
 
     ``node_mass``: mass of one node/tile (kg), sets the rest penetration under gravity; ``contact_weight``: the
-    share of the paper's per-link contact law carried by one contact point (1 for a node, 1/4 for a tile corner);
+    share of the per-link contact law ``law`` carried by one contact point (1 for a node, 1/4 for a tile corner);
     ``record_interval_s``: yaw and centre are recorded every ``max(1, round(record_interval_s / dt))`` steps.
     """
     obj, mot = spec.obj, spec.motion
@@ -48,11 +49,11 @@ def common_vector(spec: ProbeSpec, dt: float, slip_limit: float, node_mass: floa
     prm[P_RAMP] = mot.ramp_s
     prm[P_VLIM] = 3.0 * mot.peak_speed(obj.radius) + 1.0
     prm[P_SLIP] = slip_limit
-    prm[P_KC] = contact.K_CONTACT
-    prm[P_CC] = contact.C_CONTACT
-    prm[P_VT] = contact.V_TRANSITION
+    prm[P_KC] = law.k
+    prm[P_CC] = law.c
+    prm[P_VT] = law.v_transition
     prm[P_G] = contact.GRAVITY
-    prm[P_DEPTH0] = contact.rest_depth(node_mass * contact.GRAVITY * contact_weight, contact.K_CONTACT * contact_weight)
+    prm[P_DEPTH0] = contact.rest_depth(node_mass * contact.GRAVITY * contact_weight, law.k * contact_weight)
     prm[P_NSTEPS] = math.ceil(spec.duration_s / dt - 1e-9)
     prm[P_RECEVERY] = max(1, round(record_interval_s / dt))
     prm[P_YAW0] = spec.initial_yaw

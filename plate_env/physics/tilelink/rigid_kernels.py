@@ -38,6 +38,7 @@ import numpy as np
 
 from plate_env.physics.base import SLIP_LIMIT_M, ProbeSpec, Status
 from plate_env.physics.tilelink import contact
+from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
 from plate_env.physics.tilelink.kernels import (
     FAST,
     damped_normal_force,
@@ -677,11 +678,11 @@ def _params(obj, config: RigidTileConfig) -> RigidTileParams:
 
 
 def param_vector(spec: ProbeSpec, dt: float, slip_limit: float, config: RigidTileConfig | None = None,
-                 record_interval_s: float = DEFAULT_RECORD_INTERVAL_S) -> np.ndarray:
+                 law: ContactLaw = PAPER_CONTACT, record_interval_s: float = DEFAULT_RECORD_INTERVAL_S) -> np.ndarray:
     """The rigid kernel's parameter vector (``N_RIGID_PARAMS``) for one probe; SI units."""
     config = config or RigidTileConfig()
     p = _params(spec.obj, config)
-    prm = common_vector(spec, dt, slip_limit, p.tile_mass, N_RIGID_PARAMS, contact_weight=0.25,
+    prm = common_vector(spec, dt, slip_limit, p.tile_mass, N_RIGID_PARAMS, contact_weight=0.25, law=law,
                         record_interval_s=record_interval_s)
     prm[P_KB] = p.k_bending
     prm[P_KIN] = p.row_k[0]
@@ -723,7 +724,8 @@ def run_rigid_param_arrays(prm: np.ndarray, rest: np.ndarray, geom, parallel: bo
 
 def run_rigid_arrays(probes: Sequence[ProbeSpec], dt: float = DEFAULT_DT["rigid"], slip_limit: float = SLIP_LIMIT_M,
                      config: RigidTileConfig | None = None, parallel: bool | None = None,
-                     record_interval_s: float = DEFAULT_RECORD_INTERVAL_S) -> dict[str, np.ndarray]:
+                     law: ContactLaw = PAPER_CONTACT, record_interval_s: float = DEFAULT_RECORD_INTERVAL_S
+                     ) -> dict[str, np.ndarray]:
     """Run a batch of probes with the rigid-tile model.
 
     Returns the keys of ``TileLinkPhysics.run_param_arrays`` ("prm" with ``P_NSTEPS``/``P_RECEVERY`` filled,
@@ -734,7 +736,7 @@ def run_rigid_arrays(probes: Sequence[ProbeSpec], dt: float = DEFAULT_DT["rigid"
     """
     config = config or RigidTileConfig()
     probes = list(probes)
-    prm = np.stack([param_vector(s, dt, slip_limit, config, record_interval_s) for s in probes])
+    prm = np.stack([param_vector(s, dt, slip_limit, config, law, record_interval_s) for s in probes])
     geom = _params(probes[0].obj, config).geom
     rest = np.stack([_params(s.obj, config).geom.rest for s in probes])
     t0 = time.perf_counter()
