@@ -5,7 +5,9 @@ from __future__ import annotations
 import pickle
 
 import numpy as np
+import pytest
 
+from plate_env.atlas import Atlas
 from plate_env.inference import grid_response
 
 
@@ -29,3 +31,18 @@ def test_pickled_atlas_drops_its_cache_and_predicts_the_same(toy_atlas):
     back = pickle.loads(pickle.dumps(atlas))
     assert back._cache == {}
     np.testing.assert_array_equal(back.predict(23.5, 3.0, 40.0, 0.8), before)
+
+
+def test_atlas_interpolation_exact_at_grid_points_and_round_trip(toy_atlas, tmp_path):
+    atlas = toy_atlas()
+    i, k, j = 5, 3, 2
+    mean, spread, pu = atlas.predict(atlas.f_hz[i], 3.0, atlas.omega_n[k], atlas.alpha[j])
+    assert mean == pytest.approx(atlas.mean[i, 0, k, j], rel=1e-12)
+    assert spread == pytest.approx(atlas.spread[i, 0, k, j], rel=1e-12)
+    path = tmp_path / "atlas.npz"
+    atlas.save(path)
+    back = Atlas.load(path)
+    np.testing.assert_allclose(back.mean, atlas.mean, rtol=1e-6)
+    assert back.provenance == {"toy": True}
+    with pytest.raises(ValueError, match="not in this atlas"):
+        atlas.predict(20.0, 12.0, 30.0, 0.7)

@@ -14,6 +14,7 @@ from plate_env.calibration import (
     fit_calibration,
     get_calibration,
     linear_fit,
+    load_calibrations,
     paper_calibration,
     save_calibrations,
 )
@@ -131,3 +132,29 @@ def test_saved_calibrations_are_found_by_key_and_missing_ones_are_named(tmp_path
     empty.write_text("{}")
     with pytest.raises(ValueError, match="available: none"):
         get_calibration("tilelink", "rigid", 3.0, path=empty)
+
+
+def test_paper_calibration_units():
+    cal = paper_calibration(3)
+    assert cal.omega_n(25.1) == pytest.approx((5.30 * 25.1 - 121.62) * math.pi)
+    with pytest.raises(ValueError, match="A_p"):
+        paper_calibration(5)
+
+
+def test_calibration_fit_and_round_trip(tmp_path):
+    f0 = np.array([23.0, 24.5, 26.0, 27.5, 29.0])
+    w = 5.0 * math.pi * f0 - 110 * math.pi
+    cal = fit_calibration(f0, w, "tilelink", "pointmass", 3.0, omega_max_deg_s=[500, 550, 600, 650, 700],
+                          alpha_rad=np.radians([30, 40, 35, 50, 45]), provenance={"note": "test"})
+    assert cal.p1_pi == pytest.approx(5.0) and cal.q1_pi == pytest.approx(-110.0) and cal.r2 == pytest.approx(1.0)
+    path = tmp_path / "cal.json"
+    save_calibrations([cal], path)
+    back = load_calibrations(path)["tilelink/pointmass/3"]
+    assert back == cal and back.provenance == {"note": "test"}
+
+
+def test_shipped_calibration_has_provenance():
+    cals = load_calibrations()
+    cal = cals["tilelink/pointmass/3"]
+    assert isinstance(cal, Calibration) and cal.n >= 20
+    assert cal.provenance["window"] == "first_hump" and "dt_s" in cal.provenance

@@ -89,3 +89,19 @@ def test_identify_atlas_reports_its_probes_and_refuses_foreign_amplitudes(toy_at
     empty = identify_atlas(ProbeTable.from_arrays([], [], []), atlas=atlas)
     assert not empty.ok and empty.reason == "no probes"
     assert SIGMA_MODEL == 15.0
+
+
+def test_posterior_contains_truth_on_data_drawn_from_atlas(toy_atlas):
+    atlas = toy_atlas()
+    rng = np.random.default_rng(5)
+    inside = 0
+    for _ in range(20):
+        w_true = math.pi * rng.uniform(3, 35)
+        a_true = math.radians(rng.uniform(32, 58))
+        f = rng.uniform(14, 36, 8)
+        mu, s, _ = atlas.predict(f, 3.0, w_true, a_true)
+        y = mu + rng.normal(0, 1, f.size) * np.sqrt(s ** 2 + SIGMA_MODEL ** 2)
+        post = posterior(atlas, ProbeTable.from_arrays(f, 3.0, y))
+        _, _, _, (lo, hi) = post.omega_stats()
+        inside += lo <= w_true <= hi
+    assert inside >= 17  # 95 % intervals

@@ -1,4 +1,5 @@
-"""Resumable cached sweeps: the cache key names every backend setting that changes a result."""
+"""Resumable cached sweeps: the cache key names every backend setting that changes a result; an interrupted sweep
+resumes where it stopped."""
 
 from __future__ import annotations
 
@@ -63,3 +64,42 @@ def test_tilelink_record_interval_is_a_backend_option():
     for bad in (0.0, -1e-3, float("nan"), 1.0):
         with pytest.raises(ValueError, match="record_interval_s"):
             pe.make_physics("tilelink", record_interval_s=bad)
+
+
+class InterruptingPhysics:
+    """Wraps a backend, counts the probes it simulates and raises KeyboardInterrupt on call ``interrupt_at``."""
+
+    def __init__(self, inner, interrupt_at: int | None = None) -> None:
+        self.inner = inner
+        self.name = "wrapped-" + inner.name
+        self.interrupt_at = interrupt_at
+        self.calls = 0
+        self.simulated: list[ProbeSpec] = []
+
+    def run(self, probes: Sequence[ProbeSpec], progress: bool = False) -> list[ProbeResult]:
+        self.calls += 1
+        if self.interrupt_at is not None and self.calls == self.interrupt_at:
+            raise KeyboardInterrupt
+        self.simulated.extend(probes)
+        return self.inner.run(probes)
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+def test_interrupted_sweep_resumes(tmp_path: Path):
+    specs = [ProbeSpec(pe.preset("cheese"), pe.PlateMotion.from_paper(float(f), 3.0)) for f in range(10, 30)]
+    cache = tmp_path / "sweep.jsonl"
+    first = InterruptingPhysics(pe.make_physics("atlas"), interrupt_at=3)
+    with pytest.raises(KeyboardInterrupt):
+        run_cached(first, specs, cache, chunk=4, progress=False)
+    assert len(first.simulated) == 8 and len(load_cache(cache)) == 8  # two chunks kept
+    second = InterruptingPhysics(pe.make_physics("atlas"))
+    resumed = run_cached(second, specs, cache, chunk=4, progress=False)
+    assert len(second.simulated) == 12
+    assert {s.motion.freq_hz for s in second.simulated} == {float(f) for f in range(18, 30)}
+    direct = pe.make_physics("atlas").run(specs)
+    assert [r.omega_b_deg_s for r in resumed] == [r.omega_b_deg_s for r in direct]
+    third = InterruptingPhysics(pe.make_physics("atlas"))
+    run_cached(third, specs, cache, chunk=4, progress=False)
+    assert third.simulated == []
