@@ -1,4 +1,4 @@
-"""Probing agents: each runs end to end; bayes narrows its posterior around the truth (the identify command: test_cli.py)."""
+"""Probing agents: each runs end to end; bayes narrows its posterior around the truth (identify: test_cli.py)."""
 
 from __future__ import annotations
 

@@ -216,7 +216,7 @@ def test_pybullet_rgb_array_uses_tiny_renderer():
     assert env._renderer is None
 
 
-FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+PROPERTY = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                         HealthCheck.too_slow])
 
 
@@ -236,7 +236,7 @@ ACTIONS = st.one_of(
 )
 
 
-@FAST
+@PROPERTY
 @given(seed=st.integers(0, 2 ** 31 - 1), actions=st.lists(ACTIONS, min_size=1, max_size=12))
 def test_env_step_valid_or_valueerror(atlas_env, seed, actions):
     env = atlas_env
