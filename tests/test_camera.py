@@ -77,3 +77,20 @@ def test_a_wobbling_disc_gets_the_error_of_its_residuals():
     expected_se = math.sqrt(resid @ resid / (frames.size - 2) / np.sum((frames - frames.mean()) ** 2))
     assert omega == pytest.approx(slope, rel=1e-9) and se == pytest.approx(expected_se, rel=1e-6)
     assert se > 1.0
+
+
+def test_edges_one_period_two_samples_three_frames_and_a_still_plate():
+    """The camera fits whenever it has >= 1 period, >= 2 trace samples and >= 3 frames (else the probe's value)."""
+    rng = np.random.default_rng(0)
+    one = _result(250.0, periods=1)
+    one = ProbeResult(**{**one.__dict__, "omega_b_deg_s": 120.0})  # the probe's own value differs from the trace
+    assert camera_omega_b(one, rng, fps=100.0, angle_noise_deg=0.0)[0] == pytest.approx(250.0, rel=1e-9)
+    spec = one.spec
+    t = np.array([0.0, spec.duration_s])
+    two = ProbeResult(**{**one.__dict__, "periods_measured": spec.n_periods,
+                         "trace": YawTrace(t=t, yaw=math.radians(250.0) * t, centre_u=0 * t, centre_v=0 * t)})
+    assert camera_omega_b(two, rng, angle_noise_deg=0.0)[0] == pytest.approx(250.0, rel=1e-9)
+    three = ProbeResult(**{**_result(250.0, measure_s=0.05).__dict__, "omega_b_deg_s": 120.0})  # 2 periods = 0.1 s
+    assert camera_omega_b(three, rng, fps=20.0, angle_noise_deg=0.0)[0] == pytest.approx(250.0, rel=1e-9)
+    still = _result(0.0, a_p_deg=3.0, b_p_mm=0.0)
+    assert camera_omega_b(still, rng, angle_noise_deg=0.0) == pytest.approx((0.0, 0.0), abs=1e-9)
