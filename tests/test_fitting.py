@@ -291,3 +291,14 @@ def test_fitter_ok_or_cannot_fit(data, window):
     assert all(math.isfinite(x) for x in nums), fit
     assert np.all(np.isfinite(fit.cov)) and np.all(np.isfinite(fit.residuals))
     assert fit.omega_max > 0 and fit.b > 0 and fit.n_used >= 4
+
+
+def test_r2_and_residuals_of_a_noisy_fit():
+    rng = np.random.default_rng(21)
+    f = np.arange(14.0, 36.0, 1.0)
+    y = lorentzian(f, 480.0, 26.0, 4.5) + rng.normal(0.0, 25.0, f.size)
+    fit = fit_lorentzian(f, y, window="all")
+    res = fit.predict(f) - y
+    np.testing.assert_allclose(fit.residuals, res, rtol=1e-9, atol=1e-9)
+    assert fit.r2 == pytest.approx(1.0 - np.sum(res ** 2) / np.sum((y - y.mean()) ** 2), rel=1e-12)
+    assert 0.5 < fit.r2 < 1.0
