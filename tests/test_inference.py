@@ -105,3 +105,50 @@ def test_posterior_contains_truth_on_data_drawn_from_atlas(toy_atlas):
         _, _, _, (lo, hi) = post.omega_stats()
         inside += lo <= w_true <= hi
     assert inside >= 17  # 95 % intervals
+
+
+def test_posterior_passes_its_settings_on_and_stays_finite_with_many_inconsistent_probes(toy_atlas):
+    atlas = toy_atlas(unstable_above_pi=10.0)
+    f = np.linspace(12.0, 38.0, 40)
+    table = ProbeTable.from_arrays(f, 3.0, np.full(f.size, 3000.0), np.full(f.size, 1.0))  # far from every object
+    post = posterior(atlas, table, n_omega=N_OMEGA, n_alpha=N_ALPHA)
+    assert post.prob.shape == (N_OMEGA, N_ALPHA) and post.alpha.size == N_ALPHA and post.omega_n.size == N_OMEGA
+    assert np.all(np.isfinite(post.prob)) and post.prob.sum() == pytest.approx(1.0)
+    w, _ = posterior_grid(atlas, N_OMEGA, N_ALPHA)
+    assert w[0] == pytest.approx(atlas.omega_n[0]) and w[-1] == pytest.approx(atlas.omega_n[-1])
+    mu, _, _ = atlas.predict(np.array([18.0, 24.0]), 3.0, 8 * math.pi, 0.7)
+    few = ProbeTable.from_arrays([18.0, 24.0], 3.0, mu + 25.0, [1.0, 1.0])
+    tight = identify_atlas(few, atlas=atlas, sigma_model=2.0)
+    loose = identify_atlas(few, atlas=atlas, sigma_model=60.0)
+    assert tight.omega_n_stderr < loose.omega_n_stderr
+    default = posterior(atlas, few, n_omega=N_OMEGA, n_alpha=N_ALPHA)
+    assert not np.allclose(posterior(atlas, few, sigma_model=2.0, n_omega=N_OMEGA, n_alpha=N_ALPHA).prob, default.prob)
+
+
+def test_grid_responses_of_other_grids_are_not_mixed_up_and_are_exact_at_the_range_ends(toy_atlas):
+    atlas = toy_atlas()
+    small = grid_response(atlas, 3.0, 21, 5)(20.0)
+    large = grid_response(atlas, 3.0, 41, 7)(20.0)
+    assert small[0].shape == (21, 5) and large[0].shape == (41, 7)
+    w, a = posterior_grid(atlas, 21, 5)
+    for f in (atlas.f_hz[0], atlas.f_hz[-1]):
+        mean, spread, _ = atlas.predict(f, 3.0, w[:, None], a[None, :])
+        got = grid_response(atlas, 3.0, 21, 5)(f)
+        np.testing.assert_allclose(got[0], mean, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(got[1], spread, rtol=1e-9, atol=1e-9)
+    below = grid_response(atlas, 3.0, 21, 5)(atlas.f_hz[0] - 5.0)
+    np.testing.assert_array_equal(below[0], grid_response(atlas, 3.0, 21, 5)(atlas.f_hz[0])[0])
+
+
+def test_identify_atlas_reports_every_field(toy_atlas):
+    atlas = toy_atlas(unstable_above_pi=10.0)
+    table = ProbeTable.from_arrays([20.0, 28.0, 32.0], 3.0, [300.0, 0.0, 0.0], [3.0, 0.0, 0.0], [False, True, True])
+    est = identify_atlas(table, atlas=atlas)
+    mean, std, ci68, ci95 = est.posterior.omega_stats()
+    a_mean, a_std, _, _ = est.posterior.alpha_stats()
+    assert (est.omega_n, est.omega_n_stderr, est.omega_n_ci68, est.omega_n_ci95) == (mean, std, ci68, ci95)
+    assert (est.alpha, est.alpha_stderr) == (a_mean, a_std) and est.ok is True
+    bad = identify_atlas(ProbeTable.from_arrays([20.0, 21.0], 12.0, [1.0, 0.0], unstable=[False, True]), atlas=atlas)
+    assert (bad.ok, bad.method, bad.n_probes, bad.n_unstable) == (False, "atlas", 2, 1)
+    empty = identify_atlas(ProbeTable.from_arrays([], [], []), atlas=atlas)
+    assert (empty.ok, empty.method, empty.n_probes, empty.n_unstable) == (False, "atlas", 0, 0)
