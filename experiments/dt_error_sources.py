@@ -22,30 +22,17 @@ import numpy as np
 
 import plate_env as pe
 from plate_env.physics.base import SLIP_LIMIT_M, ProbeSpec, Status
-from plate_env.physics.tilelink import contact, rigid
+from plate_env.physics.tilelink import contact, params, rigid
 from plate_env.physics.tilelink import rigid_kernels as rk
 from plate_env.physics.tilelink.backend import result_from_arrays
-from plate_env.physics.tilelink.params import (
-    DEFAULT_DT,
-    P_CC,
-    P_CIN,
-    P_DEPTH0,
-    P_KB,
-    P_KC,
-    P_KIN,
-    P_MASS,
-    P_MUK,
-    P_MUS,
-    P_VT,
-)
 
 RESULTS = Path(__file__).resolve().parent / "results" / "dt_error_sources.md"
-COARSE = (DEFAULT_DT["rigid"], 2)
+COARSE = (params.DEFAULT_DT["rigid"], 2)
 FINE = (1.25e-5, 4)
 FREQS = (18.0, 22.0, 25.0)
 #: the held ("rigid") rows' stiffness and damping entries; the compression and bending rows' too
 HELD = ((rk.R_KT2, rk.R_CT2), (rk.R_KN, rk.R_CN), (rk.R_KRN, rk.R_CRN))
-SOFT = ((P_KIN, P_CIN), (P_KB, rk.R_CB))
+SOFT = ((params.P_KIN, params.P_CIN), (params.P_KB, rk.R_CB))
 
 
 @dataclass(frozen=True)
@@ -63,7 +50,7 @@ def _scale(*cols_and_factors: tuple[int, float]) -> Callable[[np.ndarray, float]
         for col, fac in cols_and_factors:
             prm[:, col] *= fac
         # the rest penetration follows the contact stiffness (a quarter of the tile's weight per corner)
-        prm[:, P_DEPTH0] = [contact.rest_depth(p[P_MASS] * contact.GRAVITY * 0.25, p[P_KC] * 0.25)
+        prm[:, params.P_DEPTH0] = [contact.rest_depth(p[params.P_MASS] * contact.GRAVITY * 0.25, p[params.P_KC] * 0.25)
                                for p in prm]
     return edit
 
@@ -92,10 +79,10 @@ def _hard_held_rows(erp: float, c_factor: float) -> Callable[[np.ndarray, float]
 
 VARIANTS = (
     Variant("baseline (shipped rigid model)"),
-    Variant("contact stiffness x 0.1", edit=_scale((P_KC, 0.1))),
-    Variant("contact damping x 0.3", edit=_scale((P_CC, 0.3))),
-    Variant("friction mu_s, mu_k x 0.6", edit=_scale((P_MUS, 0.6), (P_MUK, 0.6))),
-    Variant("friction transition speed x 0.1", edit=_scale((P_VT, 0.1))),
+    Variant("contact stiffness x 0.1", edit=_scale((params.P_KC, 0.1))),
+    Variant("contact damping x 0.3", edit=_scale((params.P_CC, 0.3))),
+    Variant("friction mu_s, mu_k x 0.6", edit=_scale((params.P_MUS, 0.6), (params.P_MUK, 0.6))),
+    Variant("friction transition speed x 0.1", edit=_scale((params.P_VT, 0.1))),
     Variant("row damping compensated (c - dt k)", edit=_compensate_rows),
     Variant("16 sweeps at the coarse step", coarse_sweeps=16),
     Variant("block inverses rebuilt every step", config=replace(rigid.RigidTileConfig(), block_refresh=1)),
