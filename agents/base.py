@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from plate_env.forward import KnownInputs
 from plate_env.probes import ProbeTable
 
 
@@ -24,8 +25,8 @@ class ProbeContext:
     """What an agent may know about the task (not the hidden object).
 
     Attributes: f_band_hz, amplitudes_deg, measure_range_s, max_probes, max_sim_s (or None), overhead_s (ramp +
-    settle, the simulated seconds every probe costs besides its window), physics/model (whose atlas and
-    calibration apply).
+    settle, the simulated seconds every probe costs besides its window), physics/model (whose forward model and
+    calibration apply), known (what a lab knows: B_p, the disc's mass and diameter).
     """
 
     f_band_hz: tuple[float, float]
@@ -36,13 +37,14 @@ class ProbeContext:
     overhead_s: float
     physics: str
     model: str
+    known: KnownInputs = KnownInputs()
 
     @classmethod
     def from_env(cls, env) -> ProbeContext:
         e = env.unwrapped
         return cls(f_band_hz=e.f_band_hz, amplitudes_deg=e.amplitudes_deg, measure_range_s=e.measure_range_s,
                    max_probes=e.max_probes, max_sim_s=e.max_sim_s, overhead_s=0.2 + e.settle_s, physics=e.source,
-                   model=e.model)
+                   model=e.model, known=e.known_inputs())
 
 
 class Agent(ABC):

@@ -1,20 +1,22 @@
-"""Sequential Bayesian experimental design on the atlas posterior over (omega_n, alpha).
+"""Sequential Bayesian experimental design on a forward model's posterior over (omega_n, alpha).
 
-After every probe the grid posterior (plate_env.inference) is updated. The next probe (f_p, A_p and its
-measurement window) maximises the expected reduction of the posterior variance of log omega_n per simulated
-second it costs (ramp + settle + window). The expectation is a preposterior Monte Carlo over the atlas's
-predictive distribution: with the predictive instability probability the probe ends unstable (and the posterior
-is reweighted by p), otherwise omega_B ~ mu + sqrt(s^2 + sigma_model^2 + se(T)^2) * Normal(0, 1) at objects
-drawn from the posterior (scored with the same Student-t likelihood as the posterior), where se(T) = SE_1S /
-sqrt(T / 1 s) is the window's own measurement error. The agent stops when the
-posterior standard deviation of omega_n falls below ``target_rel`` of its mean, or the budget is spent. A probe
-is never repeated at the same (f_p, A_p): the atlas's model error there is shared, so the posterior would
-count it twice and grow overconfident (measured: repeats drove a 17pi estimate 3.5 sigma off).
+After every probe the posterior of the forward model (:mod:`plate_env.forward`: the physics' atlas, its measured
+errors, the coherent discrepancy) is updated. The next probe (f_p, A_p and its measurement window) maximises the
+expected reduction of the posterior variance of log omega_n per simulated second it costs (ramp + settle +
+window). The expectation is a preposterior Monte Carlo over the forward model's own predictive distribution: with
+the predictive instability probability the probe ends unstable (and each member's posterior is reweighted by its
+p), otherwise omega_B ~ mu + sqrt(s^2 + sigma_model^2 + se(T)^2) * Normal(0, 1) at objects drawn from the
+posterior, scored with the same likelihood as the posterior (:func:`plate_env.inference.probe_log_likelihood`),
+where se(T) = SE_1S / sqrt(T / 1 s) is the window's own measurement error. Its utility is thus what the forward
+model can predict: an outcome the atlas gives as a coin flip (a smoothed instability share near 1/2, a wide
+spread) carries little expected information, so such probes are not chased. The discrepancy adds the same
+variance to every candidate's outcome, so it does not move the choice; it does stop the agent once the posterior
+can get no narrower. The agent stops when the half-width of the 68 % interval falls below ``target_rel`` of
+omega_n, or the budget is spent. A probe is never repeated at the same (f_p, A_p): the atlas's model error there is
+shared, so the posterior would count it twice.
 
-Windows. The atlas describes 1 s windows; shorter ones scatter more between placements than their own standard
-error says (10 Hz, 12 deg, 21pi: 84-109 deg/s over four placements with 0.3 s windows, 146-153 with 1 s), so
-the default windows are 1 and 2 s. Over 16 seeded live tile-link objects, 0.25-2 s windows gave a median error of
-7.9 % (1-sigma coverage 19 %), 1-2 s windows 3.9 % (coverage 50 %).
+Windows: the atlas describes 1 s windows; shorter ones scatter more between placements than their own standard
+error says, so the default windows are 1 and 2 s.
 """
 
 from __future__ import annotations
@@ -25,14 +27,16 @@ import numpy as np
 
 from agents.base import Agent, Probe
 from plate_env import checks
-from plate_env.atlas import load_atlas
+from plate_env.forward import ForwardModel, load_forward_model
 from plate_env.inference import (
-    P_MIN,
-    SIGMA_MODEL,
-    grid_response,
+    blurred,
     log_student,
-    posterior_grid,
+    member_coverage,
+    member_domain,
+    member_response,
+    pool,
     probe_log_likelihood,
+    smoothed_p,
 )
 from plate_env.probes import ProbeTable
 
@@ -48,7 +52,7 @@ class BayesAgent(Agent):
 
     def __init__(self, target_rel: float = 0.03, windows_s: tuple[float, ...] = (1.0, 2.0),
                  f_step_hz: float = 0.5, n_samples: int = 12, n_omega: int = 81, n_alpha: int = 16,
-                 min_probes: int = 3, sigma_model: float = SIGMA_MODEL, atlas=None) -> None:
+                 min_probes: int = 3, forward: ForwardModel | None = None) -> None:
         self.target_rel = checks.real("target_rel", target_rel, 0.0, 1.0, open_hi=True)
         self.windows_s = windows_s
         self.f_step_hz = f_step_hz
@@ -56,55 +60,93 @@ class BayesAgent(Agent):
         self.n_omega = n_omega
         self.n_alpha = n_alpha
         self.min_probes = min_probes
-        self.sigma_model = sigma_model
-        self._atlas = atlas
+        self._forward = forward
 
     def reset(self, context, rng) -> None:
         super().reset(context, rng)
-        self.atlas = self._atlas if self._atlas is not None else load_atlas(context.physics, context.model)
-        self.omega, self.alpha = posterior_grid(self.atlas, self.n_omega, self.n_alpha)
+        fm = self._forward
+        if fm is None:
+            fm = load_forward_model(f"{context.physics}/{context.model}", context.known)
+        self.fm = fm
+        self.omega, self.alpha = fm.grid(self.n_omega, self.n_alpha)
         self.log_w = np.log(self.omega)[:, None]
         lo, hi = context.f_band_hz
         self.freqs = np.arange(lo, hi + 1e-9, self.f_step_hz)
-        self.amps = [a for a in context.amplitudes_deg if np.any(np.isclose(self.atlas.a_p_deg, a))]
-        if not self.amps:
-            raise ValueError(f"none of the env's amplitudes {context.amplitudes_deg} is in the atlas")
         m_lo, m_hi = context.measure_range_s
         self.windows = [w for w in self.windows_s if m_lo <= w <= m_hi] or [m_lo]
-        # predictive tables for every candidate (amplitude, frequency): (n_f, n_omega, n_alpha)
-        self.tables = {}
-        for a in self.amps:
-            at = grid_response(self.atlas, a, self.n_omega, self.n_alpha)
-            mus, ss, ps = zip(*(at(f) for f in self.freqs), strict=True)
-            self.tables[a] = (np.array(mus), np.array(ss), np.clip(np.array(ps), P_MIN, 1 - P_MIN))
-        self.logp = np.zeros((self.n_omega, self.n_alpha))
+        # candidates: (amplitude, frequency) inside at least one member's atlas; per member and amplitude its
+        # predictive tables over the candidate frequencies
+        tables = {a: [self._table(m, a) for m in fm.members] for a in context.amplitudes_deg}
+        self.tables = {a: per for a, per in tables.items() if any(t is not None for t in per)}
+        self.amps = list(self.tables)
+        if not self.amps:
+            raise ValueError(f"none of the env's amplitudes {context.amplitudes_deg} is in forward model {fm.name!r}")
+        self.inside = [member_coverage(m, self.omega, self.alpha) for m in fm.members]
+        self.lls = [np.zeros((self.n_omega, self.n_alpha)) for _ in fm.members]
+        step = math.log(self.omega[1] / self.omega[0])
+        self.blur_steps = [m.blur / step for m in fm.members]
         self._seen = 0
+
+    def _table(self, member, a_p_deg: float):
+        """A member's predictive over the candidate frequencies at one amplitude: (covered (n_f,), mean, spread,
+        smoothed p (n_f, n_omega, n_alpha)), or None when it covers none of them."""
+        covered = np.array([member_domain(member, float(f), a_p_deg) is None for f in self.freqs])
+        if not covered.any():
+            return None
+        at = member_response(member, a_p_deg, self.omega, self.alpha)[0]
+        shape = (len(self.freqs), self.n_omega, self.n_alpha)
+        mus, ss, ps = np.zeros(shape), np.ones(shape), np.full(shape, 0.5)
+        for i in np.flatnonzero(covered):
+            mus[i], ss[i], ps[i] = at(float(self.freqs[i]))
+        return covered, mus, ss, smoothed_p(ps, member.atlas.n_repeats)
 
     # ----------------------------------------------------------------- posterior
     def _update(self, history: ProbeTable) -> None:
         for k in range(self._seen, len(history)):
-            amp = float(history.a_p_deg[k])
-            at = grid_response(self.atlas, amp, self.n_omega, self.n_alpha)
-            mu, s, p = at(history.f_p_hz[k])
-            self.logp += probe_log_likelihood(mu, s, p, history.omega_b_deg_s[k], history.stderr_deg_s[k],
-                                              bool(history.unstable[k]), self.sigma_model)
+            f, amp = float(history.f_p_hz[k]), float(history.a_p_deg[k])
+            for i, m in enumerate(self.fm.members):
+                if member_domain(m, f, amp) is not None:
+                    continue
+                mu, s, p = member_response(m, amp, self.omega, self.alpha)[0](f)
+                self.lls[i] += blurred(probe_log_likelihood(mu, s, p, float(history.omega_b_deg_s[k]),
+                                                            float(history.stderr_deg_s[k]), bool(history.unstable[k]),
+                                                            m.sigma_model, m.atlas.n_repeats), self.blur_steps[i])
         self._seen = len(history)
 
-    def posterior(self) -> np.ndarray:
-        p = np.exp(self.logp - self.logp.max())
-        return p / p.sum()
+    def posterior(self):
+        """The forward model's posterior on the agent's grid (a :class:`plate_env.estimate.Posterior`)."""
+        return pool(self.fm, self.omega, self.alpha, self.lls)
 
     def relative_std(self) -> float:
-        p = self.posterior().sum(1)
-        mean = float(p @ self.omega)
-        return math.sqrt(max(float(p @ (self.omega - mean) ** 2), 0.0)) / mean
+        """Half the 68 % interval of omega_n over its median."""
+        m = self.posterior().omega()
+        return m.stderr / m.value
 
-    @staticmethod
-    def _var_log(prob: np.ndarray, log_w: np.ndarray) -> np.ndarray:
-        """Posterior variance of log omega_n for a stack of unnormalised posteriors (..., n_omega, n_alpha)."""
-        z = prob.sum(axis=(-2, -1))
-        m1 = (prob * log_w).sum(axis=(-2, -1)) / z
-        m2 = (prob * log_w ** 2).sum(axis=(-2, -1)) / z
+    def _member_posts(self) -> tuple[np.ndarray, np.ndarray]:
+        """Unsmoothed per-member posteriors (K, n_omega, n_alpha), each normalised, and the members' weights."""
+        posts, log_z = [], []
+        for ll, inside, m in zip(self.lls, self.inside, self.fm.members, strict=True):
+            ll = np.where(inside, ll, -np.inf)
+            top = float(ll.max())
+            like = np.exp(ll - top)
+            mass = float(like.sum())
+            posts.append(like / mass)
+            log_z.append(top + math.log(mass) - math.log(max(int(inside.sum()), 1)) + math.log(m.weight))
+        log_z = np.array(log_z)
+        if self.fm.pooling == "evidence":
+            wts = np.exp(log_z - log_z.max())
+        else:
+            wts = np.array([m.weight for m in self.fm.members], dtype=float)
+        return np.array(posts), wts / wts.sum()
+
+    def _pooled_var(self, posts: np.ndarray, wts: np.ndarray) -> np.ndarray:
+        """Variance of log omega_n of mixtures: ``posts`` (..., K, n_omega, n_alpha) unnormalised per member,
+        ``wts`` (..., K) member weights (before the members' own masses)."""
+        z = posts.sum(axis=(-2, -1))
+        wz = wts * z
+        tot = wz.sum(-1)
+        m1 = (wts[..., None, None] * posts * self.log_w).sum(axis=(-3, -2, -1)) / tot
+        m2 = (wts[..., None, None] * posts * self.log_w ** 2).sum(axis=(-3, -2, -1)) / tot
         return np.maximum(m2 - m1 ** 2, 0.0)
 
     # ----------------------------------------------------------------- design
@@ -116,30 +158,52 @@ class BayesAgent(Agent):
             return None
         if n >= self.min_probes and self.relative_std() <= self.target_rel:
             return None
-        post = self.posterior()
-        v0 = float(self._var_log(post, self.log_w))
-        flat = post.ravel()
+        posts, wts = self._member_posts()
+        k_mem = len(self.fm.members)
+        v0 = float(self._pooled_var(posts, wts))
         best, best_u = None, -np.inf
         for a in self.amps:
-            mus, ss, ps = self.tables[a]
+            per = self.tables[a]
             done = history.f_p_hz[np.isclose(history.a_p_deg, a)]
-            # objects drawn from the posterior, shared by all candidates of this amplitude (common random numbers)
-            cells = self.rng.choice(flat.size, size=self.n_samples, p=flat)
+            # objects (member, cell) drawn from the posterior, shared by this amplitude's candidates
+            members = self.rng.choice(k_mem, size=self.n_samples, p=wts)
+            cells = np.array([self.rng.choice(posts[j].size, p=posts[j].ravel()) for j in members])
             z = self.rng.normal(size=self.n_samples)
             for i_f in range(len(self.freqs)):
                 if np.any(np.abs(done - self.freqs[i_f]) < 0.5 * self.f_step_hz):
-                    continue  # the physics is deterministic up to placement: a repeat adds little, and its
-                    # model error is not independent of the first one's
-                mu, s, p = mus[i_f], ss[i_f], ps[i_f]
-                p_un = float((post * p).sum())
-                var_un = float(self._var_log(post * p, self.log_w))
-                mu_c, s_c = mu.ravel()[cells], s.ravel()[cells]
+                    continue  # a repeat's model error is not independent of the first one's
+                if all(t is None or not t[0][i_f] for t in per):
+                    continue
+                # per member: p at this candidate (members that do not cover it learn nothing from it)
+                pu = np.stack([np.exp(blurred(np.log(t[3][i_f]), self.blur_steps[j])) if (t is not None and t[0][i_f])
+                               else np.ones((self.n_omega, self.n_alpha)) for j, t in enumerate(per)])
+                covers = np.array([t is not None and bool(t[0][i_f]) for t in per])
+                p_un = float(np.sum(wts * np.where(covers, (posts * pu).sum(axis=(1, 2)), 0.0)))
+                post_un = np.where(covers[:, None, None], posts * pu, posts)
+                var_un = float(self._pooled_var(post_un, wts)) if p_un > 0 else v0
                 for window in self.windows:
                     se2 = SE_1S ** 2 / window
-                    var = s ** 2 + se2 + self.sigma_model ** 2
-                    y = mu_c + z * np.sqrt(s_c ** 2 + se2 + self.sigma_model ** 2)
-                    like = (1 - p)[None] * np.exp(log_student(y[:, None, None] - mu[None], var[None]))
-                    var_st = float(np.mean(self._var_log(post[None] * like, self.log_w[None])))
+                    y = np.empty(self.n_samples)
+                    for s_i, (j, c) in enumerate(zip(members, cells, strict=True)):
+                        t = per[j]
+                        if t is None or not t[0][i_f]:
+                            y[s_i] = np.nan
+                            continue
+                        mu_c = t[1][i_f].ravel()[c]
+                        s_c = t[2][i_f].ravel()[c]
+                        y[s_i] = mu_c + z[s_i] * math.sqrt(s_c ** 2 + se2 + self.fm.members[j].sigma_model ** 2)
+                    valid = ~np.isnan(y)
+                    if not valid.any():
+                        continue
+                    yv = y[valid][:, None, None]
+                    like = np.ones((int(valid.sum()), k_mem, self.n_omega, self.n_alpha))
+                    for j, t in enumerate(per):
+                        if t is not None and t[0][i_f]:
+                            mu, s, p = t[1][i_f], t[2][i_f], t[3][i_f]
+                            var = s ** 2 + se2 + self.fm.members[j].sigma_model ** 2
+                            like[:, j] = np.exp(blurred(np.log1p(-p)[None] + log_student(yv - mu[None], var[None]),
+                                                        self.blur_steps[j]))
+                    var_st = float(np.mean(self._pooled_var(posts[None] * like, wts[None])))
                     expected = p_un * var_un + (1 - p_un) * var_st
                     cost = ctx.overhead_s + window * (1 - p_un) + 0.5 * window * p_un
                     u = (v0 - expected) / cost

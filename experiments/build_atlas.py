@@ -49,7 +49,7 @@ from plate_env import benchmarks as bm
 from plate_env.atlas import FILL_SPREAD, atlas_file, atlas_from_repeats
 from plate_env.atlas_grid import AtlasGrid, result_arrays, run_grid
 from plate_env.executor import BackendSpec, add_executor_argument, make_executor
-from plate_env.forward import fit_sigma_model
+from plate_env.inference import fit_sigma_model
 from plate_env.nuisance import Nuisance
 from plate_env.physics.base import PLACEMENT_STD_M
 from plate_env.reporting import median_p90
@@ -260,7 +260,7 @@ def _study_table(rows, floor_abs, floor_rel) -> list[str]:
 
 def _held_out(args, backend, atlas, grid, tag, n_held, executor) -> tuple[list[str], float]:
     """The atlas against live probes at held-out points (off-grid frequency, omega_n and alpha): a report and the
-    atlas's model error (deg/s, :func:`plate_env.forward.fit_sigma_model`)."""
+    atlas's model error (deg/s, :func:`plate_env.inference.fit_sigma_model`)."""
     hrng = np.random.default_rng(args.seed + 1)
     held = []
     f_lo, f_hi = grid.f_hz[0], grid.f_hz[-1]
@@ -292,7 +292,7 @@ def _held_out(args, backend, atlas, grid, tag, n_held, executor) -> tuple[list[s
             "|---|---|---|---|---|---|",
             f"| {len(st)} | {err_med:.1f} | {err_p90:.1f} | {np.median(np.abs(z)):.2f} | "
             f"{brier:.3f} | {unst.mean():.2f} |", "",
-            f"Model error beyond the spread (maximum likelihood, Student-t, `plate_env.forward.fit_sigma_model`): "
+            f"Model error beyond the spread (maximum likelihood, Student-t, `plate_env.inference.fit_sigma_model`): "
             f"sigma_model = {sigma_model:.2f} deg/s (stored in the atlas's provenance)."], sigma_model
 
 

@@ -206,9 +206,19 @@ def build_parser() -> argparse.ArgumentParser:
     f = sub.add_parser("fit", help="fit a lab sweep (CSV) and estimate omega_n")
     f.add_argument("csv", help="CSV with columns f_p_hz, omega_b_deg_s[, stderr_deg_s, a_p_deg, unstable]")
     f.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees")
-    f.add_argument("--physics", default="tilelink", help="whose calibration/atlas to use (tilelink, paper, ...)")
-    f.add_argument("--model", default=None, help="tilelink model of the calibration/atlas (pointmass)")
-    f.add_argument("--method", default="lorentz", choices=("lorentz", "atlas"))
+    f.add_argument("--bp", type=_arg(checks.real, 0.1, 50.0, unit="mm"), default=3.0,
+                   help="plate linear amplitude B_p, mm (known input)")
+    f.add_argument("--mass-g", type=_arg(checks.real, 0.1, 1000.0, unit="g"), default=13.6,
+                   help="the disc's mass, grams (known input)")
+    f.add_argument("--diameter-mm", type=_arg(checks.real, 10.0, 500.0, unit="mm"), default=80.0,
+                   help="the disc's diameter, mm (known input)")
+    f.add_argument("--method", default="atlas", choices=("atlas", "lorentz"),
+                   help="atlas: a forward model's posterior (default); lorentz: the paper's Eqs. 9-10")
+    f.add_argument("--forward", default="lab", help="atlas method: the forward model, 'lab' (data of unknown "
+                   "origin: every physics and the unknown joint/contact values integrated over) or the simulator "
+                   "that made the data, e.g. 'tilelink/pointmass'")
+    f.add_argument("--physics", default="tilelink", help="lorentz method: whose calibration (tilelink, paper, ...)")
+    f.add_argument("--model", default=None, help="lorentz method: tilelink model of the calibration (pointmass)")
     f.add_argument("--plot", default=None, help="write a PNG of data, fitted curve and posterior (after the results)")
     f.add_argument("--json", action="store_true", help="print one JSON document")
     return parser
@@ -310,13 +320,17 @@ def _fit_report(est, table) -> list[str]:
 
 
 def _cmd_fit(args: argparse.Namespace) -> int:
+    from plate_env.forward import KnownInputs, forward_model_names
     from plate_env.identify import identify
     from plate_env.probes import read_lab_csv
 
     plot = plot_path(args.plot) if args.plot else None
+    known = KnownInputs(b_p=args.bp * 1e-3, mass=args.mass_g * 1e-3, diameter=args.diameter_mm * 1e-3)
+    if args.method == "atlas" and args.forward not in forward_model_names():
+        raise CliError(f"--forward {args.forward!r}: choose one of {forward_model_names()}")
     table = read_lab_csv(args.csv, a_p_deg=args.amp)
     model = args.model or "pointmass"
-    est = identify(table, method=args.method, physics=args.physics, model=model)
+    est = identify(table, method=args.method, physics=args.physics, model=model, forward=args.forward, known=known)
     if args.json:
         print(json.dumps({"file": str(args.csv), "physics": args.physics, "model": model, **est.to_dict()}),
               flush=True)
@@ -325,9 +339,10 @@ def _cmd_fit(args: argparse.Namespace) -> int:
             print(line)
         if est.ok:
             lo, hi = est.omega_n_ci95
+            source = est.forward if est.method == "atlas" else f"{args.physics}/{model}"
             print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s "
                   f"({format_omega_pi(est.omega_n)}; 95 % interval {lo:.1f}-{hi:.1f} rad/s) by {est.method} "
-                  f"on {args.physics}/{model}")
+                  f"on {source}")
             if est.alpha is not None:
                 print(f"alpha_hat   = {math.degrees(est.alpha):.1f} +- {math.degrees(est.alpha_stderr):.1f} deg")
         else:

@@ -40,6 +40,7 @@ from gymnasium import spaces
 from plate_env import checks
 from plate_env.camera import camera_omega_b
 from plate_env.estimate import Estimate
+from plate_env.forward import KnownInputs
 from plate_env.motion import B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
 from plate_env.objects import ObjectPrior, ObjectSpec
 from plate_env.physics import make_physics
@@ -287,9 +288,17 @@ class PlateRotationEnv(gym.Env):
         if not self._rows:
             return Estimate(ok=False, method=self.method, reason="no probes")
         try:
-            return identify(self.table(), method=self.method, physics=self.source, model=self.model)
+            return identify(self.table(), method=self.method, physics=self.source, model=self.model,
+                            known=self.known_inputs())
         except ValueError as exc:
             return Estimate(ok=False, method=self.method, reason=str(exc))
+
+    def known_inputs(self) -> KnownInputs:
+        """What a lab would know of this episode's set-up: B_p and the disc's mass and diameter (weighed and
+        measured, unlike its stiffness); the paper's set-up before the first reset."""
+        if self._obj is None:
+            return KnownInputs(b_p=self.b_p_mm * 1e-3)
+        return KnownInputs(b_p=self.b_p_mm * 1e-3, mass=self._obj.mass, diameter=self._obj.diameter)
 
     def _obs(self) -> np.ndarray:
         obs = np.zeros(self.observation_space.shape, dtype=np.float32)

@@ -1,6 +1,10 @@
-"""What an identification returns: an :class:`Estimate` of omega_n (and alpha) and, for the atlas method, the grid
-:class:`Posterior` it came from. Plain frozen values; both identification methods (:mod:`plate_env.identify`,
+"""What an identification returns: an :class:`Estimate` of omega_n (and alpha) and, for the model-based method, the
+grid :class:`Posterior` it came from. Plain frozen values; both identification methods (:mod:`plate_env.identify`,
 :mod:`plate_env.inference`) build them, so they live below both.
+
+Contracts every estimate keeps: the point estimate lies inside its 68 % interval, which lies inside its 95 %
+interval; ``omega_n_stderr`` is half the 68 % interval's width; an answer at the edge of what the method can
+identify is a bound (``ok`` False, ``bound`` set), never a confident value.
 """
 
 from __future__ import annotations
@@ -12,17 +16,62 @@ import numpy as np
 
 from plate_env.fitting import LorentzFit
 
-#: (mean, standard deviation, 68 % interval, 95 % interval) of one posterior marginal.
-MarginalStats = tuple[float, float, tuple[float, float], tuple[float, float]]
+#: Share of the posterior allowed in an edge zone of the identifiable range before the answer becomes a bound.
+EDGE_MASS = 0.05
+
+
+@dataclass(frozen=True)
+class Marginal:
+    """A one-dimensional posterior summary: the median, equal-tailed 68 % and 95 % intervals, half the 68 % width."""
+
+    value: float
+    stderr: float
+    ci68: tuple[float, float]
+    ci95: tuple[float, float]
+
+
+def marginal(x: np.ndarray, p: np.ndarray, transform=None, floor: float = 0.0) -> Marginal:
+    """Median and equal-tailed intervals of a density gridded at ``x`` (each cell's mass spread evenly over the
+    cell; quantiles interpolated in ``x``), mapped by ``transform``; the 68 % interval is at least ``floor`` (in x)
+    wide. Pure."""
+    x = np.asarray(x, dtype=float)
+    cdf = np.cumsum(p)
+    cdf = np.concatenate([[0.0], cdf / cdf[-1]])
+    edges = np.concatenate([[x[0]], 0.5 * (x[1:] + x[:-1]), [x[-1]]])
+
+    def q(level: float) -> float:
+        return float(np.interp(level, cdf, edges))
+
+    med = q(0.5)
+    lo68, hi68 = q(0.16), q(0.84)
+    if hi68 - lo68 < floor:
+        lo68, hi68 = max(med - floor / 2, x[0]), min(med + floor / 2, x[-1])
+    lo95, hi95 = min(q(0.025), lo68), max(q(0.975), hi68)
+    t = transform or (lambda v: v)
+    return Marginal(value=float(t(med)), stderr=float((t(hi68) - t(lo68)) / 2),
+                    ci68=(float(t(lo68)), float(t(hi68))), ci95=(float(t(lo95)), float(t(hi95))))
 
 
 @dataclass(frozen=True)
 class Posterior:
-    """A normalised posterior on a grid: ``prob[i, j]`` for ``omega_n[i]`` (rad/s) and ``alpha[j]`` (rad)."""
+    """A forward model's normalised posterior on a grid: ``prob[i, j]`` for ``omega_n[i]`` (rad/s, log-spaced) and
+    ``alpha[j]`` (rad).
+
+    Attributes:
+        members: the forward model's member labels; member_weights: their posterior weights.
+        skipped: per member, probes outside its domain (left out of its likelihood).
+        sigma_conv: the log-omega smoothing applied (the coherent discrepancy, at least half a grid step).
+        identifiable_range: the omega_n range (rad/s) every member covers.
+    """
 
     omega_n: np.ndarray
     alpha: np.ndarray
     prob: np.ndarray
+    members: tuple[str, ...] = ()
+    member_weights: tuple[float, ...] = ()
+    skipped: tuple[int, ...] = ()
+    sigma_conv: float = 0.0
+    identifiable_range: tuple[float, float] = (0.0, math.inf)
 
     def marginal_omega(self) -> np.ndarray:
         return self.prob.sum(1)
@@ -30,25 +79,30 @@ class Posterior:
     def marginal_alpha(self) -> np.ndarray:
         return self.prob.sum(0)
 
-    @staticmethod
-    def _stats(x: np.ndarray, p: np.ndarray) -> MarginalStats:
-        mean = float(np.sum(p * x))
-        std = float(math.sqrt(max(np.sum(p * (x - mean) ** 2), 0.0)))
-        cdf = np.cumsum(p)
-        cdf = cdf / cdf[-1]
+    def omega(self) -> Marginal:
+        """omega_n (rad/s): quantiles interpolated in log omega; the 68 % interval at least one grid step wide."""
+        lw = np.log(self.omega_n)
+        return marginal(lw, self.marginal_omega(), np.exp, floor=float(lw[1] - lw[0]) if lw.size > 1 else 0.0)
 
-        def q(level: float) -> float:
-            return float(np.interp(level, cdf, x))
+    def alpha_marginal(self) -> Marginal:
+        """alpha (rad); the 68 % interval at least one grid step wide."""
+        return marginal(self.alpha, self.marginal_alpha(),
+                        floor=float(self.alpha[1] - self.alpha[0]) if self.alpha.size > 1 else 0.0)
 
-        return mean, std, (q(0.16), q(0.84)), (q(0.025), q(0.975))
-
-    def omega_stats(self) -> MarginalStats:
-        """(mean, std, 68 % interval, 95 % interval) of omega_n, rad/s."""
-        return self._stats(self.omega_n, self.marginal_omega())
-
-    def alpha_stats(self) -> MarginalStats:
-        """(mean, std, 68 % interval, 95 % interval) of alpha, rad."""
-        return self._stats(self.alpha, self.marginal_alpha())
+    def edge(self) -> str | None:
+        """``"below"`` / ``"above"`` when more than :data:`EDGE_MASS` of the posterior lies beyond the identifiable
+        range or within two smoothing widths of its edge, else None."""
+        p = self.marginal_omega()
+        lw = np.log(self.omega_n)
+        lo, hi = self.identifiable_range
+        margin = 2 * self.sigma_conv
+        below = float(p[lw <= math.log(lo) + margin].sum())
+        above = float(p[lw >= math.log(hi) - margin].sum()) if math.isfinite(hi) else 0.0
+        if below > EDGE_MASS and below >= above:
+            return "below"
+        if above > EDGE_MASS:
+            return "above"
+        return None
 
 
 @dataclass(frozen=True)
@@ -56,11 +110,14 @@ class Estimate:
     """An identification. ``ok`` False means no estimate could be made (``reason`` says why).
 
     Attributes:
-        omega_n: omega_n_hat, rad/s; omega_n_stderr: rad/s; omega_n_ci68 / omega_n_ci95: credible or confidence
-            intervals, rad/s.
+        omega_n: omega_n_hat, rad/s; omega_n_stderr: rad/s (half the 68 % interval); omega_n_ci68 / omega_n_ci95:
+            credible or confidence intervals, rad/s.
         alpha: alpha_hat, rad (None when the method gives none); alpha_stderr: rad.
+        bound: when the answer lies at the edge of what the method can identify: ``("above", x)`` (omega_n > x
+            rad/s at 95 %) or ``("below", x)`` (omega_n < x); ``ok`` is then False.
+        forward: the forward model the model-based method used (its name), else None.
         fits: the per-amplitude Lorentzian fits (lorentz method), keyed by A_p in degrees.
-        posterior: the atlas posterior (atlas method), else None.
+        posterior: the model-based posterior, else None.
     """
 
     ok: bool
@@ -74,8 +131,16 @@ class Estimate:
     alpha_stderr: float = 0.0
     n_probes: int = 0
     n_unstable: int = 0
+    bound: tuple[str, float] | None = None
+    forward: str | None = None
     fits: dict[float, LorentzFit] = field(default_factory=dict, compare=False, repr=False)
     posterior: Posterior | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.ok and not (self.omega_n_ci95[0] <= self.omega_n_ci68[0] <= self.omega_n <= self.omega_n_ci68[1]
+                            <= self.omega_n_ci95[1]):
+            raise ValueError(f"inconsistent estimate: omega_n {self.omega_n!r} with 68 % interval "
+                             f"{self.omega_n_ci68!r} and 95 % interval {self.omega_n_ci95!r}")
 
     def relative_error(self, omega_n_true: float) -> float:
         """|omega_n_hat - omega_n_true| / omega_n_true; inf when there is no estimate."""
@@ -83,11 +148,15 @@ class Estimate:
 
     def to_dict(self) -> dict:
         """JSON-ready summary in edge units (the posterior grid is left out)."""
-        d = {"ok": self.ok, "method": self.method, "reason": self.reason, "omega_n_rad_s": self.omega_n,
-             "omega_n_stderr_rad_s": self.omega_n_stderr, "omega_n_pi": self.omega_n / math.pi,
-             "omega_n_ci68_rad_s": list(self.omega_n_ci68), "omega_n_ci95_rad_s": list(self.omega_n_ci95),
+        d = {"ok": self.ok, "method": self.method, "reason": self.reason, "forward": self.forward,
+             "omega_n_rad_s": self.omega_n, "omega_n_stderr_rad_s": self.omega_n_stderr,
+             "omega_n_pi": self.omega_n / math.pi, "omega_n_ci68_rad_s": list(self.omega_n_ci68),
+             "omega_n_ci95_rad_s": list(self.omega_n_ci95),
              "alpha_deg": math.degrees(self.alpha) if self.alpha is not None else None,
              "alpha_stderr_deg": math.degrees(self.alpha_stderr), "n_probes": self.n_probes,
-             "n_unstable": self.n_unstable}
+             "n_unstable": self.n_unstable,
+             "bound": None if self.bound is None else {"side": self.bound[0], "omega_n_rad_s": self.bound[1]}}
+        if self.posterior is not None and self.posterior.members:
+            d["members"] = dict(zip(self.posterior.members, self.posterior.member_weights, strict=True))
         d["fits"] = {f"{a:g}": fit.to_dict() for a, fit in self.fits.items()}
         return d

@@ -14,6 +14,7 @@ import numpy as np
 from plate_env.calibration import Calibration, get_calibration
 from plate_env.estimate import Estimate
 from plate_env.fitting import LorentzFit, fit_lorentzian
+from plate_env.forward import ForwardModel, KnownInputs, load_forward_model
 from plate_env.inference import identify_atlas
 from plate_env.physics.base import ProbeResult
 from plate_env.probes import ProbeTable
@@ -69,17 +70,27 @@ def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = 
                     alpha=alpha, alpha_stderr=alpha_se or 0.0, n_probes=len(table), n_unstable=n_un, fits=fits)
 
 
-def identify(probes: Sequence[ProbeResult] | ProbeTable, method: str = "lorentz", physics: str = "tilelink",
-             model: str = "pointmass", **options) -> Estimate:
+def identify(probes: Sequence[ProbeResult] | ProbeTable, method: str = "atlas", physics: str = "tilelink",
+             model: str = "pointmass", forward: ForwardModel | str | None = None, known: KnownInputs | None = None,
+             **options) -> Estimate:
     """Estimate omega_n (and alpha) from probes at any plate amplitudes.
 
-    ``method="lorentz"``: the paper's Eq. (9) fit per amplitude and Eq. (10) calibration of ``physics``/``model``
-    (``physics="paper"`` uses the paper's coefficients). ``method="atlas"``: the posterior over (omega_n, alpha)
-    with the response atlas of ``physics``/``model`` as forward model.
+    ``method="atlas"`` (model-based, the default): the posterior of a forward model (:mod:`plate_env.inference`):
+    ``forward`` (a :class:`~plate_env.forward.ForwardModel` or a shipped name such as ``"lab"``), else the model
+    that made the data, ``"<physics>/<model>"``, conditioned on the known inputs (``known``, else those of the
+    probes when they are :class:`ProbeResult`, else the paper's set-up). ``method="lorentz"``: the paper's Eq. (9)
+    fit per amplitude and Eq. (10) calibration of ``physics``/``model`` (``physics="paper"``: the paper's
+    coefficients).
     """
     if method not in METHODS:
         raise ValueError(f"unknown identification method {method!r}; choose one of {METHODS}")
     table = _table(probes)
     if method == "lorentz":
         return identify_lorentz(table, physics, model, **options)
-    return identify_atlas(table, physics, model, **options)
+    if options:
+        raise TypeError(f"identify(method='atlas') takes no options {sorted(options)}")
+    if known is None and not isinstance(probes, ProbeTable):
+        known = KnownInputs.from_specs(r.spec for r in probes)
+    if not isinstance(forward, ForwardModel):
+        forward = load_forward_model(forward or f"{physics}/{model}", known)
+    return identify_atlas(table, forward)

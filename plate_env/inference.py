@@ -1,126 +1,244 @@
-"""Model-based inference (beyond the paper): a grid posterior over (omega_n, alpha) with the atlas as forward model.
+"""Model-based identification (beyond the paper): the posterior over (omega_n, alpha) of a forward model. Pure.
 
-Likelihood of one probe at (f_p, A_p) for an object (omega_n, alpha), with atlas mean mu, spread s and instability
-probability p:
-    stable probe with omega_B = y +- e:  (1 - p) * StudentT_4(y; mu, s^2 + e^2 + sigma_model^2)
-    unstable probe:                      p
-The Student-t (4 degrees of freedom) keeps one probe that the atlas describes badly (e.g. a rare stable probe
-in a mostly unstable region) from dominating the posterior, as a Gaussian did.
-with p clipped to [P_MIN, 1 - P_MIN] (no single probe can rule an object out on stability alone) and
-``sigma_model`` (deg/s) covering the atlas's interpolation error against live probes. The prior is uniform in
-log omega_n over the atlas's range and uniform in alpha. Works with any set of probes: mixed amplitudes,
-one-sided data, curves without a Lorentzian peak.
+A forward model (:mod:`plate_env.forward`) is one or more *members* (a physics model's response atlas with its
+measured error) and a coherent discrepancy. Given probes:
+
+1. Per member and grid point (omega_eff, alpha), the probes' likelihood: a stable probe with omega_B = y +- e
+   scores ``(1 - p) * StudentT_nu(y; mu, s^2 + e^2 + sigma_model^2)``, an unstable one ``p``, with the atlas's mean
+   mu, spread s (scatter between placements) and instability probability p at (f_p, A_p). ``p`` is the share of
+   unstable repeats shrunk towards 1/2 by Jeffreys' rule, ``(k + 1/2) / (R + 1)`` for k of R repeats: an atlas
+   point with none of 4 repeats unstable says p ~ 1/10, not 0. The Student-t (4 degrees of freedom) keeps one
+   probe the atlas describes badly from dominating. Each probe's likelihood is averaged over the member's
+   ``blur`` (a normal in log omega): the atlas resolves omega_n only to about its node spacing, so a probe on a
+   steep flank or an instability boundary between two nodes does not pin omega_n finer than that.
+2. The coherent discrepancy: the true omega_n differs from the omega_eff a member's curves match by a factor
+   exp(eps), eps ~ Normal(0, sigma_eps^2), the same for every probe of one object; so each member's likelihood is
+   convolved along log omega with that normal (never with less than half a grid step).
+3. Priors: log-uniform in omega_n over each member's atlas range, uniform in alpha; members are weighted by their
+   evidence times their prior weight (``pooling="evidence"``) or by the prior weight alone (``"fixed"``).
+
+The estimate is the posterior median with equal-tailed intervals (:class:`plate_env.estimate.Posterior`); a
+posterior piled against the edge of the identifiable range is reported as a bound. Works with any probes: mixed
+amplitudes, one-sided data, curves without a peak; probes outside a member's atlas are left out of that member.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Sequence
 
 import numpy as np
 
-from plate_env.atlas import Atlas, load_atlas
+from plate_env.atlas import Atlas
 from plate_env.estimate import Estimate, Posterior
+from plate_env.forward import ForwardModel, Member
 from plate_env.probes import ProbeTable
 
-#: A function f_p (Hz) -> (mean deg/s, spread deg/s, p_unstable) on the posterior grid, each (n_omega, n_alpha).
-GridResponse = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]
-
-P_MIN = 0.02
-#: Degrees of freedom of the Student-t likelihood.
+#: Degrees of freedom of the Student-t likelihood of a stable probe.
 NU = 4.0
-#: Default model error of the atlas, deg/s (measured against live probes by experiments/build_atlas.py).
-SIGMA_MODEL = 15.0
+#: Posterior grid sizes (log omega_n, alpha).
+N_OMEGA = 161
+N_ALPHA = 31
+#: The log-omega smoothing is at least this many grid steps (a posterior is never narrower than its grid).
+STEP_FLOOR = 0.5
 
 
-def posterior_grid(atlas: Atlas, n_omega: int = 161, n_alpha: int = 31) -> tuple[np.ndarray, np.ndarray]:
-    """The posterior's grid: log-spaced omega_n and uniform alpha over the atlas's ranges."""
-    w = np.geomspace(atlas.omega_n[0], atlas.omega_n[-1], n_omega)
-    a = np.linspace(atlas.alpha[0], atlas.alpha[-1], n_alpha)
-    return w, a
-
-
+# ----------------------------------------------------------------------------------------------- likelihood
 def log_student(resid: np.ndarray, var: np.ndarray, nu: float = NU) -> np.ndarray:
     """Log-density (up to a constant) of a Student-t residual with scale^2 ``var`` and ``nu`` degrees of freedom."""
     return -0.5 * (nu + 1.0) * np.log1p(resid ** 2 / (nu * var)) - 0.5 * np.log(var)
 
 
-def grid_response(atlas: Atlas, a_p_deg: float, n_omega: int = 161, n_alpha: int = 31) -> GridResponse:
-    """The atlas on the posterior grid for one amplitude, as cubic-spline interpolators along f_p.
-
-    The atlas surface is evaluated once on (atlas f_p nodes) x (posterior grid); a probe then interpolates along
-    f_p alone (a not-a-knot cubic spline, the same kind the atlas uses along f_p), which is exact at the nodes
-    and costs a few microseconds per probe instead of an N-D interpolation of the whole grid. Built once per
-    atlas, amplitude and grid (kept on the atlas).
-    Returns a function ``f_hz -> (mean, spread, p_unstable)``, each (n_omega, n_alpha).
-    """
-    key = ("grid_response", float(a_p_deg), int(n_omega), int(n_alpha))
-    return atlas.cached(key, lambda: _grid_response(atlas, float(a_p_deg), int(n_omega), int(n_alpha)))
+def smoothed_p(p: np.ndarray, n_repeats: int) -> np.ndarray:
+    """Jeffreys' estimate of an instability probability from the share ``p`` of ``n_repeats`` repeats."""
+    return (p * n_repeats + 0.5) / (n_repeats + 1.0)
 
 
-def _grid_response(atlas: Atlas, a_p_deg: float, n_omega: int, n_alpha: int) -> GridResponse:
+def probe_log_likelihood(mu: np.ndarray, spread: np.ndarray, p_unstable: np.ndarray, omega_b: float,
+                         stderr: float, unstable: bool, sigma_model: float, n_repeats: int) -> np.ndarray:
+    """One probe's log-likelihood on a grid, from the atlas's mean, spread and raw unstable share there."""
+    p = smoothed_p(p_unstable, n_repeats)
+    if unstable:
+        return np.log(p)
+    var = spread ** 2 + stderr ** 2 + sigma_model ** 2
+    return np.log1p(-p) + log_student(omega_b - mu, var)
+
+
+def blurred(ll: np.ndarray, blur_steps: float) -> np.ndarray:
+    """A log-likelihood grid (..., n_omega, n_alpha) averaged, as a likelihood, over a normal of ``blur_steps`` grid
+    steps along log omega (axis -2)."""
+    if blur_steps <= 0:
+        return ll
+    from scipy.ndimage import gaussian_filter1d
+
+    top = ll.max(axis=(-2, -1), keepdims=True)
+    like = gaussian_filter1d(np.exp(ll - top), blur_steps, axis=-2, mode="nearest", truncate=4.0)
+    return np.log(np.maximum(like, 1e-300)) + top
+
+
+def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
+    """Why a probe lies outside what a member's atlas describes (None if inside)."""
+    atlas = member.atlas
+    if not np.any(np.isclose(atlas.a_p_deg, abs(a_p_deg), atol=1e-6)):
+        return f"A_p = {a_p_deg:g} deg is not in {member.label}'s atlas ({[float(x) for x in atlas.a_p_deg]} deg)"
+    if not (atlas.f_hz[0] - 1e-9 <= f_hz <= atlas.f_hz[-1] + 1e-9):
+        return f"f_p = {f_hz:g} Hz is outside {member.label}'s atlas ({atlas.f_hz[0]:g}-{atlas.f_hz[-1]:g} Hz)"
+    return None
+
+
+def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     from scipy.interpolate import CubicSpline
 
-    w, a = posterior_grid(atlas, n_omega, n_alpha)
     ff, ww, aa = np.meshgrid(atlas.f_hz, w, a, indexing="ij")
     mean, spread, pu = atlas.predict(ff, a_p_deg, ww, aa)
     interps = [CubicSpline(atlas.f_hz, arr, axis=0) for arr in (mean, spread, pu)]
-    lo, hi = float(atlas.f_hz[0]), float(atlas.f_hz[-1])
+    inside = ((w[:, None] >= atlas.omega_n[0] * (1 - 1e-9)) & (w[:, None] <= atlas.omega_n[-1] * (1 + 1e-9))
+              & (a[None, :] >= atlas.alpha[0] - 1e-9) & (a[None, :] <= atlas.alpha[-1] + 1e-9))
 
     def at(f_hz: float):
-        f = min(max(float(f_hz), lo), hi)
-        m, s, p = (it(f) for it in interps)
+        m, s, p = (it(float(f_hz)) for it in interps)
         return m, np.maximum(s, 0.0), np.clip(p, 0.0, 1.0)
 
-    return at
+    return at, inside
 
 
-def probe_log_likelihood(mu: np.ndarray, s: np.ndarray, p: np.ndarray, omega_b_deg_s: float, stderr_deg_s: float,
-                         unstable: bool, sigma_model: float = SIGMA_MODEL) -> np.ndarray:
-    """One probe's log-likelihood (module docstring) given the atlas's mean ``mu``, spread ``s`` (deg/s) and
-    instability probability ``p`` at each grid object: ``log p`` for an unstable probe, ``log(1 - p)`` plus the
-    Student-t term for a stable one, with p clipped to [P_MIN, 1 - P_MIN]."""
-    p = np.clip(p, P_MIN, 1.0 - P_MIN)
-    if unstable:
-        return np.log(p)
-    var = s ** 2 + stderr_deg_s ** 2 + sigma_model ** 2
-    return np.log1p(-p) + log_student(omega_b_deg_s - mu, var)
+def member_response(member: Member, a_p_deg: float, w: np.ndarray, a: np.ndarray):
+    """``(f_hz -> (mean, spread, p_unstable)), inside``: a member's atlas on the grid ``w`` x ``a`` at one amplitude
+    as cubic splines along f_p (exact at the atlas's nodes; built once per atlas, amplitude and grid, kept on the
+    atlas), and the mask of grid points inside its omega_n and alpha ranges."""
+    key = ("response", abs(float(a_p_deg)), float(w[0]), float(w[-1]), len(w), float(a[0]), float(a[-1]), len(a))
+    return member.atlas.cached(key, lambda: _response(member.atlas, abs(float(a_p_deg)), w, a))
 
 
-def log_likelihood(atlas: Atlas, table: ProbeTable, n_omega: int = 161, n_alpha: int = 31,
-                   sigma_model: float = SIGMA_MODEL) -> np.ndarray:
-    """Sum of the probes' log-likelihoods on the posterior grid (shape (n_omega, n_alpha))."""
-    total = np.zeros((n_omega, n_alpha))
+def member_coverage(member: Member, w: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """The grid points (n_omega, n_alpha) inside a member's atlas ranges."""
+    return member_response(member, float(member.atlas.a_p_deg[0]), w, a)[1]
+
+
+def member_log_likelihood(member: Member, table: ProbeTable, w: np.ndarray, a: np.ndarray
+                          ) -> tuple[np.ndarray, int]:
+    """Sum of the probes' (blurred) log-likelihoods on the grid (n_omega, n_alpha) for one member, and how many
+    probes lay outside its domain (left out)."""
+    total = np.zeros((len(w), len(a)))
+    skipped = 0
+    steps = member.blur / math.log(w[1] / w[0])
     for k in range(len(table)):
-        mu, s, p = grid_response(atlas, float(table.a_p_deg[k]), n_omega, n_alpha)(table.f_p_hz[k])
-        total += probe_log_likelihood(mu, s, p, table.omega_b_deg_s[k], table.stderr_deg_s[k],
-                                      bool(table.unstable[k]), sigma_model)
-    return total
+        f, amp = float(table.f_p_hz[k]), float(table.a_p_deg[k])
+        if member_domain(member, f, amp) is not None:
+            skipped += 1
+            continue
+        mu, s, p = member_response(member, amp, w, a)[0](f)
+        total += blurred(probe_log_likelihood(mu, s, p, float(table.omega_b_deg_s[k]), float(table.stderr_deg_s[k]),
+                                              bool(table.unstable[k]), member.sigma_model, member.atlas.n_repeats),
+                         steps)
+    return total, skipped
 
 
-def posterior(atlas: Atlas, table: ProbeTable, sigma_model: float = SIGMA_MODEL, n_omega: int = 161,
-              n_alpha: int = 31) -> Posterior:
-    """The grid posterior over (omega_n, alpha) given the probes (a flat prior when there are none)."""
-    w, a = posterior_grid(atlas, n_omega, n_alpha)
-    logp = log_likelihood(atlas, table, n_omega, n_alpha, sigma_model)
-    logp -= logp.max()
-    prob = np.exp(logp)
-    return Posterior(omega_n=w, alpha=a, prob=prob / prob.sum())
+# ----------------------------------------------------------------------------------------------- posterior
+def _smooth_log_omega(prob: np.ndarray, sigma_steps: float) -> np.ndarray:
+    """Convolve along axis 0 (a uniform log-omega grid) with a normal of ``sigma_steps`` grid steps; mass pushed
+    beyond the grid is lost (the prior ends there)."""
+    from scipy.ndimage import gaussian_filter1d
+
+    return gaussian_filter1d(prob, sigma_steps, axis=0, mode="constant", cval=0.0, truncate=5.0)
 
 
-def identify_atlas(table: ProbeTable, physics: str = "tilelink", model: str = "pointmass", atlas: Atlas | None = None,
-                   sigma_model: float = SIGMA_MODEL) -> Estimate:
-    """Estimate omega_n and alpha as posterior means, with posterior std and credible intervals."""
-    atlas = atlas if atlas is not None else load_atlas(physics, model)
+def pool(fm: ForwardModel, w: np.ndarray, a: np.ndarray, log_likes: Sequence[np.ndarray],
+         skipped: Sequence[int] = ()) -> Posterior:
+    """Combine the members' log-likelihood grids into the posterior: each member's prior is uniform over the grid
+    points its atlas covers, its likelihood is smoothed along log omega by the discrepancy (at least
+    ``STEP_FLOOR`` grid steps), and members are weighted by evidence x prior weight or by prior weight alone."""
+    step = math.log(w[1] / w[0])
+    sigma = max(fm.sigma_eps, STEP_FLOOR * step)
+    parts, log_z = [], []
+    for m, ll in zip(fm.members, log_likes, strict=True):
+        inside = member_coverage(m, w, a)
+        ll = np.where(inside, ll, -np.inf)
+        top = float(ll.max())
+        like = _smooth_log_omega(np.exp(ll - top), sigma / step)
+        mass = float(like.sum())
+        parts.append(like / mass if mass > 0 else like)
+        log_z.append(top + math.log(max(mass, 1e-300)) - math.log(max(int(inside.sum()), 1)) + math.log(m.weight))
+    log_z = np.array(log_z)
+    if fm.pooling == "evidence":
+        wts = np.exp(log_z - log_z.max())
+    else:
+        wts = np.array([m.weight for m in fm.members], dtype=float)
+    wts = wts / wts.sum()
+    prob = sum(wt * part for wt, part in zip(wts, parts, strict=True))
+    prob = prob / prob.sum()
+    return Posterior(omega_n=w, alpha=a, prob=prob, members=tuple(m.label for m in fm.members),
+                     member_weights=tuple(float(x) for x in wts),
+                     skipped=tuple(skipped) or (0,) * len(fm.members), sigma_conv=sigma,
+                     identifiable_range=fm.identifiable_range)
+
+
+def posterior(fm: ForwardModel, table: ProbeTable, n_omega: int = N_OMEGA, n_alpha: int = N_ALPHA) -> Posterior:
+    """The posterior of ``fm`` given the probes (the prior alone when there are none)."""
+    w, a = fm.grid(n_omega, n_alpha)
+    lls, skipped = zip(*(member_log_likelihood(m, table, w, a) for m in fm.members), strict=True)
+    return pool(fm, w, a, lls, skipped)
+
+
+def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:
+    """omega_n and alpha as posterior medians of ``fm``, with equal-tailed 68 % / 95 % intervals; a bound (``ok``
+    False) when the posterior piles against the edge of the identifiable range; no estimate when a probe lies
+    outside every member's atlas (it is named, not dropped)."""
     n_un = int(table.unstable.sum())
-    try:
-        for amp in table.amplitudes():
-            atlas.amp_index(amp)
-    except ValueError as exc:
-        return Estimate(ok=False, method="atlas", reason=str(exc), n_probes=len(table), n_unstable=n_un)
+    base = {"method": "atlas", "n_probes": len(table), "n_unstable": n_un, "forward": fm.name}
     if len(table) == 0:
-        return Estimate(ok=False, method="atlas", reason="no probes", n_probes=0)
-    post = posterior(atlas, table, sigma_model)
-    wm, ws, w68, w95 = post.omega_stats()
-    am, asd, _, _ = post.alpha_stats()
-    return Estimate(ok=True, method="atlas", omega_n=wm, omega_n_stderr=ws, omega_n_ci68=w68, omega_n_ci95=w95,
-                    alpha=am, alpha_stderr=asd, n_probes=len(table), n_unstable=n_un, posterior=post)
+        return Estimate(ok=False, reason="no probes", **base)
+    orphans = sorted({reason for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)
+                      if all((reason := member_domain(m, float(f), float(amp))) is not None for m in fm.members)})
+    if orphans:  # probes no member describes are not dropped silently
+        return Estimate(ok=False, reason="; ".join(orphans) + f": leave those probes out or use a forward model "
+                        f"that describes them (not {fm.name!r})", **base)
+    post = posterior(fm, table)
+    om, al = post.omega(), post.alpha_marginal()
+    fields = dict(omega_n=om.value, omega_n_stderr=om.stderr, omega_n_ci68=om.ci68, omega_n_ci95=om.ci95,
+                  alpha=al.value, alpha_stderr=al.stderr, posterior=post, **base)
+    side = post.edge()
+    if side is not None:
+        lo, hi = post.identifiable_range
+        bound = ("above", om.ci95[0]) if side == "above" else ("below", om.ci95[1])
+        return Estimate(ok=False, bound=bound, reason=(
+            f"omega_n is {side} the range {fm.name!r} can identify ({lo / math.pi:.3g}-{hi / math.pi:.3g} pi rad/s): "
+            f"omega_n {'>' if side == 'above' else '<'} {bound[1]:.4g} rad/s at 95 %"), **fields)
+    return Estimate(ok=True, **fields)
+
+
+# ----------------------------------------------------------------------------------------------- estimation
+def fit_sigma_model(resid: np.ndarray, spread: np.ndarray, stderr: np.ndarray, nu: float = NU) -> float:
+    """Maximum-likelihood model error (deg/s) of an atlas from live stable probes at held-out points: residuals
+    ``y - mu`` are Student-t with scale^2 ``spread^2 + stderr^2 + sigma^2``."""
+    from scipy.optimize import minimize_scalar
+
+    r = np.asarray(resid, float)
+    base = np.asarray(spread, float) ** 2 + np.asarray(stderr, float) ** 2
+    if r.size == 0:
+        raise ValueError("no held-out residuals to estimate a model error from")
+
+    def nll(log_s: float) -> float:
+        return -float(np.sum(log_student(r, base + math.exp(2 * log_s), nu)))
+
+    best = minimize_scalar(nll, bounds=(math.log(1e-3), math.log(1e3)), method="bounded")
+    return float(math.exp(best.x))
+
+
+def fit_sigma_eps(eps: np.ndarray, post_sd: np.ndarray) -> float:
+    """Maximum-likelihood coherent discrepancy (sd of log omega_n) from held-out objects: ``eps = log(truth /
+    estimate)`` is normal with variance ``post_sd^2 + sigma^2``, ``post_sd`` the posterior's own log-sd; 0 when the
+    posteriors already explain the errors."""
+    from scipy.optimize import minimize_scalar
+
+    e = np.asarray(eps, float)
+    s2 = np.asarray(post_sd, float) ** 2
+    if e.size == 0:
+        raise ValueError("no held-out objects to estimate a discrepancy from")
+
+    def nll(sig: float) -> float:
+        v = s2 + sig ** 2
+        return float(np.sum(0.5 * np.log(v) + 0.5 * e ** 2 / v))
+
+    best = minimize_scalar(nll, bounds=(0.0, 2.0), method="bounded")
+    return float(best.x) if nll(best.x) < nll(0.0) else 0.0

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from plate_env.atlas import Atlas
-from plate_env.inference import grid_response
+from plate_env.forward import Member
+from plate_env.inference import member_response
 
 
 def test_interpolators_are_cached_per_instance_not_shared(toy_atlas):
@@ -18,15 +19,16 @@ def test_interpolators_are_cached_per_instance_not_shared(toy_atlas):
     assert 1.9 * m1 < m2 < 2.1 * m1  # a shared cache would have answered the first atlas
     assert one._interpolator("mean", 0) is one._interpolator("mean", 0)
     assert one._interpolator("mean", 0) is not two._interpolator("mean", 0)
-    g = grid_response(one, 3.0, 21, 5)
-    assert grid_response(one, 3.0, 21, 5) is g and grid_response(two, 3.0, 21, 5) is not g
+    w, a = np.geomspace(10.0, 100.0, 21), np.linspace(0.6, 1.0, 5)
+    g = member_response(Member(one, 1.0), 3.0, w, a)
+    assert member_response(Member(one, 2.0), 3.0, w, a) is g and member_response(Member(two, 1.0), 3.0, w, a) is not g
     assert one != two and one == one  # identity equality: numpy fields have no value equality
 
 
 def test_pickled_atlas_drops_its_cache_and_predicts_the_same(toy_atlas):
     atlas = toy_atlas()
     before = atlas.predict(23.5, 3.0, 40.0, 0.8)
-    grid_response(atlas, 3.0, 21, 5)(23.5)
+    member_response(Member(atlas, 1.0), 3.0, np.geomspace(10.0, 100.0, 21), np.linspace(0.6, 1.0, 5))[0](23.5)
     assert atlas._cache
     back = pickle.loads(pickle.dumps(atlas))
     assert back._cache == {}

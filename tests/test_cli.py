@@ -187,7 +187,8 @@ def test_cli_fit_json_and_plot(tmp_path, capsys):
     p = _write_csv(tmp_path, "f_p_hz,omega_b_deg_s,stderr_deg_s\n" + "".join(f"{a},{b},5\n" for a, b in zip(f, y,
                                                                                                    strict=True)))
     png = tmp_path / "fit.png"
-    assert main(["fit", str(p), "--amp", "12", "--physics", "paper", "--json", "--plot", str(png)]) == 0
+    assert main(["fit", str(p), "--amp", "12", "--method", "lorentz", "--physics", "paper", "--json", "--plot",
+                 str(png)]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["ok"] and out["fits"]["12"]["f0_hz"] == pytest.approx(13.0, rel=1e-3)
     assert out["omega_n_rad_s"] == pytest.approx(paper_calibration(12).omega_n(13.0), rel=1e-3)

@@ -23,9 +23,9 @@ def test_identify_lorentz_combines_amplitudes_by_inverse_variance():
     t12 = ProbeTable.from_arrays(f, 12.0, lorentzian(f, 380, 13.0, 3.0), np.full(f.size, 5.0))
     both = ProbeTable(*(np.concatenate([getattr(t3, k), getattr(t12, k)]) for k in
                         ("f_p_hz", "a_p_deg", "omega_b_deg_s", "stderr_deg_s", "unstable")))
-    e3 = identify(t3, calibrations=cals)
-    e12 = identify(t12, calibrations=cals)
-    eb = identify(both, calibrations=cals)
+    e3 = identify(t3, method="lorentz", calibrations=cals)
+    e12 = identify(t12, method="lorentz", calibrations=cals)
+    eb = identify(both, method="lorentz", calibrations=cals)
     assert e3.ok and e12.ok and eb.ok
     w3, w12 = 1 / e3.omega_n_stderr ** 2, 1 / e12.omega_n_stderr ** 2
     assert eb.omega_n == pytest.approx((w3 * e3.omega_n + w12 * e12.omega_n) / (w3 + w12))
@@ -33,7 +33,7 @@ def test_identify_lorentz_combines_amplitudes_by_inverse_variance():
 
 
 def test_identify_reports_cannot_fit():
-    est = identify(ProbeTable.from_arrays([20.0, 25.0], 3.0, [100.0, 200.0]), physics="paper")
+    est = identify(ProbeTable.from_arrays([20.0, 25.0], 3.0, [100.0, 200.0]), method="lorentz", physics="paper")
     assert not est.ok and "at least 4" in est.reason
     with pytest.raises(ValueError, match="unknown identification method"):
         identify(ProbeTable.from_arrays([20.0], 3.0, [1.0]), method="magic")
