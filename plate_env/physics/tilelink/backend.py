@@ -47,20 +47,12 @@ PROGRESS_CHUNK = 8
 
 @lru_cache(maxsize=256)
 def _pointmass_params(obj: ObjectSpec, config: PointMassConfig):
-    # one BLAS thread: the modal analysis' eigensolve differs in the last bits with the BLAS thread count, which
-    # the kernel grows to ~1e-10 of omega_B; with it a probe repeats bit for bit in any process (plate_env.executor)
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):
-        return build_params(obj, config)
+    return build_params(obj, config)
 
 
 @lru_cache(maxsize=256)
 def _ainv(obj: ObjectSpec, config: PointMassConfig, dt: float) -> np.ndarray:
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):
-        return implicit_damping_matrix(_pointmass_params(obj, config), dt)
+    return implicit_damping_matrix(_pointmass_params(obj, config), dt)
 
 
 class TileLinkPhysics:
