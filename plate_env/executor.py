@@ -295,29 +295,33 @@ def default_local(backend: BackendSpec) -> str:
     return "inprocess"
 
 
+def check_executor_name(name: str | None) -> None:
+    """Refuse an executor name :func:`make_executor` would not accept (ValueError naming it), starting nothing."""
+    name = name or "local"
+    if name in EXECUTOR_NAMES or name.startswith("ray://"):
+        return
+    if name.startswith("pool:"):
+        n = name.split(":", 1)[1]
+        if n.isdigit() and int(n) >= 1:
+            return
+        raise ValueError(f"executor {name!r}: pool:N needs a positive number of workers N")
+    raise ValueError(f"unknown executor {name!r}; choose local, inprocess, pool, pool:N, ray or ray://HOST:PORT")
+
+
 def make_executor(name: str | None = "local", backend: BackendSpec | None = None, **kw: Any) -> Executor:
     """An executor by name: ``local`` (default, by backend), ``inprocess``, ``pool[:N]``, ``ray`` or
     ``ray://HOST:PORT``; ``kw`` go to its constructor. Refuses an unknown name before any work starts."""
+    check_executor_name(name)
     name = name or "local"
     if name == "local":
         name = default_local(backend) if backend is not None else "inprocess"
     if name == "inprocess":
         return InProcessExecutor(**kw)
     if name == "pool" or name.startswith("pool:"):
-        workers = None
-        if name != "pool":
-            try:
-                workers = int(name.split(":", 1)[1])
-            except ValueError:
-                workers = -1
-            if workers < 1:
-                raise ValueError(f"executor {name!r}: pool:N needs a positive number of workers N")
-        return PoolExecutor(workers=workers, **kw)
-    if name == "ray":
-        return RayExecutor(**kw)
+        return PoolExecutor(workers=int(name.split(":", 1)[1]) if ":" in name else None, **kw)
     if name.startswith("ray://"):
         return RayExecutor(address=name, **kw)
-    raise ValueError(f"unknown executor {name!r}; choose local, inprocess, pool, pool:N, ray or ray://HOST:PORT")
+    return RayExecutor(**kw)
 
 
 def add_executor_argument(parser) -> None:
