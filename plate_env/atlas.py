@@ -114,13 +114,21 @@ def atlas_file(physics: str, model: str) -> str:
     return f"atlas_{physics}_{model}.npz"
 
 
-@lru_cache(maxsize=8)
 def load_atlas(physics: str = "tilelink", model: str = "pointmass") -> Atlas:
     """The shipped atlas of a physics backend."""
-    ref = resources.files("plate_env") / "data" / atlas_file(physics, model)
-    if not ref.is_file():
+    try:
+        return load_atlas_file(atlas_file(physics, model))
+    except FileNotFoundError:
         raise ValueError(f"no atlas shipped for physics {physics!r} model {model!r} "
-                         f"(run experiments/build_atlas.py --physics {physics} --model {model})")
+                         f"(run experiments/build_atlas.py --physics {physics} --model {model})") from None
+
+
+@lru_cache(maxsize=32)
+def load_atlas_file(name: str) -> Atlas:
+    """A shipped atlas by file name (package data), loaded once per process."""
+    ref = resources.files("plate_env") / "data" / name
+    if not ref.is_file():
+        raise FileNotFoundError(f"no atlas file {name!r} in plate_env/data")
     with resources.as_file(ref) as p:
         return Atlas.load(p)
 
