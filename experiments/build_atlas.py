@@ -128,7 +128,7 @@ def main() -> None:
     spec_grid = AtlasGrid.from_json(args.grid_file) if args.grid_file else GRIDS[grid]
     if args.grid_file:
         grid = args.grid_file
-    n_held = args.held_out if args.held_out is not None else (0 if grid == "pybullet" else 120)
+    n_held = args.held_out if args.held_out is not None else (0 if args.physics == "pybullet" else 120)
     backend, model = make_backend(args.physics, args.model)
     physics = backend.build()  # read-only here: its settings for the provenance (the executor runs its own)
     executor = make_executor(args.executor, backend)
