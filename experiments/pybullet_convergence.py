@@ -45,7 +45,7 @@ _S, _M = bm.PYBULLET_SETTLE_S, bm.PYBULLET_MEASURE_S
 #: (most needed first; the later ones at the centred placement only, to fit the CPU budget of a shared machine).
 CONFIGS = {
     "n91_dt4": (91, 4e-4, _S, _M, 2),
-    "n150_dt4": (150, 4e-4, _S, _M, 1),
+    "n150_dt4": (150, 4e-4, _S, _M, 2),
     "n120_dt4": (120, 4e-4, _S, _M, 1),
     "n91_dt2": (91, 2e-4, _S, _M, 1),
     "n70_dt4": (70, 4e-4, _S, _M, 1),
