@@ -51,6 +51,7 @@ CONFIGS = {
     "n70_dt4": (70, 4e-4, _S, _M, 1),
     "n91_dt4_long": (91, 4e-4, 0.5, 1.0, 1),
     "n150_dt2": (150, 2e-4, _S, _M, 1),
+    "n200_dt4": (200, 4e-4, _S, _M, 1),
 }
 #: The mesh reference (dt 4e-4 s: the earlier study found omega_B within 0.5 % over dt 1e-4..8e-4 s at 10pi;
 #: ``n91_dt2`` re-checks dt on the whole grid, ``n150_dt2`` is run last if time allows).
