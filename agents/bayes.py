@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from agents.base import Agent, Probe
+from plate_env import checks
 from plate_env.atlas import load_atlas
 from plate_env.inference import P_MIN, SIGMA_MODEL, grid_response, log_student, posterior_grid
 from plate_env.probes import ProbeTable
@@ -41,7 +42,7 @@ class BayesAgent(Agent):
     def __init__(self, target_rel: float = 0.03, windows_s: tuple[float, ...] = (1.0, 2.0),
                  f_step_hz: float = 0.5, n_samples: int = 12, n_omega: int = 81, n_alpha: int = 16,
                  min_probes: int = 3, sigma_model: float = SIGMA_MODEL, atlas=None) -> None:
-        self.target_rel = target_rel
+        self.target_rel = checks.real("target_rel", target_rel, 0.0, 1.0, open_hi=True)
         self.windows_s = windows_s
         self.f_step_hz = f_step_hz
         self.n_samples = n_samples

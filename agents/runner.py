@@ -34,11 +34,7 @@ class EpisodeResult:
         return {"agent": self.agent, "omega_n_true_rad_s": self.omega_n_true, "alpha_true_deg":
                 float(np.degrees(self.alpha_true)), "relative_error": self.relative_error if self.estimate.ok
                 else None, "n_probes": self.n_probes, "sim_s": self.sim_s, "wall_s": self.wall_s,
-                "estimate": self.estimate.to_dict(),
-                "probes": [{"f_p_hz": float(f), "a_p_deg": float(a), "omega_b_deg_s": float(w),
-                            "stderr_deg_s": float(s), "unstable": bool(u)} for f, a, w, s, u in
-                           zip(self.probes.f_p_hz, self.probes.a_p_deg, self.probes.omega_b_deg_s,
-                               self.probes.stderr_deg_s, self.probes.unstable, strict=True)]}
+                "estimate": self.estimate.to_dict(), "probes": self.probes.to_rows()}
 
 
 def run_episode(env, agent: Agent, seed: int, options: dict | None = None,

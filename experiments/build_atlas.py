@@ -14,9 +14,10 @@ Grids (plate_env.benchmarks), chosen by ``--grid`` (default: ``pybullet`` for ``
 * ``pybullet``: f_p 10-26 Hz (2 Hz) x A_p 3 deg x omega_n {5, 7, 10, 14, 20, 28, 33}pi x alpha {30, 40, 50, 60} deg,
   windows 0.3 s settle + 0.6 s measure (recorded in the provenance; the evaluation uses the same). Probes run as
   sweeps per object (ascending f_p, the backend's scene carried over within a sequence, as in the evaluation).
-  PyBullet ignores ProbeSpec.initial_yaw/initial_offset, so repeats would be identical: use ``--repeats 1``. The
-  between-placement spread is measured instead by re-running a few grid sweeps with other
-  ``PyBulletPhysics(initial_pose=...)`` placements, and folded into every grid point's spread (see below). The
+  The grid is run centred (``--repeats 1``: a sweep carries one scene over its probes, which random placements
+  would break up). The between-placement spread is measured instead by re-running a few grid sweeps at other
+  placements (``ProbeSpec.initial_yaw``/``initial_offset``, one per sweep), and folded into every grid point's
+  spread (see below). The
   held-out scoring is done on the identification sweeps (``experiments/evaluate_pybullet.py``).
 
 Or a grid named by data: ``--grid-file`` (JSON, :class:`plate_env.atlas_grid.AtlasGrid`: ``f_p_hz`` as a list or
@@ -48,6 +49,8 @@ from plate_env import benchmarks as bm
 from plate_env.atlas import FILL_SPREAD, atlas_file, atlas_from_repeats
 from plate_env.atlas_grid import AtlasGrid, result_arrays, run_grid
 from plate_env.executor import BackendSpec, add_executor_argument, make_executor
+from plate_env.forward import fit_sigma_model
+from plate_env.nuisance import Nuisance
 from plate_env.physics.base import PLACEMENT_STD_M
 from plate_env.sweeps import run_cached
 
@@ -59,10 +62,12 @@ GRIDS = {
 }
 
 
-def make_backend(physics_name: str, model: str, **kw) -> tuple[BackendSpec, str]:
+def make_backend(physics_name: str, model: str, nuisance: Nuisance | None = None, **kw) -> tuple[BackendSpec, str]:
     """The backend's description, and the model name its atlas is filed under (tilelink: the model; else the
-    physics name)."""
+    physics name). ``nuisance``: tile-link joint and contact values other than the defaults."""
     if physics_name == "tilelink":
+        if nuisance is not None:
+            return BackendSpec.of("tilelink", **nuisance.tilelink_options(model)), model
         return BackendSpec.of("tilelink", model=model), model
     if physics_name == "pybullet":
         return BackendSpec.of("pybullet", n_workers=1, **kw), physics_name
@@ -84,8 +89,9 @@ def placement_spread(physics_name: str, grid_res: dict, settle: float, measure: 
     rows = []
     runs = {}
     for i, pose in enumerate(bm.PYBULLET_PLACEMENT_POSES):
-        backend, _ = make_backend(physics_name, "", initial_pose=pose)
-        specs = [s for w, a in bm.PYBULLET_PLACEMENT_OBJECTS
+        backend, _ = make_backend(physics_name, "")
+        specs = [dataclasses.replace(s, initial_yaw=pose[0], initial_offset=(pose[1], pose[2]))
+                 for w, a in bm.PYBULLET_PLACEMENT_OBJECTS
                  for s in bm.sweep_specs(pe.ObjectSpec.from_paper(w, a), f, amp, settle_s=settle, measure_s=measure)]
         runs[i] = run_cached(backend, specs, f"experiments/cache/atlas_pybullet_pose{i}.jsonl", chunk=len(f),
                              desc=f"placement {i}", executor=executor)
@@ -119,6 +125,8 @@ def main() -> None:
     ap.add_argument("--chunk", type=int, default=None, help="probes per chunk (default: a sweep for pybullet, "
                     "128 in-process, 16 on workers)")
     add_executor_argument(ap)
+    ap.add_argument("--nuisance", default=None, help="tile-link joint/contact values, e.g. "
+                    "'zeta_bending=0.05,k_inplane=1000' (plate_env.nuisance.Nuisance fields)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--held-out", type=int, default=None,
@@ -129,14 +137,20 @@ def main() -> None:
     if args.grid_file:
         grid = args.grid_file
     n_held = args.held_out if args.held_out is not None else (0 if args.physics == "pybullet" else 120)
-    backend, model = make_backend(args.physics, args.model)
+    nuisance = None
+    if args.nuisance:
+        try:
+            nuisance = Nuisance(**{k.strip(): float(v) for k, v in (kv.split("=") for kv in args.nuisance.split(","))})
+        except (TypeError, ValueError) as exc:
+            ap.error(f"--nuisance {args.nuisance!r}: {exc}")
+    backend, model = make_backend(args.physics, args.model, nuisance)
     physics = backend.build()  # read-only here: its settings for the provenance (the executor runs its own)
     executor = make_executor(args.executor, backend)
     tag = args.name or f"{args.physics}_{model}"
     t0 = time.perf_counter()
     # object-major order with ascending f_p inside (sweeps) for the pybullet grid: its backend carries the sheet's
     # state over a sequence of probes of one object; the tile-link order (f_p outermost) is kept as it was.
-    # PyBullet ignores the placement fields: keep them at 0 there (and the cache keys clean)
+    # PyBullet: centred sweeps (one scene per sequence); its placement spread is measured separately
     try:
         res = run_grid(backend, spec_grid, args.repeats, args.seed, f"experiments/cache/atlas_{tag}.jsonl",
                        executor=executor, chunk=args.chunk, placed=args.physics != "pybullet",
@@ -153,12 +167,14 @@ def _finish(args, grid, spec_grid, backend, physics, model, tag, res, executor, 
     omega, se, un = result_arrays(res)
     n_probes = res.size
     provenance = {"grid": grid, "f_p_hz": _f_range(f), "a_p_deg": amps, "omega_n_pi": ws, "alpha_deg": als,
-                  "repeats": args.repeats, "seed": args.seed, "b_p_mm": 3.0, "dt_s": getattr(physics, "dt", None),
+                  "repeats": args.repeats, "seed": args.seed, "b_p_mm": spec_grid.b_p_mm, "mass_g": spec_grid.mass_g,
+                  "diameter_mm": spec_grid.diameter_mm, "dt_s": getattr(physics, "dt", None),
                   "ramp_s": 0.2, "settle_s": settle, "measure_s": measure,
                   "backend": {"name": backend.name, "options": {k: repr(v) for k, v in backend.options}},
                   "placement": (f"yaw U(0, pi/2), offset N(0, {PLACEMENT_STD_M * 1e3:g} mm) per axis"
                                 if args.physics != "pybullet" else
-                                "centred (PyBulletPhysics initial_pose (0, 0, 0)); sweeps per object, ascending f_p, "
+                                "centred (ProbeSpec initial_yaw 0, initial_offset (0, 0)); sweeps per object, "
+                                "ascending f_p, "
                                 f"sequence_len {getattr(physics, 'sequence_len', None)}"),
                   "plate_env": pe.__version__, "date": datetime.date.today().isoformat()}
     study_lines: list[str] = []
@@ -183,6 +199,11 @@ def _finish(args, grid, spec_grid, backend, physics, model, tag, res, executor, 
         floor = np.maximum(floor_abs, floor_rel * np.abs(atlas.mean))
         spread = np.where(n_st > 0, np.sqrt(own ** 2 + floor ** 2), FILL_SPREAD)
         atlas = dataclasses.replace(atlas, spread=spread)
+    held_lines: list[str] = []
+    if n_held > 0:
+        held_lines, sigma_model = _held_out(args, backend, atlas, spec_grid, tag, n_held, executor)
+        atlas = dataclasses.replace(atlas, provenance={**provenance, "sigma_model_deg_s": sigma_model,
+                                                       "sigma_model_from": f"{n_held} live probes at held-out points"})
     out = f"plate_env/data/{atlas_file(args.physics, model) if not args.name else f'atlas_{args.name}.npz'}"
     atlas.save(out)
     lines = [f"# Response atlas: {args.physics} / {model}", "",
@@ -197,7 +218,7 @@ def _finish(args, grid, spec_grid, backend, physics, model, tag, res, executor, 
         lines += _grid_table(f, ws, als, omega, un), ""
         lines += study_lines
     if n_held > 0:
-        lines += _held_out(args, backend, atlas, amps, tag, n_held, executor)
+        lines += held_lines
     else:
         lines += ["Held-out error: scored on the identification sweeps of held-out objects "
                   "(`experiments/evaluate_pybullet.py`, `experiments/results/identification_pybullet*.md`)."]
@@ -221,10 +242,9 @@ def _grid_table(f, ws, als, omega, un) -> str:
 
 def _study_table(rows, floor_abs, floor_rel) -> list[str]:
     out = ["## Between-placement spread (1 repeat per grid point)", "",
-           "PyBullet ignores ProbeSpec.initial_yaw/initial_offset, so the grid has one (centred) run per point and "
-           "atlas_from_repeats would fall back to a 1 deg/s spread. The sweeps of "
-           f"{bm.PYBULLET_PLACEMENT_OBJECTS} (omega_n pi, alpha deg) were re-run with PyBulletPhysics(initial_pose="
-           f"...) at {bm.PYBULLET_PLACEMENT_POSES} (yaw rad, dx m, dy m):", "",
+           "The grid has one (centred) run per point, so atlas_from_repeats would fall back to a 1 deg/s spread. "
+           f"The sweeps of {bm.PYBULLET_PLACEMENT_OBJECTS} (omega_n pi, alpha deg) were re-run with the disc placed "
+           f"at {bm.PYBULLET_PLACEMENT_POSES} (ProbeSpec initial_yaw rad, initial_offset m):", "",
            "| omega_n, alpha | f_p | centred / placements [deg/s] | sd |", "|---|---|---|---|"]
     for w, a, fk, ys in rows:
         st = [y for y in ys if y is not None]
@@ -237,25 +257,31 @@ def _study_table(rows, floor_abs, floor_rel) -> list[str]:
     return out
 
 
-def _held_out(args, backend, atlas, amps, tag, n_held, executor) -> list[str]:
-    # held-out points: off-grid frequency, omega_n and alpha
+def _held_out(args, backend, atlas, grid, tag, n_held, executor) -> tuple[list[str], float]:
+    """The atlas against live probes at held-out points (off-grid frequency, omega_n and alpha): a report and the
+    atlas's model error (deg/s, :func:`plate_env.forward.fit_sigma_model`)."""
     hrng = np.random.default_rng(args.seed + 1)
     held = []
+    f_lo, f_hi = grid.f_hz[0], grid.f_hz[-1]
     for _ in range(n_held):
         obj = pe.ObjectSpec.from_paper(float(hrng.choice(bm.HELD_OUT_OMEGAS_PI)),
-                                       float(hrng.choice(bm.HELD_OUT_ALPHAS_DEG)))
-        held.append(pe.ProbeSpec(obj, pe.PlateMotion.from_paper(float(hrng.uniform(10.5, 39.5)),
-                                                                float(hrng.choice(amps)))).perturbed(hrng))
+                                       float(hrng.choice(bm.HELD_OUT_ALPHAS_DEG)), mass_g=grid.mass_g,
+                                       diameter_mm=grid.diameter_mm)
+        held.append(pe.ProbeSpec(obj, pe.PlateMotion.from_paper(float(hrng.uniform(f_lo + 0.5, f_hi - 0.5)),
+                                                                float(hrng.choice(grid.a_p_deg)), grid.b_p_mm),
+                                 settle_s=grid.settle_s, measure_s=grid.measure_s).perturbed(hrng))
     live = run_cached(backend, held, f"experiments/cache/atlas_heldout_{tag}.jsonl", desc="held-out",
                       executor=executor)
     rows = []
     for r in live:
         mu, s, p = atlas.predict(r.spec.motion.freq_hz, r.spec.motion.a_p_deg, r.spec.obj.omega_n, r.spec.obj.alpha)
-        rows.append((r.unstable, r.omega_b_deg_s, float(mu), float(s), float(p)))
-    st = [(y, mu, s) for u, y, mu, s, _ in rows if not u]
+        rows.append((r.unstable, r.omega_b_deg_s, float(mu), float(s), float(p), r.stderr_deg_s))
+    st = [(y, mu, s) for u, y, mu, s, _, _ in rows if not u]
+    sigma_model = fit_sigma_model(np.array([y - mu for y, mu, _ in st]), np.array([s for *_, s in st]),
+                                  np.array([e for u, *_, e in rows if not u]))
     err = np.array([abs(y - mu) for y, mu, _ in st])
     z = np.array([(y - mu) / max(s, 1e-9) for y, mu, s in st])
-    pu = np.array([p for *_, p in rows])
+    pu = np.array([p for *_, p, _ in rows])
     unst = np.array([u for u, *_ in rows], float)
     brier = float(np.mean((pu - unst) ** 2))
     return [f"## Error against {len(live)} live probes at held-out points (off-grid f_p, omega_n, alpha)", "",
@@ -263,7 +289,9 @@ def _held_out(args, backend, atlas, amps, tag, n_held, executor) -> list[str]:
             "instability Brier score (0.25 = coin) | observed unstable share |",
             "|---|---|---|---|---|---|",
             f"| {len(st)} | {np.median(err):.1f} | {np.percentile(err, 90):.1f} | {np.median(np.abs(z)):.2f} | "
-            f"{brier:.3f} | {unst.mean():.2f} |"]
+            f"{brier:.3f} | {unst.mean():.2f} |", "",
+            f"Model error beyond the spread (maximum likelihood, Student-t, `plate_env.forward.fit_sigma_model`): "
+            f"sigma_model = {sigma_model:.2f} deg/s (stored in the atlas's provenance)."], sigma_model
 
 
 if __name__ == "__main__":

@@ -4,7 +4,7 @@
 
 Held-out objects (plate_env.benchmarks.PYBULLET_HELD_OUT_OBJECTS: no omega_n or alpha value on the pybullet atlas
 grid) are swept over the atlas's frequencies (10-26 Hz, 2 Hz) at A_p = 3 deg, B_p = 3 mm, with the atlas's probe
-windows (read from its provenance), centred placement (PyBullet ignores ProbeSpec.initial_yaw/initial_offset), one
+windows (read from its provenance), centred placement (as the atlas grid was run), one
 process. Each sweep is identified with ``identify(..., method="atlas", physics="pybullet", model=...)``: median and
 90th-percentile relative error of omega_n_hat, 1-sigma coverage, alpha error. Also scores the atlas itself on
 these probes (prediction error at held-out (omega_n, alpha)). Resumable cache:

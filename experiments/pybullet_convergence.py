@@ -8,8 +8,9 @@ sheet (``sequence_len=1``) at two placements (centred and the pybullet atlas's f
 Every resolution is calibrated to the same omega_n by its own ring-downs (``calibrated_k``), so the comparison is
 at equal omega_n as built (the omega_n each resolution reached is reported too: the calibration tolerance is 2 %).
 
-Resumable: probes are appended to ``experiments/cache/pybullet_convergence_pose<i>.jsonl`` (one file per placement:
-the sweep cache key does not name ``PyBulletPhysics(initial_pose=...)``); Ctrl-C and rerun resumes. Runs the
+Resumable: probes are appended to ``experiments/cache/pybullet_convergence_pose<i>.jsonl`` (one file per placement;
+the placement is the specs' ``initial_yaw``/``initial_offset``, part of their cache keys; keys written before it
+was, by ``PyBulletPhysics(initial_pose=...)``, are renamed on start); Ctrl-C and rerun resumes. Runs the
 resolutions in the order given, then writes ``experiments/results/pybullet_convergence.md`` from every resolution
 whose probes are all cached. ``--report-only`` writes the report from the cache without simulating.
 """
@@ -21,7 +22,9 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # noqa: E402 - before numpy, inherited by the pool's workers
 
 import argparse
+import dataclasses
 import datetime
+import json
 import math
 import subprocess
 import time
@@ -60,16 +63,46 @@ REFERENCE = "n150_dt4"
 SPREAD_FROM = "n91_dt4"
 
 
-def specs_for(label: str) -> list[pe.ProbeSpec]:
+def specs_for(label: str, pose) -> list[pe.ProbeSpec]:
+    """The grid's probes of a resolution, the sheet placed at ``pose`` (yaw rad, u m, v m)."""
     _, _, settle, measure, _ = CONFIGS[label]
-    return [s for w in OMEGAS_PI
+    return [dataclasses.replace(s, initial_yaw=pose[0], initial_offset=(pose[1], pose[2])) for w in OMEGAS_PI
             for s in bm.sweep_specs(pe.ObjectSpec.from_paper(w, ALPHA_DEG), FREQS_HZ, AMP_DEG,
                                     settle_s=settle, measure_s=measure)]
 
 
-def backend_for(label: str, pose) -> BackendSpec:
+def backend_for(label: str) -> BackendSpec:
     n, dt, _, _, _ = CONFIGS[label]
-    return BackendSpec.of("pybullet", n_layer=n, dt=dt, sequence_len=1, n_workers=1, initial_pose=tuple(pose))
+    return BackendSpec.of("pybullet", n_layer=n, dt=dt, sequence_len=1, n_workers=1)
+
+
+def rename_legacy_keys() -> None:
+    """Rename cache keys written when the placement was a backend option (``initial_pose``, not in the key): a pose's
+    file then held the centred specs' keys. Now the placement is on the specs, so it is in their keys."""
+    for i, pose in enumerate(POSES):
+        path = cache_path(i)
+        if not any(pose) or not path.exists():
+            continue
+        rename = {}
+        for lab in CONFIGS:
+            tag = backend_tag(backend_for(lab))
+            for old, new in zip(specs_for(lab, POSES[0]), specs_for(lab, pose), strict=True):
+                rename[spec_key(tag, old)] = spec_key(tag, new)
+        lines, changed = [], 0
+        for line in path.read_text().splitlines():
+            try:
+                d = json.loads(line)
+            except json.JSONDecodeError:
+                lines.append(line)
+                continue
+            if d.get("key") in rename:
+                d["key"] = rename[d["key"]]
+                line, changed = json.dumps(d), changed + 1
+            lines.append(line)
+        if changed:
+            path.write_text("\n".join(lines) + "\n")
+            print(f"{path.name}: {changed} cache keys renamed to name their placement", flush=True)
+
 
 
 def cache_path(i_pose: int) -> Path:
@@ -80,10 +113,10 @@ def cached(label: str) -> np.ndarray | None:
     """omega_B [pose, omega, f] (NaN where unstable) if every probe of ``label`` is cached, else None."""
     n_poses = CONFIGS[label][4]
     out = np.full((n_poses, len(OMEGAS_PI), len(FREQS_HZ)), np.nan)
+    tag = backend_tag(backend_for(label))
     for i, pose in enumerate(POSES[:n_poses]):
-        tag = backend_tag(backend_for(label, pose))
         done = load_cache(cache_path(i))
-        for k, s in enumerate(specs_for(label)):
+        for k, s in enumerate(specs_for(label, pose)):
             d = done.get(spec_key(tag, s))
             if d is None:
                 return None
@@ -224,16 +257,17 @@ def main() -> None:
             raise SystemExit(f"unknown resolution {lab!r}; choose from {sorted(CONFIGS)}")
     walls: dict[str, float] = {}
     loads = [f"start: {uptime()}"]
+    rename_legacy_keys()
     if not args.report_only:
-        executor = make_executor(args.executor, backend_for(labels[0], POSES[0]))
+        executor = make_executor(args.executor, backend_for(labels[0]))
         workers = getattr(executor, "workers", 1)
         try:
             for lab in labels:
                 n_todo = 0
                 t0 = time.perf_counter()
-                for i, pose in enumerate(POSES):
-                    backend = backend_for(lab, pose)
-                    specs = specs_for(lab)
+                backend = backend_for(lab)
+                for i, pose in enumerate(POSES[:CONFIGS[lab][4]]):
+                    specs = specs_for(lab, pose)
                     done = load_cache(cache_path(i))
                     n_todo += sum(spec_key(backend_tag(backend), s) not in done for s in specs)
                     run_cached(backend, specs, cache_path(i), chunk=2, desc=f"{lab} pose {i}", executor=executor)

@@ -13,6 +13,7 @@ Writes ``experiments/results/pybullet_response.md`` / ``.png`` / ``.json``.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import time
@@ -50,10 +51,8 @@ def main() -> None:
         data[key] = {"pybullet": [r.to_dict() for r in rp], "tilelink": [r.to_dict() for r in rt]}
         print(key, [round(r.omega_b_deg_s) for r in rp], [r.reason for r in rp if r.unstable],
               f"{time.perf_counter() - t0:.0f}s", flush=True)
-    for j, pose in enumerate(((0.3, 5e-4, 5e-4), (-0.3, -5e-4, 5e-4))):
-        pert = PyBulletPhysics(sequence_len=1, initial_pose=pose)
-        rn = pert.run(sweep(10.0, 36.9, 3.0))
-        pert.close()
+    for j, (yaw, du, dv) in enumerate(((0.3, 5e-4, 5e-4), (-0.3, -5e-4, 5e-4))):
+        rn = pb.run([dataclasses.replace(s, initial_yaw=yaw, initial_offset=(du, dv)) for s in sweep(10.0, 36.9, 3.0)])
         data[f"10.0pi_a36.9_A3.0_perturbed{j + 1}"] = {"pybullet": [r.to_dict() for r in rn]}
     pb.close()
     (OUT / "pybullet_response.json").write_text(json.dumps(data, indent=0))

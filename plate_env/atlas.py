@@ -57,6 +57,52 @@ class Atlas:
                              f"{[float(a) for a in self.a_p_deg]} deg")
         return int(idx[0])
 
+    # -------------------------------------------------------------- domain
+    def axes(self) -> dict[str, np.ndarray]:
+        """The interpolated axes, SI (a probe must lie within each range): f_p_hz, omega_n (rad/s), alpha (rad)."""
+        return {"f_p_hz": self.f_hz, "omega_n": self.omega_n, "alpha": self.alpha}
+
+    def levels(self) -> dict[str, np.ndarray]:
+        """Quantities tabulated at discrete values only (a probe must use one of them, sign aside): a_p_deg."""
+        return {"a_p_deg": self.a_p_deg}
+
+    def fixed(self) -> dict[str, float]:
+        """Quantities the atlas was built at one value of, SI (a probe must match it, sign aside): b_p (m),
+        mass (kg), diameter (m), from the provenance's ``b_p_mm``, ``mass_g``, ``diameter_mm``
+        (:data:`DEFAULT_BUILD` where it does not record them). A quantity that is an axis or level is not fixed."""
+        build = {k: float(self.provenance.get(k, v)) for k, v in DEFAULT_BUILD.items()}
+        values = {"b_p": build["b_p_mm"] * 1e-3, "mass": build["mass_g"] * 1e-3,
+                  "diameter": build["diameter_mm"] * 1e-3}
+        return {k: v for k, v in values.items() if k not in self.axes() and k not in self.levels()}
+
+    def outside(self, **point: float) -> dict[str, str]:
+        """Why a probe at ``point`` lies outside what this atlas describes: ``{quantity: reason}``, empty if inside.
+
+        Keywords (SI, as :meth:`axes`, :meth:`levels` and :meth:`fixed` name them): f_p_hz, a_p_deg, omega_n
+        (rad/s), alpha (rad), b_p (m), mass (kg), diameter (m); quantities not given are not checked. The atlas is
+        sign-normalised, so the signs of a_p_deg and b_p do not matter (a zero does).
+        """
+        axes, levels, fixed = self.axes(), self.levels(), self.fixed()
+        unknown = [k for k in point if k not in axes and k not in levels and k not in fixed]
+        if unknown:
+            raise ValueError(f"Atlas.outside: unknown quantities {unknown}; known: "
+                             f"{sorted({**axes, **levels, **fixed})}")
+        where = f"the {self.physics}/{self.model} atlas"
+        out: dict[str, str] = {}
+        for name, value in point.items():
+            x = abs(float(value)) if name in SIGN_NORMALISED else float(value)
+            if name in axes:
+                lo, hi = float(np.min(axes[name])), float(np.max(axes[name]))
+                if not (math.isfinite(x) and lo - 1e-9 * abs(lo) <= x <= hi + 1e-9 * abs(hi)):
+                    out[name] = f"{_show(name, value)} is outside {where}'s range {_show(name, lo, hi)}"
+            elif name in levels:
+                if not np.any(np.isclose(levels[name], x, rtol=0.0, atol=1e-6)):
+                    held = ", ".join(_show(name, v, unit=False) for v in np.asarray(levels[name]))
+                    out[name] = f"{_show(name, value)} is not tabulated in {where} (it holds {held} {_UNITS[name][1]})"
+            elif not (math.isfinite(x) and math.isclose(x, fixed[name], rel_tol=1e-6)):
+                out[name] = f"{_show(name, value)}: {where} was built at {_show(name, fixed[name])} only"
+        return out
+
     def _interpolator(self, kind: str, amp: int):
         return _interp(self, kind, amp)
 
@@ -92,6 +138,26 @@ class Atlas:
                        omega_n=z["omega_n"], alpha=z["alpha"], mean=z["mean"].astype(float),
                        spread=z["spread"].astype(float), p_unstable=z["p_unstable"].astype(float),
                        n_repeats=int(meta["n_repeats"]), provenance=meta["provenance"])
+
+
+#: Values the shipped atlases were built at, assumed where an atlas's provenance does not record them (edge units).
+DEFAULT_BUILD = {"b_p_mm": 3.0, "mass_g": 13.6, "diameter_mm": 80.0}
+#: Quantities the atlas describes by magnitude (omega_B is sign-normalised by sign(A_p B_p)).
+SIGN_NORMALISED = ("a_p_deg", "b_p")
+#: Edge units of the domain's quantities in messages: (factor from SI, unit, label).
+_UNITS = {"f_p_hz": (1.0, "Hz", "f_p"), "a_p_deg": (1.0, "deg", "A_p"), "omega_n": (1 / math.pi, "pi rad/s", "omega_n"),
+          "alpha": (180 / math.pi, "deg", "alpha"), "b_p": (1e3, "mm", "B_p"), "mass": (1e3, "g", "mass"),
+          "diameter": (1e3, "mm", "diameter")}
+
+
+def _show(name: str, value: float, hi: float | None = None, unit: bool = True) -> str:
+    """``"mass = 39.5 g"`` for a value, ``"13.6-20 g"`` for a range (``hi`` given), in edge units."""
+    factor, text, label = _UNITS[name]
+    if hi is not None:
+        return f"{value * factor:.4g}-{hi * factor:.4g} {text}"
+    if not unit:
+        return f"{value * factor:.4g}"
+    return f"{label} = {value * factor:.4g} {text}"
 
 
 @lru_cache(maxsize=64)

@@ -8,7 +8,9 @@
 :func:`plate_env.atlas.atlas_from_repeats`. Used by ``experiments/build_atlas.py``.
 
 A grid file is JSON with ``f_p_hz``, ``a_p_deg``, ``omega_n_pi`` (units of pi rad/s), ``alpha_deg`` (lists of
-numbers; ``f_p_hz`` may also be ``"start:stop:step"``, inclusive) and optionally ``settle_s``, ``measure_s``.
+numbers; ``f_p_hz`` may also be ``"start:stop:step"``, inclusive) and optionally ``settle_s``, ``measure_s`` and the
+known inputs the atlas is built at, ``mass_g``, ``b_p_mm``, ``diameter_mm`` (default the paper's 13.6 g, 3 mm,
+80 mm).
 """
 
 from __future__ import annotations
@@ -50,8 +52,9 @@ def _axis(name: str, values) -> tuple[float, ...]:
 
 @dataclass(frozen=True)
 class AtlasGrid:
-    """A probe grid: plate frequencies (Hz) x amplitudes (deg) x omega_n (pi rad/s) x alpha (deg), and the probe
-    windows (s, after the 0.2 s ramp). Axes are increasing tuples of positive numbers (checked)."""
+    """A probe grid: plate frequencies (Hz) x amplitudes (deg) x omega_n (pi rad/s) x alpha (deg), the probe
+    windows (s, after the 0.2 s ramp) and the known inputs every probe shares (the disc's mass in g and diameter in
+    mm, the plate's B_p in mm). Axes are increasing tuples of positive numbers (checked)."""
 
     f_hz: tuple[float, ...]
     a_p_deg: tuple[float, ...]
@@ -59,22 +62,34 @@ class AtlasGrid:
     alpha_deg: tuple[float, ...]
     settle_s: float = 0.5
     measure_s: float = 1.0
+    mass_g: float = 13.6
+    b_p_mm: float = 3.0
+    diameter_mm: float = 80.0
 
     def __post_init__(self) -> None:
         for name in ("f_hz", "a_p_deg", "omega_n_pi", "alpha_deg"):
             object.__setattr__(self, name, _axis(name, getattr(self, name)))
-        ProbeSpec(ObjectSpec(), PlateMotion.from_paper(self.f_hz[0], self.a_p_deg[0]), settle_s=self.settle_s,
-                  measure_s=self.measure_s)  # the windows' and the lowest frequency's checks
+        self.spec(0, 0, 0, 0)  # the windows', the known inputs' and the lowest frequency's checks
+
+    def spec(self, i_f: int, i_a: int, i_w: int, i_al: int) -> ProbeSpec:
+        """The centred probe at one grid point."""
+        obj = ObjectSpec.from_paper(self.omega_n_pi[i_w], self.alpha_deg[i_al], mass_g=self.mass_g,
+                                    diameter_mm=self.diameter_mm)
+        return ProbeSpec(obj, PlateMotion.from_paper(self.f_hz[i_f], self.a_p_deg[i_a], self.b_p_mm),
+                         settle_s=self.settle_s, measure_s=self.measure_s)
 
     @classmethod
     def from_dict(cls, d: dict) -> AtlasGrid:
-        known = {"f_p_hz", "a_p_deg", "omega_n_pi", "alpha_deg", "settle_s", "measure_s"}
+        known = {"f_p_hz", "a_p_deg", "omega_n_pi", "alpha_deg", "settle_s", "measure_s", "mass_g", "b_p_mm",
+                 "diameter_mm"}
         if unknown := set(d) - known:
             raise ValueError(f"grid: unknown keys {sorted(unknown)}; expected {sorted(known)}")
         if missing := {"f_p_hz", "a_p_deg", "omega_n_pi", "alpha_deg"} - set(d):
             raise ValueError(f"grid: missing keys {sorted(missing)}")
         return cls(f_hz=d["f_p_hz"], a_p_deg=d["a_p_deg"], omega_n_pi=d["omega_n_pi"], alpha_deg=d["alpha_deg"],
-                   settle_s=float(d.get("settle_s", 0.5)), measure_s=float(d.get("measure_s", 1.0)))
+                   settle_s=float(d.get("settle_s", 0.5)), measure_s=float(d.get("measure_s", 1.0)),
+                   mass_g=float(d.get("mass_g", 13.6)), b_p_mm=float(d.get("b_p_mm", 3.0)),
+                   diameter_mm=float(d.get("diameter_mm", 80.0)))
 
     @classmethod
     def from_json(cls, path: str | Path) -> AtlasGrid:
@@ -88,7 +103,8 @@ class AtlasGrid:
 
     def to_dict(self) -> dict:
         return {"f_p_hz": list(self.f_hz), "a_p_deg": list(self.a_p_deg), "omega_n_pi": list(self.omega_n_pi),
-                "alpha_deg": list(self.alpha_deg), "settle_s": self.settle_s, "measure_s": self.measure_s}
+                "alpha_deg": list(self.alpha_deg), "settle_s": self.settle_s, "measure_s": self.measure_s,
+                "mass_g": self.mass_g, "b_p_mm": self.b_p_mm, "diameter_mm": self.diameter_mm}
 
     def shape(self, repeats: int) -> tuple[int, int, int, int, int]:
         return (len(self.f_hz), len(self.a_p_deg), len(self.omega_n_pi), len(self.alpha_deg), repeats)
@@ -109,9 +125,7 @@ def grid_probes(grid: AtlasGrid, repeats: int, rng: np.random.Generator, placed:
         order.sort(key=lambda ix: (ix[2], ix[3], ix[1], ix[4], ix[0]))
     specs = []
     for i_f, i_a, i_w, i_al, _ in order:
-        base = ProbeSpec(ObjectSpec.from_paper(grid.omega_n_pi[i_w], grid.alpha_deg[i_al]),
-                         PlateMotion.from_paper(grid.f_hz[i_f], grid.a_p_deg[i_a]),
-                         settle_s=grid.settle_s, measure_s=grid.measure_s)
+        base = grid.spec(i_f, i_a, i_w, i_al)
         specs.append(base.perturbed(rng) if placed else base)
     return order, specs
 

@@ -5,6 +5,8 @@ Calibration and atlas grid objects never coincide with the held-out objects used
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from plate_env.motion import PlateMotion
@@ -47,7 +49,7 @@ PYBULLET_ATLAS_ALPHAS_DEG = (30.0, 40.0, 50.0, 60.0)
 #: Shorter probe windows for the pybullet atlas and its evaluation (s): the ramp stays 0.2 s.
 PYBULLET_SETTLE_S = 0.3
 PYBULLET_MEASURE_S = 0.6
-#: Placements (yaw rad, dx m, dy m of PyBulletPhysics(initial_pose=...)) and grid objects (omega_n pi, alpha deg)
+#: Placements (ProbeSpec initial_yaw rad, initial_offset u, v m) and grid objects (omega_n pi, alpha deg)
 #: whose sweeps measure the pybullet atlas's between-placement spread (1 repeat per grid point otherwise).
 PYBULLET_PLACEMENT_POSES = ((0.4, 3e-4, -2e-4), (1.0, -2e-4, 3e-4))
 PYBULLET_PLACEMENT_OBJECTS = ((10.0, 40.0), (20.0, 50.0))
@@ -78,3 +80,71 @@ def placed_sweeps(objs: list[ObjectSpec], freqs_hz, a_p_deg: float, rng: np.rand
                   b_p_mm: float = 3.0, **kw) -> list[ProbeSpec]:
     """Frequency sweeps of every object, each probe placed as a real experiment would (``ProbeSpec.perturbed``)."""
     return [s.perturbed(rng) for o in objs for s in sweep_specs(o, freqs_hz, a_p_deg, b_p_mm, **kw)]
+
+
+@dataclass(frozen=True)
+class EvalSet:
+    """Sweeps of objects drawn from the identification prior, from one source, for scoring identification.
+
+    Objects come from ``prior_objects(n, default_rng(seed))``, placements from ``default_rng(seed + 1)`` (the same
+    draws at every amplitude), and, with ``nuisance``, each object's unknown joint and contact values from
+    ``plate_env.nuisance.PRIOR`` with ``default_rng(seed + 2)``. ``source`` names the backend for caches and
+    reports (e.g. ``"tilelink_pointmass"``).
+    """
+
+    source: str
+    n: int
+    seed: int
+    a_p_deg: tuple[float, ...] = (3.0,)
+    f_hz: tuple[float, ...] = SWEEP_F_HZ
+    settle_s: float = 0.5
+    measure_s: float = 1.0
+    nuisance: bool = False
+
+    def objects(self) -> list[ObjectSpec]:
+        return prior_objects(self.n, np.random.default_rng(self.seed))
+
+    def nuisances(self) -> list | None:
+        """Each object's :class:`plate_env.nuisance.Nuisance` (None without ``nuisance``)."""
+        if not self.nuisance:
+            return None
+        from plate_env.nuisance import PRIOR
+
+        rng = np.random.default_rng(self.seed + 2)
+        return [PRIOR.draw(rng) for _ in range(self.n)]
+
+    def specs(self, a_p_deg: float) -> list[ProbeSpec]:
+        """The placed sweeps at one amplitude, object-major."""
+        return placed_sweeps(self.objects(), self.f_hz, a_p_deg, np.random.default_rng(self.seed + 1),
+                             settle_s=self.settle_s, measure_s=self.measure_s)
+
+    def cache(self, a_p_deg: float) -> str:
+        tag = "evalnuis" if self.nuisance else "eval"
+        return f"experiments/cache/{tag}_{self.source}_A{a_p_deg:g}_s{self.seed}.jsonl"
+
+
+def run_eval_set(es: EvalSet, backend_of, executor=None, progress: bool = False) -> dict:
+    """``{A_p: [ProbeTable per object]}`` for an :class:`EvalSet`, run resumably (its cache files).
+
+    ``backend_of(nuisance)`` gives the :class:`plate_env.executor.BackendSpec` for an object's nuisance draw (None
+    for a set without nuisances); objects sharing a backend run as one batch."""
+    from plate_env.probes import ProbeTable
+    from plate_env.sweeps import run_cached
+
+    nuis = es.nuisances() or [None] * es.n
+    m = len(es.f_hz)
+    out = {}
+    for amp in es.a_p_deg:
+        specs = es.specs(amp)
+        tables: list = [None] * es.n
+        groups: dict = {}
+        for i, nu in enumerate(nuis):
+            groups.setdefault(backend_of(nu), []).append(i)
+        for backend, idx in groups.items():
+            sub = [s for i in idx for s in specs[i * m:(i + 1) * m]]
+            res = run_cached(backend, sub, es.cache(amp), chunk=m, progress=progress,
+                             desc=f"{es.source} A_p={amp:g}", executor=executor)
+            for j, i in enumerate(idx):
+                tables[i] = ProbeTable.from_results(res[j * m:(j + 1) * m])
+        out[amp] = tables
+    return out

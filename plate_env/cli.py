@@ -5,41 +5,106 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import re
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Callable, Sequence
+from pathlib import Path
 
 import numpy as np
 
+from plate_env import checks
 from plate_env.executor import BackendSpec, add_executor_argument, make_executor
-from plate_env.motion import PlateMotion
+from plate_env.motion import AMP_RANGE_RAD, B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
 from plate_env.objects import ObjectSpec, preset
 from plate_env.physics import PHYSICS_NAMES, ProbeSpec, make_physics
+from plate_env.physics.base import MIN_PROBE_FREQ_HZ, WINDOW_RANGE_S, refuse_early
 from plate_env.units import format_omega_pi, parse_omega_n
+
+#: Most probes one sweep may ask for.
+MAX_SWEEP_PROBES = 2000
+#: Seeds the env and agents accept (numpy's SeedSequence: non-negative integers).
+SEED_RANGE = (0, 2 ** 63 - 1)
 
 
 class CliError(Exception):
     """A user error: printed as one line, exit code 2."""
 
 
-def parse_freqs(text: str) -> np.ndarray:
-    """``"10:40:1"`` (start:stop:step, inclusive) or ``"12,18,25"`` -> frequencies in Hz."""
+def _arg(check: Callable, *args, **kwargs) -> Callable[[str], object]:
+    """An argparse ``type`` running ``check(name, value, ...)`` on the parsed number, so a bad value is refused
+    while parsing, before any work, by a message naming the option and the allowed range."""
+    integral = check is checks.integer
+
+    def convert(text: str):
+        try:
+            value = int(text) if integral else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {'an integer' if integral else 'a number'}") from None
+        try:
+            return check("value", value, *args, **kwargs)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc).replace(f"value = {value!r}", repr(text), 1)) from None
+
+    return convert
+
+
+def _omega_n_arg(text: str) -> float:
     try:
-        if ":" in text:
-            parts = [float(p) for p in text.split(":")]
-            if len(parts) != 3:
-                raise ValueError
-            start, stop, step = parts
-            if not (step > 0 and stop >= start):
-                raise ValueError
-            freqs = np.arange(start, stop + step * 1e-6, step)
-        else:
-            freqs = np.array([float(p) for p in text.split(",") if p.strip()])
+        return parse_omega_n(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def plot_path(text: str) -> Path:
+    """The file a ``--plot`` will write, checked before any work: its directory exists and is writable, it is not a
+    directory, its extension is a format matplotlib writes (none: ``.png`` is added, and the final name printed)."""
+    path = Path(text)
+    if not text or path.is_dir():
+        raise CliError(f"--plot {text!r} is a directory or empty; give a file name such as plot.png")
+    if not path.suffix:
+        path = path.with_name(path.name + ".png")
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = sorted(FigureCanvasBase.get_supported_filetypes())
+    if path.suffix[1:].lower() not in formats:
+        raise CliError(f"--plot {text!r}: unknown image format {path.suffix!r}; use one of {', '.join(formats)}")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir() or not os.access(parent, os.W_OK):
+        raise CliError(f"--plot {text!r}: directory {str(parent)!r} does not exist or is not writable")
+    if path.exists() and not os.access(path, os.W_OK):
+        raise CliError(f"--plot {text!r}: the file exists and is not writable")
+    return path
+
+
+def parse_freqs(text: str) -> np.ndarray:
+    """``"10:40:1"`` (start:stop:step, inclusive) or ``"12,18,25"`` -> frequencies in Hz.
+
+    The probe count is checked (at most :data:`MAX_SWEEP_PROBES`) before any array is made."""
+    lo, hi = MIN_PROBE_FREQ_HZ, FREQ_RANGE_HZ[1]
+    try:
+        parts = [float(p) for p in text.split(":" if ":" in text else ",") if ":" in text or p.strip()]
+        if ":" in text and len(parts) != 3:
+            raise ValueError
     except ValueError:
         raise CliError(f"--freqs {text!r}: expected start:stop:step (e.g. 10:40:1) or a list like 12,18,25") from None
-    if freqs.size == 0 or not np.all(np.isfinite(freqs)) or np.any(freqs <= 0) or np.any(freqs > 200):
-        raise CliError(f"--freqs {text!r}: frequencies must lie in (0, 200] Hz")
-    if freqs.size > 2000:
-        raise CliError(f"--freqs {text!r}: {freqs.size} probes; at most 2000 per sweep")
+    if ":" in text:
+        start, stop, step = parts
+        if not all(math.isfinite(x) for x in parts) or not (lo <= start <= stop <= hi):
+            raise CliError(f"--freqs {text!r}: start and stop must satisfy {lo:g} <= start <= stop <= {hi:g} Hz")
+        if not step > 0:
+            raise CliError(f"--freqs {text!r}: the step must be positive")
+        count = math.floor((stop - start) / step + 1e-6) + 1
+        if count > MAX_SWEEP_PROBES:
+            raise CliError(f"--freqs {text!r}: {count:.4g} probes; at most {MAX_SWEEP_PROBES} per sweep "
+                           f"(use a larger step)")
+        return start + step * np.arange(count)
+    freqs = np.array(parts)
+    if freqs.size == 0 or not np.all(np.isfinite(freqs)) or np.any(freqs < lo) or np.any(freqs > hi):
+        raise CliError(f"--freqs {text!r}: frequencies must lie in [{lo:g}, {hi:g}] Hz")
+    if freqs.size > MAX_SWEEP_PROBES:
+        raise CliError(f"--freqs {text!r}: {freqs.size} probes; at most {MAX_SWEEP_PROBES} per sweep")
     return freqs
 
 
@@ -47,7 +112,7 @@ def _object(args: argparse.Namespace) -> ObjectSpec:
     base = preset(args.object) if args.object else ObjectSpec(name="custom")
     changes: dict = {}
     if args.omega_n is not None:
-        changes["omega_n"] = parse_omega_n(args.omega_n)
+        changes["omega_n"] = args.omega_n
     if args.alpha is not None:
         changes["alpha"] = math.radians(args.alpha)
     if args.mass_g is not None:
@@ -78,18 +143,34 @@ def _spec(args: argparse.Namespace, obj: ObjectSpec, freq: float) -> ProbeSpec:
     return ProbeSpec(obj=obj, motion=motion, settle_s=args.settle, measure_s=args.measure)
 
 
+def _add_object(p: argparse.ArgumentParser, true: str = "") -> None:
+    p.add_argument("--object", default=None, help="preset object: cheese, dumpling, cheese_lead")
+    p.add_argument("--omega-n", default=None, type=_omega_n_arg, help=f"{true}bending natural frequency, rad/s or "
+                   "e.g. 10pi")
+    p.add_argument("--alpha", type=_arg(checks.real, 0.0, 90.0, open_lo=True, open_hi=True, unit="deg"),
+                   default=None, help=f"{true}friction angle, degrees")
+    p.add_argument("--mass-g", type=_arg(checks.real, 0.0, 1e4, open_lo=True, unit="g"), default=None,
+                   help="object mass, grams")
+
+
+def _add_dt(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--dt", type=_arg(checks.real, 0.0, 0.01, open_lo=True, unit="s"), default=None,
+                   help="time step, s (backend default if omitted; a warning above its measured stability limit)")
+
+
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
     p.add_argument("--model", default=None, help="tilelink model (pointmass, rigid, rigid_limit); atlas: whose atlas")
-    p.add_argument("--object", default=None, help="preset object: cheese, dumpling, cheese_lead")
-    p.add_argument("--omega-n", default=None, help="bending natural frequency, rad/s or e.g. 10pi")
-    p.add_argument("--alpha", type=float, default=None, help="friction angle, degrees")
-    p.add_argument("--mass-g", type=float, default=None, help="object mass, grams")
-    p.add_argument("--amp", type=float, default=3.0, help="plate angular amplitude A_p, degrees")
-    p.add_argument("--bp", type=float, default=3.0, help="plate linear amplitude B_p, mm")
-    p.add_argument("--settle", type=float, default=ProbeSpec.settle_s, help="settling time after the ramp, s")
-    p.add_argument("--measure", type=float, default=ProbeSpec.measure_s, help="measurement window, s")
-    p.add_argument("--dt", type=float, default=None, help="time step, s (backend default if omitted)")
+    _add_object(p)
+    amp_deg = math.degrees(AMP_RANGE_RAD[1])
+    p.add_argument("--amp", type=_arg(checks.real, -amp_deg, amp_deg, unit="deg"), default=3.0,
+                   help="plate angular amplitude A_p, degrees")
+    p.add_argument("--bp", type=_arg(checks.real, B_P_RANGE_M[0] * 1e3, B_P_RANGE_M[1] * 1e3, unit="mm"),
+                   default=3.0, help="plate linear amplitude B_p, mm")
+    window = _arg(checks.real, *WINDOW_RANGE_S, unit="s")
+    p.add_argument("--settle", type=window, default=ProbeSpec.settle_s, help="settling time after the ramp, s")
+    p.add_argument("--measure", type=window, default=ProbeSpec.measure_s, help="measurement window, s")
+    _add_dt(p)
     p.add_argument("--json", action="store_true", help="print one JSON document")
 
 
@@ -98,28 +179,29 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("probe", help="run one probe and print omega_B")
     _add_common(p)
-    p.add_argument("--freq", type=float, required=True, help="plate frequency f_p, Hz")
+    p.add_argument("--freq", type=_arg(checks.real, MIN_PROBE_FREQ_HZ, FREQ_RANGE_HZ[1], unit="Hz"), required=True,
+                   help="plate frequency f_p, Hz")
     s = sub.add_parser("sweep", help="run a batched frequency sweep")
     _add_common(s)
     s.add_argument("--freqs", default="10:40:1", help="start:stop:step or a comma list, Hz")
-    s.add_argument("--plot", default=None, help="write a PNG of omega_B vs f_p")
+    s.add_argument("--plot", default=None, help="write a PNG of omega_B vs f_p (after the results are printed)")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
     s.add_argument("--cache", default=None, help="JSON-lines file: finished chunks are appended, a rerun resumes")
-    s.add_argument("--chunk", type=int, default=8, help="probes per chunk (a unit of work and of persistence)")
+    s.add_argument("--chunk", type=_arg(checks.integer, 1, MAX_SWEEP_PROBES), default=8,
+                   help="probes per chunk (a unit of work and of persistence)")
     add_executor_argument(s)
     i = sub.add_parser("identify", help="identify a hidden object with a probing agent (the main job)")
     i.add_argument("--agent", default="bayes", choices=("grid", "coarse_to_fine", "bayes", "ppo"))
     i.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
     i.add_argument("--model", default=None, help="tilelink model (pointmass, rigid, rigid_limit)")
-    i.add_argument("--object", default=None, help="preset object: cheese, dumpling, cheese_lead")
-    i.add_argument("--omega-n", default=None, help="true bending natural frequency, rad/s or e.g. 17pi")
-    i.add_argument("--alpha", type=float, default=None, help="true friction angle, degrees")
-    i.add_argument("--mass-g", type=float, default=None, help="object mass, grams")
-    i.add_argument("--seed", type=int, default=0, help="seed of the episode (placement, camera noise)")
-    i.add_argument("--max-probes", type=int, default=30, help="probe budget")
-    i.add_argument("--target", type=float, default=None, help="bayes: stop at this relative posterior std")
-    i.add_argument("--dt", type=float, default=None, help="time step, s (backend default if omitted)")
-    i.add_argument("--plot", default=None, help="write a PNG of the probes, fit and estimate")
+    _add_object(i, true="true ")
+    i.add_argument("--seed", type=_arg(checks.integer, *SEED_RANGE), default=0,
+                   help="seed of the episode (placement, camera noise)")
+    i.add_argument("--max-probes", type=_arg(checks.integer, 1, 500), default=30, help="probe budget")
+    i.add_argument("--target", type=_arg(checks.real, 0.0, 1.0, open_lo=True, open_hi=True), default=None,
+                   help="bayes only: stop at this relative posterior std of omega_n")
+    _add_dt(i)
+    i.add_argument("--plot", default=None, help="write a PNG of the probes, fit and estimate (after the results)")
     i.add_argument("--json", action="store_true", help="print one JSON document")
     f = sub.add_parser("fit", help="fit a lab sweep (CSV) and estimate omega_n")
     f.add_argument("csv", help="CSV with columns f_p_hz, omega_b_deg_s[, stderr_deg_s, a_p_deg, unstable]")
@@ -127,16 +209,17 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--physics", default="tilelink", help="whose calibration/atlas to use (tilelink, paper, ...)")
     f.add_argument("--model", default=None, help="tilelink model of the calibration/atlas (pointmass)")
     f.add_argument("--method", default="lorentz", choices=("lorentz", "atlas"))
-    f.add_argument("--plot", default=None, help="write a PNG of data, fitted curve and posterior")
+    f.add_argument("--plot", default=None, help="write a PNG of data, fitted curve and posterior (after the results)")
     f.add_argument("--json", action="store_true", help="print one JSON document")
     return parser
 
 
 def _cmd_probe(args: argparse.Namespace) -> int:
     obj = _object(args)
+    spec = _spec(args, obj, args.freq)
     physics = _physics(args)
     try:
-        result = physics.run([_spec(args, obj, args.freq)])[0]
+        result = physics.run([spec])[0]
     finally:
         physics.close()
     if args.json:
@@ -150,42 +233,63 @@ def _cmd_probe(args: argparse.Namespace) -> int:
     return 0
 
 
+def _print_sweep(args: argparse.Namespace, obj: ObjectSpec, results: list, interrupted: bool) -> None:
+    if args.json:
+        print(json.dumps({"physics": args.physics, "object": obj.name, "interrupted": interrupted,
+                          "probes": [r.to_dict() for r in results]}), flush=True)
+        return
+    print(f"{args.physics}: omega_n={format_omega_pi(obj.omega_n)} rad/s alpha={math.degrees(obj.alpha):.1f} deg "
+          f"A_p={args.amp:g} deg B_p={args.bp:g} mm")
+    print(f"{'f_p [Hz]':>9} {'omega_B [deg/s]':>16} {'stderr':>8}  state")
+    for r in results:
+        state = f"unstable: {r.reason}" if r.unstable else "stable"
+        print(f"{r.spec.motion.freq_hz:9.2f} {r.omega_b_deg_s:16.1f} {r.stderr_deg_s:8.1f}  {state}")
+    print(f"{sum(r.sim_s for r in results):.1f} s simulated in {sum(r.wall_s for r in results):.2f} s wall",
+          flush=True)
+
+
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from plate_env.sweeps import run_cached
+    from plate_env.sweeps import SweepInterrupted, run_cached
 
     obj = _object(args)
     freqs = parse_freqs(args.freqs)
-    if args.chunk < 1:
-        raise CliError(f"--chunk {args.chunk}: must be a positive number of probes")
+    plot = plot_path(args.plot) if args.plot else None
+    specs = [_spec(args, obj, f) for f in freqs]
     backend = BackendSpec.of(args.physics, **_physics_options(args))
-    backend.build().close()  # refuse bad options here, before any worker starts
+    built = backend.build()  # bad options and probes the backend cannot run: refused here, before any worker starts
+    try:
+        refuse_early(built, specs)
+    finally:
+        built.close()
     try:
         executor = make_executor(args.executor, backend)
     except ImportError as exc:
         raise CliError(str(exc)) from None
+    interrupted = False
     try:
-        results = run_cached(backend, [_spec(args, obj, f) for f in freqs], args.cache, chunk=args.chunk,
+        results = run_cached(backend, specs, args.cache, chunk=args.chunk,
                              progress=not (args.json or args.no_progress), desc="sweep", executor=executor)
+    except SweepInterrupted as exc:  # Ctrl-C: the finished probes are printed (and cached with --cache)
+        results, interrupted = exc.results, True
     finally:
         executor.close()
-    if args.plot:
+    _print_sweep(args, obj, results, interrupted)
+    if interrupted:
+        print(f"plate-env sweep: interrupted after {len(results)} of {len(specs)} probes (printed above)",
+              file=sys.stderr)
+        return 130
+    if plot is not None:
         from plate_env.plotting import plot_sweep
 
-        plot_sweep(results, args.plot, title=f"{args.physics}: omega_n={format_omega_pi(obj.omega_n)} rad/s, "
+        plot_sweep(results, str(plot), title=f"{args.physics}: omega_n={format_omega_pi(obj.omega_n)} rad/s, "
                    f"alpha={math.degrees(obj.alpha):.1f} deg, A_p={args.amp:g} deg")
-    if args.json:
-        print(json.dumps({"physics": args.physics, "object": obj.name, "probes": [r.to_dict() for r in results]}))
-    else:
-        print(f"{args.physics}: omega_n={format_omega_pi(obj.omega_n)} rad/s alpha={math.degrees(obj.alpha):.1f} deg "
-              f"A_p={args.amp:g} deg B_p={args.bp:g} mm")
-        print(f"{'f_p [Hz]':>9} {'omega_B [deg/s]':>16} {'stderr':>8}  state")
-        for r in results:
-            state = f"unstable: {r.reason}" if r.unstable else "stable"
-            print(f"{r.spec.motion.freq_hz:9.2f} {r.omega_b_deg_s:16.1f} {r.stderr_deg_s:8.1f}  {state}")
-        print(f"{sum(r.sim_s for r in results):.1f} s simulated in {sum(r.wall_s for r in results):.2f} s wall")
-        if args.plot:
-            print(f"plot: {args.plot}")
+        _say_plot(args, plot)
     return 0
+
+
+def _say_plot(args: argparse.Namespace, plot: Path) -> None:
+    """Name the plot written (on stderr with --json, so stdout stays one JSON document)."""
+    print(f"plot: {plot}", file=sys.stderr if args.json else sys.stdout)
 
 
 def _fit_report(est, table) -> list[str]:
@@ -209,29 +313,31 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     from plate_env.identify import identify
     from plate_env.probes import read_lab_csv
 
+    plot = plot_path(args.plot) if args.plot else None
     table = read_lab_csv(args.csv, a_p_deg=args.amp)
     model = args.model or "pointmass"
     est = identify(table, method=args.method, physics=args.physics, model=model)
-    if args.plot:
+    if args.json:
+        print(json.dumps({"file": str(args.csv), "physics": args.physics, "model": model, **est.to_dict()}),
+              flush=True)
+    else:
+        for line in _fit_report(est, table):
+            print(line)
+        if est.ok:
+            lo, hi = est.omega_n_ci95
+            print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s "
+                  f"({format_omega_pi(est.omega_n)}; 95 % interval {lo:.1f}-{hi:.1f} rad/s) by {est.method} "
+                  f"on {args.physics}/{model}")
+            if est.alpha is not None:
+                print(f"alpha_hat   = {math.degrees(est.alpha):.1f} +- {math.degrees(est.alpha_stderr):.1f} deg")
+        else:
+            print(f"no estimate: {est.reason}")
+        sys.stdout.flush()
+    if plot is not None:
         from plate_env.plotting import plot_fit
 
-        plot_fit(table, est, args.plot)
-    if args.json:
-        print(json.dumps({"file": str(args.csv), "physics": args.physics, "model": model, **est.to_dict()}))
-        return 0 if est.ok else 1
-    for line in _fit_report(est, table):
-        print(line)
-    if est.ok:
-        lo, hi = est.omega_n_ci95
-        print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s "
-              f"({format_omega_pi(est.omega_n)}; 95 % interval {lo:.1f}-{hi:.1f} rad/s) by {est.method} "
-              f"on {args.physics}/{model}")
-        if est.alpha is not None:
-            print(f"alpha_hat   = {math.degrees(est.alpha):.1f} +- {math.degrees(est.alpha_stderr):.1f} deg")
-    else:
-        print(f"no estimate: {est.reason}")
-    if args.plot:
-        print(f"plot: {args.plot}")
+        plot_fit(table, est, str(plot))
+        _say_plot(args, plot)
     return 0 if est.ok else 1
 
 
@@ -241,15 +347,15 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from agents import make_agent
     from agents.runner import run_episode
 
+    if args.target is not None and args.agent != "bayes":
+        raise CliError(f"--target applies to --agent bayes only (its stopping rule), not to --agent {args.agent}")
     obj = _object(args)
+    plot = plot_path(args.plot) if args.plot else None
+    agent = make_agent(args.agent, **({} if args.target is None else {"target_rel": args.target}))
     env_kw = dict(physics=args.physics, physics_options=_physics_options(args), max_probes=args.max_probes)
     if args.physics == "pybullet":
         env_kw["method"] = "lorentz"
     env = gym.make("PlateRotation-v0", **env_kw)
-    agent_kw = {}
-    if args.agent == "bayes" and args.target is not None:
-        agent_kw["target_rel"] = args.target
-    agent = make_agent(args.agent, **agent_kw)
 
     def show(k: int, p: dict) -> None:
         state = f"unstable: {p['reason']}" if p["unstable"] else f"{p['omega_b_deg_s']:7.1f} deg/s"
@@ -260,15 +366,29 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         res = run_episode(env, agent, seed=args.seed,
                           options={"omega_n": obj.omega_n, "alpha": obj.alpha, "mass": obj.mass},
                           on_probe=None if args.json else show)
+    except KeyboardInterrupt:  # the probes so far were shown as they finished; with --json, print them now
+        done = env.unwrapped.table()
+        if args.json:
+            print(json.dumps({"physics": args.physics, "object": obj.name, "interrupted": True,
+                              "probes": done.to_rows()}), flush=True)
+        print(f"plate-env identify: interrupted after {len(done)} probes", file=sys.stderr)
+        return 130
     finally:
         env.close()
-    if args.plot:
+    est = res.estimate
+    if args.json:
+        print(json.dumps({"physics": args.physics, "object": obj.name, **res.to_dict()}), flush=True)
+    else:
+        _print_identify(res)
+    if plot is not None:
         from plate_env.plotting import plot_fit
 
-        plot_fit(res.probes, res.estimate, args.plot)
-    if args.json:
-        print(json.dumps({"physics": args.physics, "object": obj.name, **res.to_dict()}))
-        return 0 if res.estimate.ok else 1
+        plot_fit(res.probes, est, str(plot))
+        _say_plot(args, plot)
+    return 0 if est.ok else 1
+
+
+def _print_identify(res) -> None:
     est = res.estimate
     if est.ok:
         print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s ({format_omega_pi(est.omega_n)}) "
@@ -280,26 +400,53 @@ def _cmd_identify(args: argparse.Namespace) -> int:
                   f"(true {math.degrees(res.alpha_true):.1f} deg)")
     else:
         print(f"no estimate: {est.reason}")
-    print(f"{res.n_probes} probes, {res.sim_s:.1f} s simulated, {res.wall_s:.1f} s wall")
-    if args.plot:
-        print(f"plot: {args.plot}")
-    return 0 if est.ok else 1
+    print(f"{res.n_probes} probes, {res.sim_s:.1f} s simulated, {res.wall_s:.1f} s wall", flush=True)
 
 
 COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep, "fit": _cmd_fit, "identify": _cmd_identify}
 
 
+#: A command-line token that is a negative value, not an option: "-10pi", "-1e-3", "-inf", "-.5".
+_NEGATIVE = re.compile(r"^-(\d|\.\d|inf|nan|pi|π)", re.IGNORECASE)
+
+
+def _join_negative_values(argv: list[str]) -> list[str]:
+    """``--omega-n -10pi`` -> ``--omega-n=-10pi``: argparse takes a token starting with "-" for an option unless it
+    looks like a plain negative number, and would answer "expected one argument" instead of checking the value."""
+    out: list[str] = []
+    for token in argv:
+        if out and _NEGATIVE.match(token) and out[-1].startswith("--") and "=" not in out[-1]:
+            out[-1] = f"{out[-1]}={token}"
+        else:
+            out.append(token)
+    return out
+
+
+def _warn_one_line(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"plate-env: warning: {message}", file=sys.stderr)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command. Exit codes: 0 done, 1 no estimate, 2 bad input (one line naming it), 3 an internal error
+    (one line; ``PLATE_ENV_TRACEBACK=1`` shows the traceback), 130 interrupted (finished probes are printed)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
-        return COMMANDS[args.command](args)
-    except (CliError, ValueError, OSError) as exc:
-        print(f"plate-env {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"plate-env {args.command}: interrupted", file=sys.stderr)
-        return 130
+    args = parser.parse_args(_join_negative_values(list(sys.argv[1:] if argv is None else argv)))
+    with warnings.catch_warnings():
+        warnings.showwarning = _warn_one_line
+        try:
+            return COMMANDS[args.command](args)
+        except (CliError, ValueError, OSError) as exc:
+            print(f"plate-env {args.command}: error: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print(f"plate-env {args.command}: interrupted", file=sys.stderr)
+            return 130
+        except Exception as exc:  # noqa: BLE001 - never a traceback for a user; a bug still says what it was
+            if os.environ.get("PLATE_ENV_TRACEBACK"):
+                raise
+            print(f"plate-env {args.command}: internal error: {type(exc).__name__}: {exc} (a bug: please report it; "
+                  f"PLATE_ENV_TRACEBACK=1 shows where)", file=sys.stderr)
+            return 3
 
 
 if __name__ == "__main__":

@@ -37,14 +37,30 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from plate_env import checks
 from plate_env.camera import camera_omega_b
-from plate_env.motion import PlateMotion
+from plate_env.motion import B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
 from plate_env.objects import ObjectSpec
 from plate_env.physics import make_physics
-from plate_env.physics.base import ProbeResult, ProbeSpec
+from plate_env.physics.base import (
+    MIN_PROBE_FREQ_HZ,
+    WINDOW_RANGE_S,
+    ProbeRefused,
+    ProbeResult,
+    ProbeSpec,
+    refuse_early,
+)
 from plate_env.probes import ProbeTable
 
 N_FEATURES = 7
+#: Mass of the hidden object before ``mass_variation``, kg (the paper's cheese slice).
+MASS_KG = ObjectSpec().mass
+#: Keys ``reset(options=...)`` accepts: the hidden object's omega_n (rad/s), alpha (rad), mass (kg).
+RESET_OPTIONS = ("omega_n", "alpha", "mass")
+#: The constructor option that decides each quantity of the probes a backend may refuse (ProbeRefused.quantity).
+OPTION_OF = {"f_p_hz": "f_band_hz", "a_p_deg": "amplitudes_deg", "omega_n": "omega_n_range_pi",
+             "alpha": "alpha_range_deg", "b_p": "b_p_mm", "mass": "mass_variation", "diameter": "physics",
+             "steps": "measure_range_s, settle_s or the physics' dt"}
 
 
 class PlateRotationEnv(gym.Env):
@@ -62,22 +78,27 @@ class PlateRotationEnv(gym.Env):
                  cost_per_sim_s: float = 0.005, error_cap: float = 1.0, no_estimate_penalty: float = 1.0,
                  render_mode: str | None = None) -> None:
         super().__init__()
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode {render_mode!r} not in {self.metadata['render_modes']}")
-        if method not in ("atlas", "lorentz"):
-            raise ValueError(f"method {method!r}: choose 'atlas' or 'lorentz'")
-        _check_range("omega_n_range_pi", omega_n_range_pi, 0.1, 300.0)
-        _check_range("alpha_range_deg", alpha_range_deg, 1.0, 89.0)
-        _check_range("f_band_hz", f_band_hz, 0.5, 200.0)
-        _check_range("measure_range_s", measure_range_s, 0.01, 60.0)
-        if not amplitudes_deg or not all(0 < abs(a) <= 45 for a in amplitudes_deg):
-            raise ValueError(f"amplitudes_deg {amplitudes_deg!r}: give one or more amplitudes in (0, 45] deg")
-        if not (isinstance(max_probes, (int, np.integer)) and 1 <= max_probes <= 500):
-            raise ValueError(f"max_probes {max_probes!r} must be an int in [1, 500]")
-        if max_sim_s is not None and not (math.isfinite(max_sim_s) and max_sim_s > 0):
-            raise ValueError(f"max_sim_s {max_sim_s!r} must be positive or None")
-        if not (0.0 <= mass_variation < 1.0):
-            raise ValueError(f"mass_variation {mass_variation!r} must be in [0, 1)")
+        # every option checked (a ValueError naming it) before the physics is built
+        render_mode = checks.one_of("render_mode", render_mode, (None, *self.metadata["render_modes"]))
+        method = checks.one_of("method", method, ("atlas", "lorentz"))
+        omega_n_range_pi = checks.pair("omega_n_range_pi", omega_n_range_pi, 0.1, 300.0, "pi rad/s")
+        alpha_range_deg = checks.pair("alpha_range_deg", alpha_range_deg, 1.0, 89.0, "deg")
+        mass_variation = checks.real("mass_variation", mass_variation, 0.0, 1.0, open_hi=True)
+        f_band_hz = checks.pair("f_band_hz", f_band_hz, MIN_PROBE_FREQ_HZ, FREQ_RANGE_HZ[1], "Hz")
+        amplitudes_deg = _amplitudes(amplitudes_deg)
+        b_p_mm = checks.real("b_p_mm", b_p_mm, B_P_RANGE_M[0] * 1e3, B_P_RANGE_M[1] * 1e3, unit="mm")
+        max_probes = checks.integer("max_probes", max_probes, 1, 500)
+        if max_sim_s is not None:
+            max_sim_s = checks.real("max_sim_s", max_sim_s, 0.0, 1e6, open_lo=True, unit="s")
+        measure_range_s = checks.pair("measure_range_s", measure_range_s, 0.01, 60.0, "s")
+        settle_s = checks.real("settle_s", settle_s, *WINDOW_RANGE_S, unit="s")
+        camera_fps = checks.real("camera_fps", camera_fps, 1.0, 1e4, unit="Hz")
+        angle_noise_deg = checks.real("angle_noise_deg", angle_noise_deg, 0.0, 90.0, unit="deg")
+        cost_per_sim_s = checks.real("cost_per_sim_s", cost_per_sim_s, 0.0, 1e3)
+        error_cap = checks.real("error_cap", error_cap, 0.0, 1e3, open_lo=True)
+        no_estimate_penalty = checks.real("no_estimate_penalty", no_estimate_penalty, 0.0, 1e3)
+        if physics_options is not None and not isinstance(physics_options, dict):
+            raise ValueError(f"physics_options = {physics_options!r} must be a dict of backend options or None")
         self.physics_name = physics
         self.physics_options = dict(physics_options or {})
         self.physics = make_physics(physics, **self.physics_options)
@@ -85,15 +106,15 @@ class PlateRotationEnv(gym.Env):
         self.source = getattr(self.physics, "source", physics)
         self.model = getattr(self.physics, "model", physics)
         self.method = method
-        self.omega_n_range_pi = tuple(omega_n_range_pi)
-        self.alpha_range_deg = tuple(alpha_range_deg)
+        self.omega_n_range_pi = omega_n_range_pi
+        self.alpha_range_deg = alpha_range_deg
         self.mass_variation = mass_variation
-        self.f_band_hz = tuple(f_band_hz)
-        self.amplitudes_deg = tuple(float(a) for a in amplitudes_deg)
+        self.f_band_hz = f_band_hz
+        self.amplitudes_deg = amplitudes_deg
         self.b_p_mm = b_p_mm
-        self.max_probes = int(max_probes)
+        self.max_probes = max_probes
         self.max_sim_s = max_sim_s
-        self.measure_range_s = tuple(measure_range_s)
+        self.measure_range_s = measure_range_s
         self.settle_s = settle_s
         self.camera_fps = camera_fps
         self.angle_noise_deg = angle_noise_deg
@@ -101,6 +122,11 @@ class PlateRotationEnv(gym.Env):
         self.error_cap = error_cap
         self.no_estimate_penalty = no_estimate_penalty
         self.render_mode = render_mode
+        lo, hi = omega_n_range_pi
+        masses = (MASS_KG * (1.0 - mass_variation), MASS_KG * (1.0 + mass_variation))
+        objects = [ObjectSpec(omega_n=math.pi * w, alpha=math.radians(a), mass=m)
+                   for w in (lo, hi) for a in alpha_range_deg for m in sorted(set(masses))]
+        self._refuse_unanswerable(objects, "option")
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.observation_space = spaces.Box(-10.0, 10.0, shape=(N_FEATURES * self.max_probes + 2,),
                                             dtype=np.float32)
@@ -117,14 +143,24 @@ class PlateRotationEnv(gym.Env):
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Hide a new object (drawn from the seeded ranges; ``options`` may fix its ``omega_n`` rad/s, ``alpha``
+        rad and ``mass`` kg). Unknown option keys, bad values and objects the physics cannot answer are refused."""
+        self._check_open()
+        options = checks.known_keys("reset options", options, RESET_OPTIONS)
+        given = {k: checks.real(f"reset option {k}", v) for k, v in options.items()}
         super().reset(seed=seed)
         rng = self.np_random
-        options = options or {}
         lo, hi = self.omega_n_range_pi
-        omega = options.get("omega_n", math.pi * math.exp(rng.uniform(math.log(lo), math.log(hi))))
-        alpha = options.get("alpha", math.radians(rng.uniform(*self.alpha_range_deg)))
-        mass = options.get("mass", 0.0136 * (1.0 + self.mass_variation * rng.uniform(-1.0, 1.0)))
-        self._obj = ObjectSpec(omega_n=float(omega), alpha=float(alpha), mass=mass, name="hidden")
+        drawn = {"omega_n": math.pi * math.exp(rng.uniform(math.log(lo), math.log(hi))),
+                 "alpha": math.radians(rng.uniform(*self.alpha_range_deg)),
+                 "mass": MASS_KG * (1.0 + self.mass_variation * rng.uniform(-1.0, 1.0))}  # drawn either way
+        try:
+            obj = ObjectSpec(**{**drawn, **given}, name="hidden")
+        except ValueError as exc:
+            raise ValueError(f"reset options {options!r}: {exc}") from None
+        if given:
+            self._refuse_unanswerable([obj], "reset option")
+        self._obj = obj
         self._rows, self._results = [], []
         self._sim_s = self._wall_s = 0.0
         self._done = False
@@ -134,9 +170,12 @@ class PlateRotationEnv(gym.Env):
     def decode_action(self, action) -> tuple[bool, ProbeSpec | None]:
         """Check an action and turn it into (stop, probe). Raises ValueError naming a bad value."""
         try:
-            a = np.asarray(action, dtype=np.float64)
+            a = np.asarray(action)
+            if a.dtype.kind not in "fiu":  # bool, complex, strings, objects: not actions, even if castable
+                raise TypeError
+            a = a.astype(np.float64)
         except (TypeError, ValueError):
-            raise ValueError(f"action {action!r} is not an array of 4 numbers in [-1, 1]") from None
+            raise ValueError(f"action {action!r} is not an array of 4 real numbers in [-1, 1]") from None
         if a.shape != (4,):
             raise ValueError(f"action must have shape (4,), got {a.shape}: {action!r}")
         if not np.all(np.isfinite(a)):
@@ -179,6 +218,7 @@ class PlateRotationEnv(gym.Env):
 
     def prepare(self, action) -> tuple[bool, ProbeSpec | None]:
         """First half of a step: validate the action, decide stop or the probe to run (for batched vector envs)."""
+        self._check_open()
         if self._obj is None or self._done:
             raise RuntimeError("call reset() before step() (the episode is over)")
         return self.decode_action(action)
@@ -214,6 +254,23 @@ class PlateRotationEnv(gym.Env):
         if self.render_mode == "human":
             self.render()
         return self._obs(), float(reward), bool(terminated), False, info
+
+    # ------------------------------------------------------------------ checks
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("this PlateRotationEnv is closed; make a new one")
+
+    def _refuse_unanswerable(self, objects: list[ObjectSpec], what: str) -> None:
+        """Refuse (ValueError naming the option) if the physics cannot answer probes this env may ask about
+        ``objects``: every corner of the band, amplitudes and windows (the backends' limits are boxes)."""
+        specs = [ProbeSpec(obj, PlateMotion.from_paper(f, a, self.b_p_mm), settle_s=self.settle_s, measure_s=m)
+                 for obj in objects for f in self.f_band_hz for a in self.amplitudes_deg for m in self.measure_range_s]
+        try:
+            refuse_early(self.physics, specs)
+        except ProbeRefused as exc:
+            option = OPTION_OF.get(exc.quantity, exc.quantity) if what == "option" else exc.quantity
+            raise ValueError(f"PlateRotationEnv {what} {option}: physics {self.physics_name!r} cannot answer the "
+                             f"probes it allows: {exc}") from None
 
     # ------------------------------------------------------------------ views
     def table(self) -> ProbeTable:
@@ -308,7 +365,15 @@ class PlateRotationEnv(gym.Env):
         self._closed = False
 
 
-def _check_range(name: str, value, lo: float, hi: float) -> None:
-    if (len(value) != 2 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in value)
-            or not (lo <= value[0] < value[1] <= hi)):
-        raise ValueError(f"{name} = {value!r} must be an increasing pair within [{lo}, {hi}]")
+def _amplitudes(values) -> tuple[float, ...]:
+    """The env's plate amplitudes: one or more distinct non-zero values within +-45 deg."""
+    try:
+        items = tuple(values)
+    except TypeError:
+        items = ()
+    if not items:
+        raise ValueError(f"amplitudes_deg = {values!r}: give one or more plate amplitudes in degrees")
+    amps = tuple(checks.real(f"amplitudes_deg[{i}]", a, -45.0, 45.0, unit="deg") for i, a in enumerate(items))
+    if 0.0 in amps or len(set(amps)) != len(amps):
+        raise ValueError(f"amplitudes_deg = {values!r}: amplitudes must be distinct and non-zero")
+    return amps

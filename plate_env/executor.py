@@ -20,14 +20,11 @@ Executors (:func:`make_executor`):
 
 Workers run with one BLAS and one numba thread (``WORKER_ENV``): one chunk per core.
 
-Determinism: a chunk's results depend only on its probes, its backend description and the BLAS thread count its
-parameters were set up with (the point-mass modal analysis' eigensolve differs in the last bits between 1 and 2
-BLAS threads, which the kernel grows to ~1e-10 of omega_B). Every executor runs chunks with one BLAS thread (workers
-by their environment, the in-process executor by ``threadpoolctl``), so runs through executors agree bit for bit
-for the point-mass model and PyBullet (tests/test_executor.py, tests/test_ray.py) and to rounding for the rigid
-kernels (numba's first compile and its cached reload differ in the last bits, see the README). Not covered: a
-process that already ran the same object directly (``physics.run`` with all BLAS threads) keeps those parameters in
-the point-mass model's caches, and its in-process chunks then differ from the workers' in the last bits.
+Determinism: a chunk's results depend only on its probes and its backend description, not on the executor, the
+process or the other chunks: bit for bit (tests/test_executor.py, tests/test_ray.py). Two facts make that hold: the
+point-mass builders hold BLAS to one thread (their eigensolve's last bits depend on the BLAS thread count, grown by
+the kernel to ~1e-10 of omega_B), and a process that compiles the kernels runs the same code as one that loads them
+from numba's disk cache (README, Determinism).
 """
 
 from __future__ import annotations
@@ -127,12 +124,8 @@ class Executor(Protocol):
 
 
 class InProcessExecutor:
-    """Chunks one after another in this process; ``physics`` (optional) is an already built backend to use.
-
-    Each chunk runs with numpy's and scipy's BLAS held to one thread (``threadpoolctl``), as in the pool and Ray
-    workers: linear algebra's last bits depend on the BLAS thread count (see the module docstring). Numba's threads
-    are not limited (the point-mass kernel spreads a chunk over the cores).
-    """
+    """Chunks one after another in this process; ``physics`` (optional) is an already built backend to use. Numba's
+    threads are not limited here (the point-mass kernel spreads a chunk over the cores)."""
 
     name = "inprocess"
 
@@ -140,13 +133,9 @@ class InProcessExecutor:
         self.physics = physics
 
     def map(self, backend: BackendSpec | None, chunks):
-        from threadpoolctl import threadpool_limits
-
         for i, chunk in enumerate(chunks):
             phys = self.physics if self.physics is not None else worker_backend(backend)
-            with threadpool_limits(limits=1, user_api="blas"):
-                res = phys.run(list(chunk))
-            yield i, res
+            yield i, phys.run(list(chunk))
 
     def close(self) -> None:
         """Nothing to release (backends built here stay cached for the process)."""

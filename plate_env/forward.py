@@ -479,3 +479,40 @@ def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardMo
                               float(m.get("blur", 0.0))))
     return ForwardModel(name=name, members=tuple(members), sigma_eps=float(entry["sigma_eps"]),
                         pooling=entry.get("pooling", "evidence"), provenance=entry.get("provenance", {}))
+
+
+# ----------------------------------------------------------------------------------------------- estimation
+def fit_sigma_model(resid: np.ndarray, spread: np.ndarray, stderr: np.ndarray, nu: float = NU) -> float:
+    """Maximum-likelihood model error (deg/s) of an atlas from live stable probes at held-out points: residuals
+    ``y - mu`` are Student-t with scale^2 ``spread^2 + stderr^2 + sigma^2``. Pure."""
+    from scipy.optimize import minimize_scalar
+
+    r = np.asarray(resid, float)
+    base = np.asarray(spread, float) ** 2 + np.asarray(stderr, float) ** 2
+    if r.size == 0:
+        raise ValueError("no held-out residuals to estimate a model error from")
+
+    def nll(log_s: float) -> float:
+        return -float(np.sum(log_student(r, base + math.exp(2 * log_s), nu)))
+
+    best = minimize_scalar(nll, bounds=(math.log(1e-3), math.log(1e3)), method="bounded")
+    return float(math.exp(best.x))
+
+
+def fit_sigma_eps(eps: np.ndarray, post_sd: np.ndarray) -> float:
+    """Maximum-likelihood coherent discrepancy (sd of log omega_n) from held-out objects: ``eps = log(truth /
+    estimate)`` is normal with variance ``post_sd^2 + sigma^2``, ``post_sd`` the posterior's own log-sd. Pure;
+    0 when the posteriors already explain the errors."""
+    from scipy.optimize import minimize_scalar
+
+    e = np.asarray(eps, float)
+    s2 = np.asarray(post_sd, float) ** 2
+    if e.size == 0:
+        raise ValueError("no held-out objects to estimate a discrepancy from")
+
+    def nll(sig: float) -> float:
+        v = s2 + sig ** 2
+        return float(np.sum(0.5 * np.log(v) + 0.5 * e ** 2 / v))
+
+    best = minimize_scalar(nll, bounds=(0.0, 2.0), method="bounded")
+    return float(best.x) if nll(best.x) < nll(0.0) else 0.0

@@ -63,6 +63,14 @@ def _table(probes: Sequence[ProbeResult] | ProbeTable) -> ProbeTable:
 def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = "pointmass",
                      calibrations: dict[float, Calibration] | None = None) -> Estimate:
     """Fit Eq. (9) per plate amplitude, map each f0 through that amplitude's Eq. (10), combine by inverse variance."""
+    n_un = int(table.unstable.sum())
+    cals: dict[float, Calibration] = {}
+    for amp in table.amplitudes():  # every amplitude calibrated, or no estimate: none is dropped silently
+        try:
+            cals[amp] = calibrations[amp] if calibrations is not None else get_calibration(physics, model, amp)
+        except (KeyError, ValueError) as exc:
+            reason = f"A_p = {amp:g} deg: {exc if isinstance(exc, ValueError) else 'no calibration given'}"
+            return Estimate(ok=False, method="lorentz", reason=reason, n_probes=len(table), n_unstable=n_un)
     fits: dict[float, LorentzFit] = {}
     parts: list[tuple[float, float, float | None, float]] = []
     reasons = []
@@ -74,16 +82,11 @@ def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = 
         if not fit.ok:
             reasons.append(f"A_p={amp:g} deg: {fit.reason}")
             continue
-        try:
-            cal = calibrations[amp] if calibrations is not None else get_calibration(physics, model, amp)
-        except (KeyError, ValueError) as exc:
-            reasons.append(f"A_p={amp:g} deg: {exc}")
-            continue
+        cal = cals[amp]
         w = cal.omega_n(fit.f0)
         se = cal.omega_n_stderr(fit.f0, fit.f0_stderr)
         alpha = cal.alpha(fit.omega_max, fit.f0)
         parts.append((w, se, alpha, cal.alpha_resid_std))
-    n_un = int(table.unstable.sum())
     if not parts:
         return Estimate(ok=False, method="lorentz", reason="; ".join(reasons) or "no probes", n_probes=len(table),
                         n_unstable=n_un, fits=fits)

@@ -18,7 +18,8 @@ class ProbeTable:
     """Probes in edge units: f_p (Hz), A_p (deg), omega_B and its standard error (deg/s), instability flags.
 
     ``omega_b_deg_s`` is sign-normalised on construction from results (multiplied by sign(A_p * B_p)) so that
-    curves of either rotation direction compare with the calibration and atlas, which use A_p, B_p > 0.
+    curves of either rotation direction compare with the calibration and atlas, which use A_p, B_p > 0; likewise
+    ``a_p_deg`` holds the magnitude |A_p| (the constructors take the absolute value).
     """
 
     f_p_hz: np.ndarray
@@ -40,7 +41,7 @@ class ProbeTable:
     def from_results(cls, results: Sequence[ProbeResult]) -> ProbeTable:
         sign = [math.copysign(1.0, r.spec.motion.amp_rad * r.spec.motion.b_p or 1.0) for r in results]
         return cls(f_p_hz=np.array([r.spec.motion.freq_hz for r in results], float),
-                   a_p_deg=np.array([math.degrees(r.spec.motion.amp_rad) for r in results], float),
+                   a_p_deg=np.array([abs(r.spec.motion.a_p_deg) for r in results], float),
                    omega_b_deg_s=np.array([s * r.omega_b_deg_s for s, r in zip(sign, results, strict=True)], float),
                    stderr_deg_s=np.array([r.stderr_deg_s for r in results], float),
                    unstable=np.array([r.unstable for r in results], bool))
@@ -48,7 +49,7 @@ class ProbeTable:
     @classmethod
     def from_arrays(cls, f_p_hz, a_p_deg, omega_b_deg_s, stderr_deg_s=None, unstable=None) -> ProbeTable:
         f = np.atleast_1d(np.asarray(f_p_hz, float))
-        a = np.broadcast_to(np.asarray(a_p_deg, float), f.shape).copy()
+        a = np.abs(np.broadcast_to(np.asarray(a_p_deg, float), f.shape))
         w = np.atleast_1d(np.asarray(omega_b_deg_s, float))
         se = np.zeros_like(f) if stderr_deg_s is None else np.atleast_1d(np.asarray(stderr_deg_s, float))
         un = np.zeros(f.shape, bool) if unstable is None else np.atleast_1d(np.asarray(unstable, bool))
@@ -60,6 +61,12 @@ class ProbeTable:
 
     def amplitudes(self) -> list[float]:
         return sorted({float(a) for a in np.round(self.a_p_deg, 6)})
+
+    def to_rows(self) -> list[dict]:
+        """One JSON-ready dict per probe (edge units, the field names of the columns)."""
+        return [{"f_p_hz": float(f), "a_p_deg": float(a), "omega_b_deg_s": float(w), "stderr_deg_s": float(s),
+                 "unstable": bool(u)} for f, a, w, s, u in zip(self.f_p_hz, self.a_p_deg, self.omega_b_deg_s,
+                                                               self.stderr_deg_s, self.unstable, strict=True)]
 
 
 class CsvError(ValueError):
@@ -73,21 +80,27 @@ OPTIONAL = ("stderr_deg_s", "a_p_deg", "unstable")
 def read_lab_csv(path: str | Path, a_p_deg: float | None = None) -> ProbeTable:
     """Read a lab sweep: columns ``f_p_hz``, ``omega_b_deg_s``, optional ``stderr_deg_s``, ``a_p_deg``, ``unstable``.
 
-    ``a_p_deg`` (the ``--amp`` option) applies to rows without their own amplitude column. Raises CsvError naming
-    the line and column of the first bad value.
+    ``a_p_deg`` (the ``--amp`` option) applies to rows without their own amplitude column. Amplitudes are
+    magnitudes, 0 < A_p <= 45 deg (``omega_b_deg_s`` sign-normalised: positive when the disc turns the way
+    sign(A_p B_p) says). UTF-8 with or without a byte-order mark (Excel's "CSV UTF-8"). Raises CsvError naming the
+    line and column of the first bad value.
     """
     path = Path(path)
     if a_p_deg is not None and not (isinstance(a_p_deg, (int, float)) and math.isfinite(a_p_deg)
-                                    and 0 < abs(a_p_deg) <= 45):
-        raise CsvError(f"plate amplitude --amp {a_p_deg!r} deg is outside the allowed range 0 < |A_p| <= 45")
+                                    and 0 < a_p_deg <= 45):
+        raise CsvError(f"plate amplitude --amp {a_p_deg!r} deg is outside the allowed range (0, 45] (the magnitude "
+                       f"of A_p)")
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise CsvError(f"{path}: cannot read: {exc}") from None
     rows = list(csv.reader(line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")))
     if not rows:
         raise CsvError(f"{path}: empty file; expected a header with columns {', '.join(REQUIRED)}")
     header = [h.strip() for h in rows[0]]
+    twice = sorted({h for h in header if header.count(h) > 1})
+    if twice:
+        raise CsvError(f"{path}: line 1: column(s) {twice} appear more than once; header is {header}")
     missing = [c for c in REQUIRED if c not in header]
     if missing:
         raise CsvError(f"{path}: line 1: missing column(s) {', '.join(missing)}; header is {header}")
@@ -112,10 +125,11 @@ def read_lab_csv(path: str | Path, a_p_deg: float | None = None) -> ProbeTable:
             except ValueError:
                 raise CsvError(f"{path}: line {lineno}, column {h}: {cell!r} is not a number") from None
             limits = {"f_p_hz": (0.0, 200.0), "omega_b_deg_s": (-1e5, 1e5), "stderr_deg_s": (0.0, 1e5),
-                      "a_p_deg": (-45.0, 45.0)}[h]
-            if not (math.isfinite(value) and limits[0] <= value <= limits[1]) or (h == "f_p_hz" and value == 0):
+                      "a_p_deg": (0.0, 45.0)}[h]
+            open_lo = h in ("f_p_hz", "a_p_deg")
+            if not (math.isfinite(value) and limits[0] <= value <= limits[1]) or (open_lo and value == 0):
                 raise CsvError(f"{path}: line {lineno}, column {h}: {cell!r} is outside the allowed range "
-                               f"{'(' if h == 'f_p_hz' else '['}{limits[0]:g}, {limits[1]:g}]")
+                               f"{'(' if open_lo else '['}{limits[0]:g}, {limits[1]:g}]")
             cols[h].append(value)
     n = len(rows) - 1
     if n == 0:

@@ -67,6 +67,26 @@ def load_cache(path: Path) -> dict[str, dict]:
     return out
 
 
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C during :func:`run_cached`: ``results`` are the probes finished by then (this run's chunks and those
+    found in the cache), in the order of the specs, so a caller can print them before it exits."""
+
+    def __init__(self, results: list[ProbeResult]) -> None:
+        super().__init__()
+        self.results = results
+
+
+def _open_for_append(path: Path):
+    """``path`` opened for appending (binary), after cutting off a torn last line (an interrupted write), so the
+    next record starts on a line of its own instead of completing the fragment into an invalid line."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = path.read_bytes() if path.exists() else b""
+    if data and not data.endswith(b"\n"):
+        with open(path, "r+b") as fh:
+            fh.truncate(data.rfind(b"\n") + 1)
+    return open(path, "ab")  # noqa: SIM115 - returned to the caller, who closes it
+
+
 def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache: str | Path | None,
                chunk: int = 64, progress: bool = True, desc: str = "probes",
                executor: Executor | str | None = None) -> list[ProbeResult]:
@@ -103,10 +123,7 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
         from tqdm.auto import tqdm
 
         bar = tqdm(total=sum(map(len, chunks)), desc=desc, unit="probe")
-    fh = None
-    if cache and chunks:
-        Path(cache).parent.mkdir(parents=True, exist_ok=True)
-        fh = open(cache, "a")  # noqa: SIM115 - kept open across chunks, closed in finally
+    fh = _open_for_append(Path(cache)) if cache and chunks else None
     try:
         if chunks:
             for j, results in executor.map(backend, [[specs[i] for i in c] for c in chunks]):
@@ -115,11 +132,14 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
                     line = _to_line(keys[i], r)
                     done[keys[i]] = json.loads(line)
                     if fh is not None:
-                        fh.write(line + "\n")
+                        fh.write((line + "\n").encode())
                 if fh is not None:
                     fh.flush()
                 if bar is not None:
                     bar.update(len(idx))
+    except KeyboardInterrupt:
+        raise SweepInterrupted([_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)
+                                if k in done]) from None
     finally:
         if own and executor is not None:
             executor.close()

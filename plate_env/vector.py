@@ -8,6 +8,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
+from plate_env import checks
 from plate_env.env import PlateRotationEnv
 
 
@@ -17,8 +18,7 @@ class PlateRotationVectorEnv(VectorEnv):
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"]}
 
     def __init__(self, num_envs: int = 2, **kwargs) -> None:
-        if not (isinstance(num_envs, int) and num_envs >= 1):
-            raise ValueError(f"num_envs {num_envs!r} must be a positive int")
+        num_envs = checks.integer("num_envs", num_envs, 1, 10_000)
         self.envs = [PlateRotationEnv(**kwargs) for _ in range(num_envs)]
         self.physics = self.envs[0].physics
         for env in self.envs[1:]:

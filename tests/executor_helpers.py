@@ -21,15 +21,6 @@ def short_specs(n: int = 6, measure_s: float = 0.3) -> list[pe.ProbeSpec]:
             for k in range(n)]
 
 
-def fresh_parameter_caches() -> None:
-    """Forget the point-mass parameters built so far in this process: other tests built them by direct runs with
-    all BLAS threads, the executors build them with one (plate_env.executor's determinism note)."""
-    from plate_env.physics.tilelink import backend
-
-    backend._pointmass_params.cache_clear()
-    backend._ainv.cache_clear()
-
-
 def same(a: list[pe.ProbeResult], b: list[pe.ProbeResult]) -> bool:
     """Equal in every field but the wall time (bit for bit in the floats)."""
     return [dataclasses.replace(r, wall_s=0.0) for r in a] == [dataclasses.replace(r, wall_s=0.0) for r in b]

@@ -16,19 +16,49 @@ from plate_env.atlas import atlas_from_repeats
 from plate_env.cli import main
 from plate_env.fitting import lorentzian
 
-AGENTS = [("grid", dict(n=6)), ("coarse_to_fine", dict(n_coarse=4, n_fine=2)), ("bayes", dict(target_rel=0.1))]
+TRUTH = {"omega_n": 12 * math.pi, "alpha": 0.7}
+
+
+def _episode(physics: str, name: str, **kw):
+    env = gym.make("PlateRotation-v0", physics=physics, max_probes=8)
+    try:
+        return run_episode(env, make_agent(name, **kw), seed=1, options=TRUTH)
+    finally:
+        env.close()
 
 
 @pytest.mark.parametrize("physics", ["atlas", "tilelink"])
-@pytest.mark.parametrize("name, kw", AGENTS)
-def test_agent_runs_an_episode_end_to_end(physics, name, kw):
-    env = gym.make("PlateRotation-v0", physics=physics, max_probes=8)
-    res = run_episode(env, make_agent(name, **kw), seed=1, options={"omega_n": 12 * math.pi, "alpha": 0.7})
-    assert 1 <= res.n_probes <= 8 and res.sim_s > 0
-    assert res.estimate.ok or res.estimate.reason
-    if res.estimate.ok:
-        assert math.isfinite(res.estimate.omega_n) and res.estimate.omega_n > 0
-    env.close()
+def test_grid_agent_runs_the_papers_sweep_and_says_why_six_probes_cannot_be_fitted(physics):
+    res = _episode(physics, "grid", n=6)
+    assert res.probes.f_p_hz.tolist() == pytest.approx(np.linspace(10.0, 40.0, 6).tolist())
+    assert res.probes.amplitudes() == [3.0]
+    assert 0 < res.sim_s <= 6 * (0.2 + 0.5 + 1.0) + 1e-9  # ramp + settle + 1 s window each, less if unstable
+    # 6 Hz spacing leaves one probe in the first hump's window: the paper's method gives no estimate, and says so
+    assert res.estimate.method == "lorentz" and not res.estimate.ok
+    assert "usable probes in the fit window" in res.estimate.reason
+
+
+@pytest.mark.parametrize("physics", ["atlas", "tilelink"])
+def test_coarse_to_fine_refines_next_to_the_coarse_peak(physics):
+    res = _episode(physics, "coarse_to_fine", n_coarse=4, n_fine=2)
+    f = res.probes.f_p_hz
+    assert len(f) == 6 and f[:4].tolist() == pytest.approx([10.0, 20.0, 30.0, 40.0])
+    stable = ~res.probes.unstable[:4]
+    peak = f[:4][stable][np.argmax(res.probes.omega_b_deg_s[:4][stable])]
+    assert all(0 < abs(x - peak) <= 4.0 for x in f[4:])  # within the first +-width_hz round around the peak
+    est = res.estimate
+    assert est.ok and est.method == "atlas" and est.omega_n_ci95[0] <= TRUTH["omega_n"] <= est.omega_n_ci95[1]
+
+
+@pytest.mark.parametrize("physics", ["atlas", "tilelink"])
+def test_bayes_stops_at_its_target_with_the_truth_inside_its_interval(physics):
+    res = _episode(physics, "bayes", target_rel=0.1)
+    est = res.estimate
+    assert est.ok and est.method == "atlas"
+    assert 3 <= res.n_probes < 8  # stopped by its target, before the budget (min_probes 3)
+    assert est.omega_n_stderr / est.omega_n <= 0.1
+    assert est.omega_n_ci95[0] <= TRUTH["omega_n"] <= est.omega_n_ci95[1]
+    assert len(set(zip(res.probes.f_p_hz.tolist(), res.probes.a_p_deg.tolist(), strict=True))) == res.n_probes
 
 
 def _lorentz_atlas():

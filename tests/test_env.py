@@ -160,14 +160,31 @@ def test_close_twice_and_pickle_and_deepcopy():
     clone.close()
 
 
-def test_pybullet_client_disconnected_on_close():
-    pytest.importorskip("pybullet")
+def test_pybullet_close_disconnects_the_client_and_ends_the_workers():
+    pb = pytest.importorskip("pybullet")
+    import multiprocessing
+
+    from plate_env.physics.pybullet_sheet import PyBulletPhysics
+
     env = PlateRotationEnv(physics="pybullet", **FAST["pybullet"])
     env.reset(seed=0)
     env.step(np.array([-0.6, -1.0, -1.0, -1.0], np.float32))
+    cid = env.physics._client.cid
+    assert pb.getConnectionInfo(cid)["isConnected"] == 1
     env.close()
     env.close()
-    assert env.physics._client is None and env.physics._pool is None
+    assert pb.getConnectionInfo(cid)["isConnected"] == 0  # the engine's own view, not our attribute
+    with pytest.raises(RuntimeError, match="closed"):  # and no reconnection by a later step
+        env.step(np.array([-0.6, -1.0, -1.0, -1.0], np.float32))
+    before = {p.pid for p in multiprocessing.active_children()}
+    pool = PyBulletPhysics(n_workers=2, n_layer=30, k_elastic=100.0)
+    objs = (plate_env.ObjectSpec.from_paper(10.0, 36.9), plate_env.ObjectSpec.from_paper(20.0, 45.0))
+    pool.run([plate_env.ProbeSpec(o, plate_env.PlateMotion.from_paper(18.0, 3.0), settle_s=0.1, measure_s=0.1)
+              for o in objs])  # two units: the pool runs them
+    workers = [p for p in multiprocessing.active_children() if p.pid not in before]
+    assert len(workers) == 2 and all(p.is_alive() for p in workers)
+    pool.close()
+    assert not any(p.is_alive() for p in workers)
 
 
 @pytest.mark.parametrize("mode", ["vector_entry_point", "async"])

@@ -60,7 +60,8 @@ def test_deterministic_and_finite() -> None:
 
 
 def test_huge_dt_is_flagged_unstable() -> None:
-    phys = PyBulletPhysics(dt=5e-3, k_elastic=100.0)
+    with pytest.warns(UserWarning, match="dt = 0.005 s is above the largest time step measured stable"):
+        phys = PyBulletPhysics(dt=5e-3, k_elastic=100.0)
     obj = pe.ObjectSpec.from_paper(33.0, 36.9)
     (r,) = phys.run([_probe(obj)])
     phys.close()
@@ -82,3 +83,59 @@ def test_pool_equals_serial() -> None:
         pool.close()
     assert [r.omega_b_deg_s for r in serial] == [r.omega_b_deg_s for r in par]
     assert [r.reason for r in serial] == [r.reason for r in par]
+
+
+# ------------------------------------------------------------------------------------- issue 16, defects 12 and 13
+def test_nothing_from_pybullet_on_stdout(capfd) -> None:
+    phys = PyBulletPhysics(n_layer=30, k_elastic=100.0)
+    try:
+        phys.run([_probe(pe.ObjectSpec.from_paper(10.0, 36.9), f=18.0)])
+    finally:
+        phys.close()
+    out, _ = capfd.readouterr()  # file descriptor 1, where PyBullet's C code printed "Nodes: 60 ..."
+    assert out == ""
+
+
+def test_cli_json_on_pybullet_is_one_json_document() -> None:
+    import json
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "plate_env", "probe", "--physics", "pybullet", "--freq", "18",
+                           "--settle", "0.1", "--measure", "0.2", "--json"], capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["f_p_hz"] == 18.0  # nothing else on stdout
+
+
+def test_probe_placement_is_honoured() -> None:
+    from dataclasses import replace
+
+    obj = pe.ObjectSpec.from_paper(10.0, 36.9)
+    base = ProbeSpec(obj, pe.PlateMotion.from_paper(18.0, 3.0), settle_s=0.1, measure_s=0.3, record_trace=True)
+    moved = replace(base, initial_yaw=0.6, initial_offset=(3e-4, -2e-4))
+    phys = PyBulletPhysics(n_layer=30, k_elastic=100.0)
+    try:
+        assert phys.units([base, moved, moved, base]) == [[base], [moved, moved], [base]]
+        r0, r1, r2 = (phys.run([s])[0] for s in (base, moved, moved))
+    finally:
+        phys.close()
+    c0 = np.array([r0.trace.centre_u[0], r0.trace.centre_v[0]])  # the centred sheet's start (mesh centroid)
+    turn = np.array([[math.cos(0.6), -math.sin(0.6)], [math.sin(0.6), math.cos(0.6)]])
+    assert [r1.trace.centre_u[0], r1.trace.centre_v[0]] == pytest.approx(turn @ c0 + [3e-4, -2e-4], abs=1e-6)
+    assert r1.omega_b_deg_s != r0.omega_b_deg_s  # another start, another run
+    assert r2.omega_b_deg_s == r1.omega_b_deg_s  # the same start repeats exactly
+
+
+def test_env_repeats_on_pybullet_are_placed_at_random() -> None:
+    from plate_env.env import PlateRotationEnv
+
+    env = PlateRotationEnv(physics="pybullet", method="lorentz", max_probes=3, settle_s=0.1,
+                           measure_range_s=(0.1, 0.3), physics_options=dict(n_layer=30, k_elastic=100.0))
+    env.reset(seed=0)
+    action = np.array([-0.47, -1.0, 1.0, -1.0], np.float32)  # 17 Hz, 3 deg, 0.3 s: the same probe twice
+    first = env.step(action)[4]["last_probe"]
+    second = env.step(action)[4]["last_probe"]
+    env.close()
+    assert first["f_p_hz"] == second["f_p_hz"]
+    assert first["omega_b_deg_s"] != second["omega_b_deg_s"]  # every repeat used to be the same centred run

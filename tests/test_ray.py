@@ -16,7 +16,6 @@ from executor_helpers import (  # noqa: E402
     POINTMASS,
     Counting,
     Interrupting,
-    fresh_parameter_caches,
     run_killing_one,
     same,
     short_specs,
@@ -72,7 +71,6 @@ def _running_chunk_pids() -> list[int]:
 
 def test_ray_gives_the_local_results_bit_for_bit(ray_executor):
     specs = short_specs(6, measure_s=1.0)
-    fresh_parameter_caches()
     local = run_cached(POINTMASS, specs, None, chunk=2, progress=False)  # the local default: in-process
     remote = run_cached(POINTMASS, specs, None, chunk=2, progress=False, executor=ray_executor)
     assert not any(r.unstable for r in local)
@@ -81,7 +79,6 @@ def test_ray_gives_the_local_results_bit_for_bit(ray_executor):
 
 def test_ray_retries_the_chunk_of_a_killed_worker(ray_executor, tmp_path):
     specs = short_specs(4, measure_s=30.0)  # ~0.4 s a probe: a chunk of 2 runs long enough to be killed
-    fresh_parameter_caches()
     reference = run_cached(POINTMASS, specs, None, chunk=2, progress=False, executor=InProcessExecutor())
     cache = tmp_path / "ray.jsonl"
     got, killed = run_killing_one(_running_chunk_pids, lambda: run_cached(POINTMASS, specs, cache, chunk=2,
@@ -93,7 +90,6 @@ def test_ray_retries_the_chunk_of_a_killed_worker(ray_executor, tmp_path):
 
 def test_an_interrupted_ray_run_resumes_without_recomputing(ray_executor, tmp_path):
     specs = short_specs(8)
-    fresh_parameter_caches()
     cache = tmp_path / "ray_resume.jsonl"
     with pytest.raises(KeyboardInterrupt):
         run_cached(POINTMASS, specs, cache, chunk=2, progress=False, executor=Interrupting(ray_executor, 2))

@@ -29,24 +29,40 @@ FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthChe
 
 # ----------------------------------------------------------------------------------------------------------- CLI
 NUMBERS = st.sampled_from(["0", "-1", "3", "25", "12.5", "1e3", "nan", "inf", "-inf", "1e-9", "abc", "", "10pi",
-                           "3.5pi", "pi", "--", "0x10", "1,2", "10:40:1", "40:10:1", "10:40:0", "5:6:0.5", "é"])
+                           "3.5pi", "pi", "--", "0x10", "1,2", "10:40:1", "40:10:1", "10:40:0", "5:6:0.5", "é",
+                           "-10pi", "-0", "1e309", "-1e-3", "1e-300", "2e9"])
 OPTIONS = ("--object", "--omega-n", "--alpha", "--mass-g", "--amp", "--bp", "--settle", "--measure", "--freq",
-           "--freqs", "--method", "--model", "--json", "--no-progress", "--bogus", "-h")
+           "--freqs", "--method", "--model", "--json", "--no-progress", "--bogus", "-h", "--seed", "--max-probes",
+           "--target", "--agent", "--plot")
 OBJECTS = st.sampled_from(["cheese", "dumpling", "cheese_lead", "pizza", ""])
+#: Signed integers, from small to far beyond any int64 (seeds, budgets).
+INTEGERS = st.integers(-2 ** 70, 2 ** 70).map(str)
+#: Frequency ranges start:stop:step with tiny steps and huge spans (a probe count of 1e14 must not be allocated).
+FREQ_RANGES = st.builds(lambda a, b, c: f"{a:g}:{b:g}:{c:g}", st.floats(-10.0, 300.0), st.floats(-10.0, 1e6),
+                        st.one_of(st.floats(1e-15, 1e-3), st.floats(-1.0, 50.0)))
+PLOTS = st.sampled_from(["/nonexistent/x.png", "/tmp", "", "plot.bogus", "/dev/null/x.png"])
 
 
 @st.composite
 def cli_argv(draw) -> list[str]:
     """A random command line: a (possibly unknown) command, atlas physics, random options and values.
 
-    ``--dt`` is left out on purpose (see ``test_cli_atlas_with_dt_is_a_clear_error``) and frequencies below
-    1 Hz are not drawn for live physics (a 2-period probe at 1e-6 Hz lasts 2e6 simulated seconds)."""
-    cmd = draw(st.sampled_from(["probe", "sweep", "fit", "bogus", ""]))
+    ``identify`` always gets a signed integer ``--seed`` and a small or absurd ``--max-probes`` (the default 30
+    probes would make an example slow); ``sweep`` a generated ``--freqs``. ``--dt`` is left out (it does not apply
+    to atlas physics: ``test_cli_atlas_with_dt_is_a_clear_error``; on live physics see test_bad_input.py), and
+    frequencies below 1 Hz are not drawn for live physics (a 2-period probe at 1e-6 Hz lasts 2e6 simulated s).
+    ``--plot`` paths are ones that must be refused before any work (none is written)."""
+    cmd = draw(st.sampled_from(["probe", "sweep", "fit", "identify", "identify", "bogus", ""]))
     argv = [cmd] if cmd else []
-    if cmd in ("probe", "sweep"):
+    if cmd in ("probe", "sweep", "identify"):
         argv += ["--physics", draw(st.sampled_from(["atlas", "atlas", "nonsense"]))]
     if cmd == "fit":
         argv.append(draw(st.sampled_from(["/nonexistent.csv", "/tmp", "/dev/null"])))
+    if cmd == "identify":
+        argv += ["--seed", draw(INTEGERS), "--max-probes", draw(st.sampled_from(["2", "3", "0", "-1", "1e9", "2.5"])),
+                 "--agent", draw(st.sampled_from(["grid", "coarse_to_fine", "bayes", "magic"]))]
+    if cmd == "sweep":
+        argv += ["--freqs", draw(FREQ_RANGES)]
     for _ in range(draw(st.integers(0, 6))):
         opt = draw(st.sampled_from(OPTIONS))
         if opt == "-h":
@@ -60,6 +76,14 @@ def cli_argv(draw) -> list[str]:
             argv.append(draw(st.sampled_from(["lorentz", "atlas", "magic"])))
         elif opt == "--model":
             argv.append(draw(st.sampled_from(["pointmass", "rigid", "foo"])))
+        elif opt == "--agent":
+            argv.append(draw(st.sampled_from(["grid", "bayes", "magic"])))
+        elif opt == "--plot":
+            argv.append(draw(PLOTS))
+        elif opt in ("--seed", "--max-probes"):
+            argv.append(draw(INTEGERS))
+        elif opt == "--freqs":
+            argv.append(draw(st.one_of(FREQ_RANGES, NUMBERS)))
         elif draw(st.booleans()):
             argv.append(draw(NUMBERS))
     return argv
@@ -70,14 +94,17 @@ def _run_cli(argv: Sequence[str], capsys) -> tuple[int, str]:
         code = main(list(argv))
     except SystemExit as exc:  # argparse: usage errors exit 2, --help exits 0
         code = exc.code if isinstance(exc.code, int) else 2
+    except BaseException as exc:  # noqa: BLE001 - what a user would see as a traceback
+        code, err = -1, f"Traceback: {type(exc).__name__}: {exc}"
+        return code, capsys.readouterr().err + err
     return code, capsys.readouterr().err
 
 
-@FAST
+@settings(FAST, max_examples=100, derandomize=True)  # derandomized: the same examples on every run
 @given(argv=cli_argv())
 def test_cli_never_tracebacks(argv, capsys):
     code, err = _run_cli(argv, capsys)
-    assert code in (0, 1, 2), (argv, code, err)  # 1: fit ran but gave no estimate (documented)
+    assert code in (0, 1, 2), (argv, code, err)  # 1: fit/identify ran but gave no estimate (documented)
     assert "Traceback" not in err
     if code == 2:
         lines = [ln for ln in err.splitlines() if ln.strip()]
@@ -103,7 +130,7 @@ def test_cli_atlas_with_dt_is_a_clear_error(capsys):
 
 def test_cli_tiny_frequency_is_refused_not_simulated_for_hours(capsys):
     code, err = _run_cli(["probe", "--freq", "1e-6"], capsys)
-    assert code == 2 and "f_p" in err
+    assert code == 2 and "--freq" in err and "[0.5, 200] Hz" in err
 
 
 def test_fit_refuses_a_nan_amplitude(tmp_path, capsys):

@@ -18,7 +18,14 @@ from collections.abc import Sequence
 import numpy as np
 
 from plate_env.atlas import Atlas, load_atlas
-from plate_env.physics.base import SLIPPED, ProbeResult, ProbeSpec, YawTrace
+from plate_env.physics.base import SLIPPED, ProbeRefused, ProbeResult, ProbeSpec, YawTrace, check_probes
+
+
+def probe_point(spec: ProbeSpec) -> dict[str, float]:
+    """The quantities of a probe an atlas describes (the keywords of :meth:`Atlas.outside`), SI."""
+    o, m = spec.obj, spec.motion
+    return {"f_p_hz": m.freq_hz, "a_p_deg": m.a_p_deg, "omega_n": o.omega_n, "alpha": o.alpha, "b_p": m.b_p,
+            "mass": o.mass, "diameter": o.diameter}
 
 
 class AtlasPhysics:
@@ -77,7 +84,20 @@ class AtlasPhysics:
         z = float(np.interp(spec.motion.freq_hz, self._grid, self._field(spec)))
         return float(ndtr(self.rho * z + math.sqrt(1 - self.rho ** 2) * rng.normal()))
 
+    def check(self, probes: Sequence[ProbeSpec]) -> None:
+        """Refuse (ProbeRefused naming the value and the atlas's range) any probe outside what the atlas describes:
+        f_p, omega_n or alpha outside its grid, an amplitude it does not tabulate, or a B_p, mass or diameter other
+        than it was built at. The atlas would otherwise answer with a clipped or unrelated response."""
+        for i, spec in enumerate(check_probes(probes)):
+            problems = self.atlas.outside(**probe_point(spec))
+            if problems:
+                quantity, reason = next(iter(problems.items()))
+                raise ProbeRefused(quantity, f"probe {i}: {'; '.join(problems.values())} (atlas physics answers only "
+                                             f"what its atlas describes; use a live backend for other probes)")
+
     def run(self, probes: Sequence[ProbeSpec], progress: bool = False) -> list[ProbeResult]:
+        """Answer every probe from the atlas; refuses them all (ValueError) if one lies outside it (:meth:`check`)."""
+        self.check(probes)
         out = []
         for spec in probes:
             t0 = time.perf_counter()

@@ -26,6 +26,11 @@ SLIP_LIMIT_M = 0.010
 #: Lowest plate frequency a probe accepts, Hz, and the longest probe, simulated s.
 MIN_PROBE_FREQ_HZ = 0.5
 MAX_PROBE_S = 1200.0
+#: Most time steps one probe may take (a larger dt or shorter windows beyond): ~20 s of wall time a point-mass
+#: probe, minutes a rigid one; dt = 1e-9 s would ask 1.7e9 steps of the default probe and run for hours.
+MAX_PROBE_STEPS = 10_000_000
+#: Allowed settle and measurement windows of a probe, s.
+WINDOW_RANGE_S = (0.0, 600.0)
 #: Default placement error (std per axis) of a repeated probe, m.
 PLACEMENT_STD_M = 2e-4
 
@@ -51,9 +56,10 @@ class ProbeSpec:
     initial_offset: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
+        lo, hi = WINDOW_RANGE_S
         for label, value in (("settle_s", self.settle_s), ("measure_s", self.measure_s)):
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and 0.0 <= value <= 600.0):
-                raise ValueError(f"ProbeSpec {label} = {value!r} is outside the allowed range [0, 600] s")
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
+                raise ValueError(f"ProbeSpec {label} = {value!r} is outside the allowed range [{lo:g}, {hi:g}] s")
         if not (self.motion.freq_hz >= MIN_PROBE_FREQ_HZ):
             raise ValueError(f"a probe needs a plate frequency f_p >= {MIN_PROBE_FREQ_HZ} Hz (whole periods are "
                              f"measured), got {self.motion.freq_hz!r}")
@@ -140,6 +146,47 @@ class ProbeResult:
         }
 
 
+class ProbeRefused(ValueError):
+    """A backend cannot answer a probe; raised before any work. ``quantity`` names the probe's value at fault
+    (``f_p_hz``, ``a_p_deg``, ``omega_n``, ``alpha``, ``b_p``, ``mass``, ``diameter``, ``steps``), so a caller that
+    generated the probe from its own options can say which option to change."""
+
+    def __init__(self, quantity: str, message: str) -> None:
+        super().__init__(message)
+        self.quantity = quantity
+
+
+def refuse_early(physics: Physics, probes: Sequence[ProbeSpec]) -> None:
+    """Raise :class:`ProbeRefused` for the first of ``probes`` that ``physics`` cannot answer, before any work.
+
+    Backends with limits beyond ProbeSpec's own checks (the atlas's domain, a step-count limit) define
+    ``check(probes)``; others accept every valid ProbeSpec.
+    """
+    check = getattr(physics, "check", None)
+    if check is not None:
+        check(probes)
+
+
+def check_step_counts(probes: Sequence[ProbeSpec], dt: float) -> None:
+    """Refuse (ProbeRefused, quantity ``steps``) a probe that would take more than :data:`MAX_PROBE_STEPS` steps
+    of ``dt`` s."""
+    for i, spec in enumerate(probes):
+        steps = spec.duration_s / dt
+        if steps > MAX_PROBE_STEPS:
+            raise ProbeRefused("steps", f"probe {i}: {steps:.3g} time steps of dt = {dt:g} s for "
+                                        f"{spec.duration_s:.4g} simulated s; at most {MAX_PROBE_STEPS:.0e} a probe "
+                                        f"(use a larger dt or shorter windows)")
+
+
+def warn_above_stable_dt(dt: float, limit: float, what: str, source: str) -> None:
+    """Warn (UserWarning naming dt) when ``dt`` exceeds the largest time step measured stable for ``what``."""
+    if dt > limit * (1 + 1e-9):
+        import warnings
+
+        warnings.warn(f"dt = {dt:g} s is above the largest time step measured stable for {what} ({limit:g} s, "
+                      f"{source}): expect probes to end unstable (runaway_energy) because of dt", stacklevel=3)
+
+
 def check_probes(probes: Sequence[ProbeSpec]) -> list[ProbeSpec]:
     """The probes as a list, each checked to be a ProbeSpec (TypeError naming the first that is not)."""
     probes = list(probes)
@@ -162,3 +209,6 @@ class Physics(Protocol):
     def close(self) -> None:
         """Release resources (processes, clients). Safe to call twice."""
         ...
+
+    # Optional: ``check(probes) -> None`` raising ProbeRefused for probes the backend cannot answer (see
+    # refuse_early); ``run`` calls it before any work.

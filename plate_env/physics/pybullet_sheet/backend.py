@@ -7,8 +7,19 @@ import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 
-from plate_env.physics.base import NON_FINITE, SLIP_LIMIT_M, ProbeResult, ProbeSpec, check_probes
+from plate_env.physics.base import (
+    NON_FINITE,
+    SLIP_LIMIT_M,
+    ProbeResult,
+    ProbeSpec,
+    check_probes,
+    check_step_counts,
+    warn_above_stable_dt,
+)
 from plate_env.physics.pybullet_sheet.scene import Client, SheetConfig, SheetScene
+
+#: Largest time step measured stable over the whole omega_n range, s (33pi runs away at 8e-4 s).
+STABLE_DT = (4e-4, "experiments/results/pybullet_notes.md")
 
 #: The worker process's client (one per process, opened by the first unit the worker runs).
 _WORKER_CLIENT: Client | None = None
@@ -19,13 +30,13 @@ def _failed(spec: ProbeSpec, reason: str, wall: float) -> ProbeResult:
                        wall_s=wall, periods_measured=0)
 
 
-def run_unit(client: Client, probes: Sequence[ProbeSpec], config: SheetConfig,
-             initial_pose: tuple[float, float, float], stderr_tol_deg_s: float | None,
+def run_unit(client: Client, probes: Sequence[ProbeSpec], config: SheetConfig, stderr_tol_deg_s: float | None,
              k_elastic: float | None = None) -> list[ProbeResult]:
-    """Run one unit: a fresh scene for the unit's object, then its probes in order (continuing the sheet's state).
+    """Run one unit: a fresh scene for the unit's object, placed at its first probe's ``initial_yaw`` and
+    ``initial_offset``, then its probes in order (continuing the sheet's state).
 
-    A probe that ends unstable leaves the next probe a freshly built scene. Never raises: an engine error becomes
-    an unstable result with reason ``non_finite``.
+    A probe that ends unstable leaves the next probe a freshly built scene (at that probe's placement). Never
+    raises: an engine error becomes an unstable result with reason ``non_finite``.
     """
     from plate_env.physics.pybullet_sheet.calibrate import calibrated_k
 
@@ -36,8 +47,8 @@ def run_unit(client: Client, probes: Sequence[ProbeSpec], config: SheetConfig,
         try:
             if scene is None or not scene.alive:
                 k = k_elastic if k_elastic is not None else calibrated_k(spec.obj, config)[0]
-                scene = SheetScene(client, spec.obj, k, config,
-                                   initial_pose=initial_pose)
+                scene = SheetScene(client, spec.obj, k, config, initial_yaw=spec.initial_yaw,
+                                   initial_offset=spec.initial_offset)
             out.append(scene.run_probe(spec, stderr_tol_deg_s))
         except Exception:  # noqa: BLE001 - a probe must never raise out of run()
             scene = None
@@ -55,10 +66,12 @@ def _worker_unit(args: tuple) -> list[ProbeResult]:
 class PyBulletPhysics:
     """A two-layer tetrahedral mass-spring sheet on a driven plate in PyBullet's deformable world.
 
-    Probes are split into *units*: runs of consecutive probes with the same object, at most ``sequence_len``
-    long. Each unit builds its scene once and runs its probes like a real experiment (the plate restarts from
-    rest with the next probe's ramp, the sheet keeps its state). Units depend only on the probe list, so a pool
-    of ``n_workers`` processes gives bit-identical results to the serial run.
+    Probes are split into *units*: runs of consecutive probes with the same object and the same placement
+    (``ProbeSpec.initial_yaw``, ``initial_offset``), at most ``sequence_len`` long. Each unit builds its scene once,
+    with the sheet at that placement, and runs its probes like a real experiment (the plate restarts from rest with
+    the next probe's ramp, the sheet keeps its state). A probe asking for another placement starts a new unit, so
+    every placement asked for is honoured (the env's random placements, ``ProbeSpec.perturbed``). Units depend only
+    on the probe list, so a pool of ``n_workers`` processes gives bit-identical results to the serial run.
 
     Args:
         dt: time step, s (4e-4 s default: within 0.5 % of dt = 1e-4 s, see ``experiments/bench_pybullet.py``).
@@ -68,7 +81,6 @@ class PyBulletPhysics:
         n_workers: processes (1 = run in this process). Use at most one per core.
         sequence_len: probes per unit (1 = a fresh scene for every probe).
         stderr_tol_deg_s: stop a probe's measurement early once omega_B's standard error is below this (deg/s).
-        initial_pose: (yaw rad, dx m, dy m) of the sheet when a scene is built (noise studies).
         slip_limit: plate-frame centre displacement that makes a probe unstable, m.
         config: a full :class:`SheetConfig` (overrides dt, n_layer, thickness, slip_limit).
         k_elastic: fixed spring stiffness, N/m, bypassing the omega_n calibration (tests, benchmarks).
@@ -77,10 +89,10 @@ class PyBulletPhysics:
     name = "pybullet"
 
     def __init__(self, dt: float = 4e-4, n_layer: int = 91, thickness: float = 0.002, n_workers: int = 1,
-                 sequence_len: int = 8, stderr_tol_deg_s: float | None = None,
-                 initial_pose: tuple[float, float, float] = (0.0, 0.0, 0.0), slip_limit: float = SLIP_LIMIT_M,
+                 sequence_len: int = 8, stderr_tol_deg_s: float | None = None, slip_limit: float = SLIP_LIMIT_M,
                  config: SheetConfig | None = None, k_elastic: float | None = None) -> None:
         self.config = config or SheetConfig(n_layer=n_layer, thickness=thickness, dt=dt, slip_limit=slip_limit)
+        warn_above_stable_dt(self.config.dt, STABLE_DT[0], "the PyBullet sheet", STABLE_DT[1])
         if not (isinstance(n_workers, int) and n_workers >= 1):
             raise ValueError(f"n_workers = {n_workers!r} must be a positive int")
         if not (isinstance(sequence_len, int) and sequence_len >= 1):
@@ -91,7 +103,6 @@ class PyBulletPhysics:
         self.k_elastic = k_elastic
         self.sequence_len = sequence_len
         self.stderr_tol_deg_s = stderr_tol_deg_s
-        self.initial_pose = tuple(float(v) for v in initial_pose)
         self._client: Client | None = None
         self._pool: ProcessPoolExecutor | None = None
 
@@ -104,18 +115,25 @@ class PyBulletPhysics:
         return self.config.dt
 
     def units(self, probes: Sequence[ProbeSpec]) -> list[list[ProbeSpec]]:
-        """Split the probes into units (same object, consecutive, at most ``sequence_len``)."""
+        """Split the probes into units (consecutive, same object and placement, at most ``sequence_len``)."""
         units: list[list[ProbeSpec]] = []
         for s in probes:
-            if units and units[-1][0].obj == s.obj and len(units[-1]) < self.sequence_len:
+            first = units[-1][0] if units else None
+            if (first is not None and first.obj == s.obj and len(units[-1]) < self.sequence_len
+                    and (first.initial_yaw, first.initial_offset) == (s.initial_yaw, s.initial_offset)):
                 units[-1].append(s)
             else:
                 units.append([s])
         return units
 
+    def check(self, probes: Sequence[ProbeSpec]) -> None:
+        """Refuse (ProbeRefused) a probe of more than MAX_PROBE_STEPS time steps, before any work."""
+        check_step_counts(check_probes(probes), self.config.dt)
+
     def run(self, probes: Sequence[ProbeSpec], progress: bool = False) -> list[ProbeResult]:
-        """Simulate the probes and return one result per probe, in order."""
+        """Simulate the probes and return one result per probe, in order (all checked first)."""
         probes = check_probes(probes)
+        self.check(probes)
         if not probes:
             return []
         units = self.units(probes)
@@ -126,7 +144,7 @@ class PyBulletPhysics:
             bar = tqdm(total=len(probes), desc="probes", unit="probe")
         results: list[ProbeResult] = []
         try:
-            args = [(u, self.config, self.initial_pose, self.stderr_tol_deg_s, self.k_elastic) for u in units]
+            args = [(u, self.config, self.stderr_tol_deg_s, self.k_elastic) for u in units]
             if self.n_workers == 1 or len(units) == 1:
                 if self._client is None:
                     self._client = Client()

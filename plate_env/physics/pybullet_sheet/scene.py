@@ -11,9 +11,13 @@ pybullet is imported lazily, only when a client is opened.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import math
 import os
+import sys
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,6 +89,25 @@ class SheetConfig:
         return max(1, round(self.record_every_s / self.dt))
 
 
+@contextlib.contextmanager
+def quiet_stdout() -> Iterator[None]:
+    """Send what C code prints on file descriptor 1 during the block to /dev/null: PyBullet's ``loadSoftBody``
+    prints its mesh counts ("Nodes: 182 ...") there, and stdout is for results (``--json``). C's stdio buffer is
+    flushed before fd 1 is restored, so nothing surfaces later. Output of other threads during the block is lost
+    too; the blocks are single PyBullet calls."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        ctypes.CDLL(None).fflush(None)
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
+
+
 class Client:
     """A PyBullet DIRECT client owned by one process (opened lazily, closed explicitly or at exit)."""
 
@@ -112,12 +135,13 @@ class SheetScene:
         k_elastic: ``springElasticStiffness`` of every tetrahedron edge (from the calibration).
         config: numerical choices.
         gravity: m/s^2 (the ring-down test switches it).
-        initial_pose: (yaw rad, dx m, dy m) of the sheet at build (for noise estimates).
+        initial_yaw, initial_offset: the sheet's yaw (rad) and centre offset (u, v in m, plate frame, which is the
+            world frame of the flat plate at rest) when built: a probe's ``ProbeSpec.initial_yaw/initial_offset``.
     """
 
     def __init__(self, client: Client, obj: ObjectSpec, k_elastic: float, config: SheetConfig,
-                 gravity: float = GRAVITY, initial_pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                 with_plate: bool = True) -> None:
+                 gravity: float = GRAVITY, initial_yaw: float = 0.0,
+                 initial_offset: tuple[float, float] = (0.0, 0.0), with_plate: bool = True) -> None:
         self.client, self.obj, self.k_elastic, self.config = client, obj, float(k_elastic), config
         p, cid = client.p, client.cid
         self.p, self.cid = p, cid
@@ -125,7 +149,7 @@ class SheetScene:
         p.setGravity(0.0, 0.0, -gravity, physicsClientId=cid)
         p.setPhysicsEngineParameter(fixedTimeStep=config.dt, numSubSteps=0, physicsClientId=cid)
         self.mesh: SheetMesh = make_sheet(config.n_layer, obj.diameter, config.thickness)
-        yaw0, dx, dy = initial_pose
+        yaw0, (dx, dy) = initial_yaw, initial_offset
         c, s = math.cos(yaw0), math.sin(yaw0)
         self.plate = -1
         if with_plate:
@@ -134,13 +158,14 @@ class SheetScene:
         try:
             base = (dx, dy, config.margin + 1e-4)
             orn = p.getQuaternionFromEuler((0.0, 0.0, yaw0))
-            self.body = p.loadSoftBody(
-                path, basePosition=base, baseOrientation=orn, mass=obj.mass, useMassSpring=1, useNeoHookean=0,
-                useBendingSprings=0, springElasticStiffness=self.k_elastic,
-                springDampingStiffness=config.damping_time * self.k_elastic,
-                springBendingStiffness=config.bending_ratio * self.k_elastic,
-                springDampingAllDirections=0, useSelfCollision=0, frictionCoeff=obj.mu_s,
-                collisionMargin=config.margin, useFaceContact=1, physicsClientId=cid)
+            with quiet_stdout():
+                self.body = p.loadSoftBody(
+                    path, basePosition=base, baseOrientation=orn, mass=obj.mass, useMassSpring=1, useNeoHookean=0,
+                    useBendingSprings=0, springElasticStiffness=self.k_elastic,
+                    springDampingStiffness=config.damping_time * self.k_elastic,
+                    springBendingStiffness=config.bending_ratio * self.k_elastic,
+                    springDampingAllDirections=0, useSelfCollision=0, frictionCoeff=obj.mu_s,
+                    collisionMargin=config.margin, useFaceContact=1, physicsClientId=cid)
         finally:
             os.remove(path)
         if self.body < 0:

@@ -23,6 +23,8 @@ from plate_env.physics.base import (
     ProbeSpec,
     YawTrace,
     check_probes,
+    check_step_counts,
+    warn_above_stable_dt,
 )
 from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
 from plate_env.physics.tilelink.params import (
@@ -40,6 +42,12 @@ from plate_env.physics.tilelink.rigid import RIGID_LIMIT_CONFIG, RigidTileConfig
 MODELS = ("pointmass", "rigid", "rigid_limit")
 #: Default time step of each model, s.
 DEFAULT_DT = {"pointmass": 2e-4, "rigid": 2e-4, "rigid_limit": 2.5e-5}
+#: Largest time step measured stable for each model, s, and where: point mass, no blow-up over the 1600-probe
+#: stress map at <= 4e-4 s, 52 % ran away at 6e-4 s; rigid, every probe ran away at 4e-4 s; rigid_limit, the
+#: coarsest step measured (its rows at half the stiffness already run away at 2e-4 s).
+STABLE_DT = {"pointmass": (4e-4, "experiments/results/stress_tilelink_pointmass.md"),
+             "rigid": (2e-4, "experiments/results/bench_models.md, rigid: omega_B against dt"),
+             "rigid_limit": (5e-5, "experiments/results/bench_models.md, rigid_limit: omega_B against dt")}
 _REASONS = {1: OVERTURNED, 2: SLIPPED, 3: NON_FINITE, 4: RUNAWAY, 5: LEFT_PLATE, 6: FOLDED}
 #: Probes per kernel call when a progress bar is shown.
 PROGRESS_CHUNK = 8
@@ -47,12 +55,20 @@ PROGRESS_CHUNK = 8
 
 @lru_cache(maxsize=256)
 def _pointmass_params(obj: ObjectSpec, config: PointMassConfig):
-    return build_params(obj, config)
+    # one BLAS thread: the modal analysis' eigensolve differs in the last bits with the BLAS thread count, which
+    # the kernel grows to ~1e-10 of omega_B; with it a probe repeats bit for bit in any process (plate_env.executor)
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return build_params(obj, config)
 
 
 @lru_cache(maxsize=256)
 def _ainv(obj: ObjectSpec, config: PointMassConfig, dt: float) -> np.ndarray:
-    return implicit_damping_matrix(_pointmass_params(obj, config), dt)
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return implicit_damping_matrix(_pointmass_params(obj, config), dt)
 
 
 class TileLinkPhysics:
@@ -81,6 +97,8 @@ class TileLinkPhysics:
             raise ValueError(f"time step dt = {dt!r} s is outside the allowed range (0, 0.01]")
         if not (math.isfinite(slip_limit) and slip_limit > 0):
             raise ValueError(f"slip_limit = {slip_limit!r} m must be a positive distance")
+        limit, source = STABLE_DT[model]
+        warn_above_stable_dt(float(dt), limit, f"the {model} model", source)
         self.name = "tilelink"
         self.model = model
         self.dt = float(dt)
@@ -127,14 +145,21 @@ class TileLinkPhysics:
 
         out = allocate_outputs(prm)
         kernel = kn.pointmass_batch_serial if len(prm) == 1 else kn.pointmass_batch_parallel
+        kn.load_first(kn.pointmass_probe, prm[0], ainv[0], rest[0], geom.links, geom.diagonals, geom.triplets,
+                      geom.cells, out["yaw"][0], out["cu"][0], out["cv"][0])
         kernel(prm, ainv, rest, geom.links, geom.diagonals, geom.triplets, geom.cells, out["yaw"], out["cu"],
                out["cv"], out["status"], out["nrec"])
         return out
 
     # ------------------------------------------------------------------ probes
+    def check(self, probes: Sequence[ProbeSpec]) -> None:
+        """Refuse (ProbeRefused) a probe of more than MAX_PROBE_STEPS time steps, before any work."""
+        check_step_counts(check_probes(probes), self.dt)
+
     def run(self, probes: Sequence[ProbeSpec], progress: bool = False) -> list[ProbeResult]:
-        """Simulate the probes as one batch (in chunks when a progress bar is shown)."""
+        """Simulate the probes as one batch (in chunks when a progress bar is shown); all are checked first."""
         probes = check_probes(probes)
+        self.check(probes)
         if not probes:
             return []
         chunk = PROGRESS_CHUNK if progress else len(probes)

@@ -3,6 +3,14 @@
 Importing this module imports numba (~0.5 s); the first call compiles (cached on disk afterwards).
 A batch runs its probes in parallel threads (``prange``); each probe's arithmetic is the same as when it runs
 alone, so a batch gives bit-identical numbers to single runs.
+
+Compiled and cached code are the same code. numba links a copy of every jitted function a kernel calls into the
+kernel's own object code (a weak symbol, optimised again there); in a process that compiles, the kernel's calls
+bind to the callee's own, earlier compiled copy instead, in a process that loads the disk cache to the embedded
+one. With ``reassoc``/``nsz`` the two copies round differently (measured: the yaw trace differed from the first
+millisecond, omega_B by up to ~0.4 % over a 1.6 s probe). So the small helpers are inlined at numba's IR level
+(no copy to bind), and :func:`load_first` loads a batch kernel's per-probe kernel before the batch kernel, so that
+both kinds of process bind the batch's calls to the same, standalone copy (``tests/test_determinism.py``).
 """
 
 from __future__ import annotations
@@ -56,7 +64,7 @@ OK, OVERTURNED, SLIPPED, NON_FINITE, RUNAWAY, LEFT_PLATE, FOLDED = 0, 1, 2, 3, 4
 FAST = {"reassoc", "contract", "arcp", "nsz", "afn"}
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def observe(pos, rest, cells, x_plate, s_th, c_th, prev_yaw):
     """Plate-frame centre (u, v, w), unwrapped yaw about the plate normal, the disc normal's w and max |w|.
 
@@ -95,7 +103,7 @@ def observe(pos, rest, cells, x_plate, s_th, c_th, prev_yaw):
     return cu, cv, cw, yaw, nw
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def check_state(cu, cv, cw, nw, vmax2, prm):
     """Instability status from one observation (0 = fine)."""
     if not (math.isfinite(cu) and math.isfinite(cv) and math.isfinite(cw) and math.isfinite(vmax2)):
@@ -111,7 +119,7 @@ def check_state(cu, cv, cw, nw, vmax2, prm):
     return OK
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def record(x, rest, cells, x_plate, s_th, c_th, prev_yaw, vmax2, extra_status, prm, yaw_out, cu_out, cv_out, n_rec):
     """One record of any tile-link kernel: observe, check (``check_state`` first, then the model's own
     ``extra_status``) and, if still fine, write yaw and centre. Returns (status, yaw, records written)."""
@@ -267,3 +275,9 @@ def pointmass_batch_serial(prm, ainv, rest, links, diagonals, triplets, cells, y
                                yaw_out[b], cu_out[b], cv_out[b])
         status_out[b] = s
         nrec_out[b] = r
+
+
+def load_first(dispatcher, *args) -> None:
+    """Compile (or load from the disk cache) ``dispatcher`` for the types of ``args``; call it before running a
+    kernel that calls ``dispatcher``, so the kernel binds to this copy whether it was compiled or cached."""
+    dispatcher.compile(tuple(numba.typeof(a) for a in args))

@@ -615,7 +615,9 @@ def run_rigid_param_arrays(prm: np.ndarray, rest: np.ndarray, geom, parallel: bo
         parallel = len(prm) > 1
     kernel = rigid_batch_parallel if parallel else rigid_batch_serial
     order = joint_order(geom)
-    kernel(prm, rest, geom.links[order], geom.link_dir[order], geom.cells, yaw, cu, cv, diag, status, nrec)
+    links, link_dir = geom.links[order], geom.link_dir[order]
+    kn.load_first(rigid_probe, prm[0], rest[0], links, link_dir, geom.cells, yaw[0], cu[0], cv[0], diag[0])
+    kernel(prm, rest, links, link_dir, geom.cells, yaw, cu, cv, diag, status, nrec)
     out["diag"] = diag
     return out
 
