@@ -146,8 +146,8 @@ def report(labels: list[str], walls: dict[str, float], loads: list[str]) -> str:
              f"{OMEGAS_PI} pi x f_p {FREQS_HZ} Hz, A_p {AMP_DEG:g} deg, B_p 3 mm, alpha {ALPHA_DEG:g} deg; every probe "
              f"on a fresh sheet, at {len(POSES)} placements (yaw rad, dx m, dy m) {POSES}. Reference: `{REFERENCE}` "
              f"({2 * CONFIGS[REFERENCE][0]} nodes, dt {CONFIGS[REFERENCE][1]:g} s). Windows: 0.2 s ramp + settle + "
-             "measure as listed. Machine load (shared 2 cores) at the start and after each resolution run in this invocation "
-             "(a --report-only one runs none; the probes here ran niced at loads of ~10-17 from other jobs): "
+             "measure as listed. Machine load (shared 2 cores) at the start and after each resolution run in this "
+             "invocation (a --report-only one runs none; the probes here ran niced at loads ~10-17 from other jobs): "
              + "; ".join(loads), "",
              "## omega_n as built (ring-down calibration per resolution, tolerance 2 %)", "",
              "| resolution | " + " | ".join(f"{w:g}pi" for w in OMEGAS_PI) + " |",
