@@ -26,7 +26,14 @@ import numpy as np
 from agents.base import Agent, Probe
 from plate_env import checks
 from plate_env.atlas import load_atlas
-from plate_env.inference import P_MIN, SIGMA_MODEL, grid_response, log_student, posterior_grid
+from plate_env.inference import (
+    P_MIN,
+    SIGMA_MODEL,
+    grid_response,
+    log_student,
+    posterior_grid,
+    probe_log_likelihood,
+)
 from plate_env.probes import ProbeTable
 
 #: Typical standard error of a probe's omega_B over a 1 s window, deg/s (tile-link probes: 0.5-2 deg/s).
@@ -79,12 +86,8 @@ class BayesAgent(Agent):
             amp = float(history.a_p_deg[k])
             at = grid_response(self.atlas, amp, self.n_omega, self.n_alpha)
             mu, s, p = at(history.f_p_hz[k])
-            p = np.clip(p, P_MIN, 1 - P_MIN)
-            if history.unstable[k]:
-                self.logp += np.log(p)
-            else:
-                var = s ** 2 + history.stderr_deg_s[k] ** 2 + self.sigma_model ** 2
-                self.logp += np.log1p(-p) + log_student(history.omega_b_deg_s[k] - mu, var)
+            self.logp += probe_log_likelihood(mu, s, p, history.omega_b_deg_s[k], history.stderr_deg_s[k],
+                                              bool(history.unstable[k]), self.sigma_model)
         self._seen = len(history)
 
     def posterior(self) -> np.ndarray:

@@ -9,7 +9,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from agents.base import Agent, Probe, ProbeContext
-from plate_env.identify import Estimate, identify
+from plate_env.estimate import Estimate
+from plate_env.identify import identify
 from plate_env.probes import ProbeTable
 
 

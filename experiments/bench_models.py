@@ -20,8 +20,9 @@ import numpy as np
 
 import plate_env as pe
 from plate_env.fitting import fit_lorentzian
-from plate_env.physics.base import ProbeSpec
+from plate_env.physics.base import ProbeSpec, Status
 from plate_env.physics.tilelink import rigid_kernels as rk
+from plate_env.physics.tilelink.params import DEFAULT_DT, P_RECEVERY
 
 RESULTS = Path(__file__).resolve().parent / "results" / "bench_models.md"
 PAPER = {(10.0, 36.9): (25.1, 5.1, 598.7), (33.0, 36.9): (28.2, 5.8, 746.9), (10.0, 56.3): (24.6, 5.8, 520.9)}
@@ -65,7 +66,6 @@ def speed_section(dt: float) -> list[str]:
 
 def extra_sections(dt: float) -> list[str]:
     """Rigid model: dt convergence at 18/22/25 Hz, sensitivity to the rigid rows' stiffness, 12-deg folds."""
-    from plate_env.physics.tilelink import kernels as kn
     from plate_env.physics.tilelink import rigid
 
     obj = pe.ObjectSpec.from_paper(10.0, 36.9)
@@ -112,19 +112,17 @@ def extra_sections(dt: float) -> list[str]:
             lines.append(f"| {w_r:g} | {step:g} | " + " | ".join(
                 f"{r.omega_b_deg_s:.1f}{'*' if r.unstable else ''}" for r in res) + " |")
             print(lines[-1], flush=True)
-    names = {v: k for k, v in vars(kn).items() if k.isupper() and isinstance(v, int) and k in
-             ("OK", "OVERTURNED", "SLIPPED", "NON_FINITE", "RUNAWAY", "LEFT_PLATE", "FOLDED")}
     lines += ["", "## Rigid model at A_p = 12 deg (B_p 3 mm, settle 0.8 s, measure 1.0 s)", "",
               "| omega_n | f_p | status | t_end (s) | max bend (deg) | E excess / plate work |",
               "|---|---|---|---|---|---|"]
     specs = [ProbeSpec(obj=pe.ObjectSpec.from_paper(wn, 36.9), motion=pe.PlateMotion.from_paper(f, 12.0, 3.0),
                        settle_s=0.8, measure_s=1.0) for wn in (3.0, 5.0, 10.0) for f in (12.0, 16.0)]
     out = rk.run_rigid_arrays(specs, dt=dt)
-    rec = out["prm"][0, rk.P_RECEVERY] * dt
+    rec = out["prm"][0, P_RECEVERY] * dt
     for b, s in enumerate(specs):
         d = out["diag"][b]
         lines.append(f"| {s.obj.omega_n / math.pi:.0f}pi | {s.motion.freq_hz:g} | "
-                     f"{names.get(int(out['status'][b]), '?')} | {int(out['nrec'][b]) * rec:.2f} | "
+                     f"{Status(int(out['status'][b])).name} | {int(out['nrec'][b]) * rec:.2f} | "
                      f"{math.degrees(d[1]):.0f} | {d[0]:.2e} / {d[2]:.2e} |")
     return lines
 
@@ -133,7 +131,7 @@ def main() -> None:
     """Run the sweeps and write the markdown report."""
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="coarser sweep and two objects")
-    ap.add_argument("--dt", type=float, default=rk.DEFAULT_DT, help="rigid model time step, s")
+    ap.add_argument("--dt", type=float, default=DEFAULT_DT["rigid"], help="rigid model time step, s")
     args = ap.parse_args()
     freqs = np.arange(14.0, 35.0, 2.0 if args.quick else 1.0)
     objects = [(10.0, 36.9), (33.0, 36.9), (10.0, 56.3)]

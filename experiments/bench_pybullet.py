@@ -19,6 +19,7 @@ import plate_env as pe
 from plate_env.physics.pybullet_sheet import PyBulletPhysics, SheetConfig
 from plate_env.physics.pybullet_sheet.calibrate import calibrated_k
 from plate_env.physics.pybullet_sheet.scene import Client, SheetScene
+from plate_env.plotting import new_figure, save_figure
 
 OUT = Path(__file__).resolve().parent / "results"
 OBJ = pe.ObjectSpec.from_paper(10.0, 36.9)
@@ -118,12 +119,7 @@ def main() -> None:
     lines += ["", "Step profile (70 points/layer, dt 4e-4 s, in contact, microseconds per step):", ""]
     lines += [f"- {k}: {v:.1f}" for k, v in prof.items()]
     (OUT / "pybullet_bench.md").write_text("\n".join(lines) + "\n")
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5, 3.5))
+    fig, ax = new_figure(figsize=(5, 3.5))
     for n in sorted({r[0] for r in rows}):
         sel = [r for r in rows if r[0] == n]
         ax.plot([r[4] for r in sel], [r[3].max() for r in sel], "o-", label=f"{2 * n} nodes")
@@ -133,8 +129,7 @@ def main() -> None:
     ax.set_xlabel("real-time factor (sim s / wall s)")
     ax.set_ylabel("max |omega_B error| vs ref (%)")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(OUT / "pybullet_bench.png", dpi=90)
+    save_figure(fig, OUT / "pybullet_bench.png", dpi=90)
     print("\n".join(lines))
 
 

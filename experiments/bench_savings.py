@@ -41,7 +41,7 @@ import numpy as np
 import plate_env as pe
 from plate_env import benchmarks as bm
 from plate_env.physics.base import ProbeResult, ProbeSpec
-from plate_env.physics.tilelink import params as tl_params
+from plate_env.physics.tilelink.params import DEFAULT_RECORD_INTERVAL_S
 
 SCRIPT = "experiments/bench_savings.py"
 A_P_DEG = 3.0
@@ -146,19 +146,15 @@ def main() -> None:
         t, r = timed(lambda c=coarse: c.run(probe_set()), args.repeats)
         row("coarser time step", "dt 2.5e-5 s", f"dt {dt:g} s" + (" (default)" if dt == 2e-4 else ""), t_ref, t,
             errors(r, r_ref), "12 probes, one batch")
-    # 5. fewer read-backs (the record interval is a module constant read when a probe's parameters are built)
-    default_interval = tl_params.RECORD_INTERVAL_S
-    try:
-        tl_params.RECORD_INTERVAL_S = physics.dt
-        t_ref, r_ref = timed(lambda: physics.run(probe_set()), args.repeats)
-        for interval in (1e-3, 5e-3, 2e-2):
-            tl_params.RECORD_INTERVAL_S = interval
-            t, r = timed(lambda: physics.run(probe_set()), args.repeats)
-            row("fewer read-backs", f"record every step ({physics.dt:g} s)",
-                f"every {interval * 1e3:g} ms" + (" (default)" if interval == default_interval else ""), t_ref, t,
-                errors(r, r_ref), "yaw/centre samples; omega_B interpolated at period boundaries")
-    finally:
-        tl_params.RECORD_INTERVAL_S = default_interval
+    # 5. fewer read-backs (the record interval is a backend option, part of the sweep cache key)
+    every_step = pe.make_physics("tilelink", record_interval_s=physics.dt)
+    t_ref, r_ref = timed(lambda: every_step.run(probe_set()), args.repeats)
+    for interval in (1e-3, 5e-3, 2e-2):
+        sparse = pe.make_physics("tilelink", record_interval_s=interval)
+        t, r = timed(lambda p=sparse: p.run(probe_set()), args.repeats)
+        row("fewer read-backs", f"record every step ({physics.dt:g} s)",
+            f"every {interval * 1e3:g} ms" + (" (default)" if interval == DEFAULT_RECORD_INTERVAL_S else ""), t_ref,
+            t, errors(r, r_ref), "yaw/centre samples; omega_B interpolated at period boundaries")
     # 6. no trace
     t_tr, r_tr = timed(lambda: physics.run(probe_set(record_trace=True)), args.repeats)
     t_no, r_no = timed(lambda: physics.run(probe_set()), args.repeats)

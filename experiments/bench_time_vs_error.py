@@ -29,17 +29,14 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-import plate_env as pe  # noqa: E402
-from plate_env import benchmarks as bm  # noqa: E402
-from plate_env.camera import camera_omega_b  # noqa: E402
-from plate_env.identify import identify  # noqa: E402
-from plate_env.probes import ProbeTable  # noqa: E402
+import plate_env as pe
+from plate_env import benchmarks as bm
+from plate_env.camera import camera_omega_b
+from plate_env.identify import identify
+from plate_env.plotting import new_figure, save_figure
+from plate_env.probes import ProbeTable
 
 SCRIPT = "experiments/bench_time_vs_error.py"
 A_P_DEG = 3.0
@@ -187,7 +184,7 @@ def main() -> None:
     md += ["", "Note: the Eq. (10) calibration and the atlas were built at the default dt and windows; other settings "
            "are scored with them as shipped, so their error includes that mismatch (as a user changing a knob would "
            "see it).", "", f"Plot: `bench_time_vs_error_{args.placement}.png`."]
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = new_figure(figsize=(7, 4.5))
     for i, r in enumerate(rows):
         st = r["s"]
         color = {"reference": "k", "default": "C3", "combo": "C2"}.get(st.kind, "C0")
@@ -202,9 +199,7 @@ def main() -> None:
                  "squares Pareto\n"
                  f"{SCRIPT}", fontsize=8)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out_dir / f"bench_time_vs_error_{args.placement}.png", dpi=90)
-    plt.close(fig)
+    save_figure(fig, out_dir / f"bench_time_vs_error_{args.placement}.png", dpi=90)
     (out_dir / f"bench_time_vs_error_{args.placement}.md").write_text("\n".join(md) + "\n")
     print("\n".join(md))
 

@@ -52,6 +52,7 @@ from plate_env.executor import BackendSpec, add_executor_argument, make_executor
 from plate_env.forward import fit_sigma_model
 from plate_env.nuisance import Nuisance
 from plate_env.physics.base import PLACEMENT_STD_M
+from plate_env.reporting import median_p90
 from plate_env.sweeps import run_cached
 
 #: Named grids.
@@ -284,11 +285,12 @@ def _held_out(args, backend, atlas, grid, tag, n_held, executor) -> tuple[list[s
     pu = np.array([p for *_, p, _ in rows])
     unst = np.array([u for u, *_ in rows], float)
     brier = float(np.mean((pu - unst) ** 2))
+    err_med, err_p90 = median_p90(err)
     return [f"## Error against {len(live)} live probes at held-out points (off-grid f_p, omega_n, alpha)", "",
             "| stable probes | median abs error [deg/s] | 90th pct [deg/s] | median abs z (error / spread) | "
             "instability Brier score (0.25 = coin) | observed unstable share |",
             "|---|---|---|---|---|---|",
-            f"| {len(st)} | {np.median(err):.1f} | {np.percentile(err, 90):.1f} | {np.median(np.abs(z)):.2f} | "
+            f"| {len(st)} | {err_med:.1f} | {err_p90:.1f} | {np.median(np.abs(z)):.2f} | "
             f"{brier:.3f} | {unst.mean():.2f} |", "",
             f"Model error beyond the spread (maximum likelihood, Student-t, `plate_env.forward.fit_sigma_model`): "
             f"sigma_model = {sigma_model:.2f} deg/s (stored in the atlas's provenance)."], sigma_model

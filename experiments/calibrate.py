@@ -29,6 +29,7 @@ from plate_env.calibration import (
 )
 from plate_env.executor import BackendSpec, add_executor_argument, make_executor
 from plate_env.fitting import DEFAULT_DROP, DEFAULT_FLOOR, fit_results
+from plate_env.plotting import new_figure, save_figure
 from plate_env.sweeps import run_cached
 
 RULES = [("all", 0.05, 0.0), ("first_hump", 0.05, 0.0), ("first_hump", 0.05, 0.2), ("first_hump", 0.05, 0.4),
@@ -123,12 +124,7 @@ def _exists(path: str) -> bool:
 
 
 def _plot(plots, cals, path, title) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, max(len(plots), 1), figsize=(5 * max(len(plots), 1), 4), squeeze=False)
+    fig, axes = new_figure(1, max(len(plots), 1), figsize=(5 * max(len(plots), 1), 4), squeeze=False)
     for ax, (amp, good), cal in zip(axes[0], plots.items(), cals, strict=False):
         for alpha in bm.CALIBRATION_ALPHAS_DEG:
             pts = [(o.omega_n / math.pi, f.f0) for f, o in good if abs(math.degrees(o.alpha) - alpha) < 1e-6]
@@ -142,9 +138,7 @@ def _plot(plots, cals, path, title) -> None:
         ax.set_title(f"{title}, A_p = {amp:g} deg")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 
 
 if __name__ == "__main__":

@@ -2,7 +2,8 @@
 
     python experiments/compare_agents.py [--physics tilelink] [--objects 20] [--seed 0]
 
-The same seeded hidden objects (omega_n log-uniform 3.5pi-33pi, alpha 30-60 deg) for every agent configuration:
+The same seeded hidden objects (the env's ``plate_env.objects.ObjectPrior``: omega_n log-uniform 3.5pi-33pi, alpha
+30-60 deg) for every agent configuration:
 the paper's grid at several densities (its own Lorentzian estimate, and the same probes through the atlas
 posterior), coarse_to_fine at several budgets, bayes at several stopping targets, and the shipped PPO policy if
 present. Per configuration: median and 90th-percentile relative error of omega_n_hat, probes, simulated and wall
@@ -15,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 
 import gymnasium as gym
@@ -24,6 +24,9 @@ import numpy as np
 import plate_env  # noqa: F401 - registers the env
 from agents import make_agent
 from agents.runner import run_episode
+from plate_env.objects import ObjectPrior
+from plate_env.plotting import new_figure, save_figure
+from plate_env.reporting import median_p90
 
 
 def configurations(quick: bool) -> list[tuple[str, str, dict]]:
@@ -49,9 +52,7 @@ def main() -> None:
     args = ap.parse_args()
     from tqdm.auto import tqdm
 
-    rng = np.random.default_rng(args.seed)
-    objs = [(math.pi * math.exp(rng.uniform(math.log(3.5), math.log(33.0))), math.radians(rng.uniform(30, 60)))
-            for _ in range(args.objects)]
+    objs = ObjectPrior().sample(args.objects, args.seed)  # the env's prior: the same objects for every agent
     env = gym.make("PlateRotation-v0", physics=args.physics, max_probes=args.max_probes)
     rows = []
     for label, name, kw in configurations(args.quick):
@@ -67,7 +68,8 @@ def main() -> None:
             probes.append(r.n_probes)
             sims.append(r.sim_s)
             walls.append(r.wall_s)
-        rows.append(dict(label=label, agent=name, med=float(np.median(errs)), p90=float(np.percentile(errs, 90)),
+        med, p90 = median_p90(errs)
+        rows.append(dict(label=label, agent=name, med=med, p90=p90,
                          probes=float(np.mean(probes)), sim=float(np.median(sims)), wall=float(np.median(walls)),
                          fails=fails))
         print(f"{label:28s} median {100 * rows[-1]['med']:5.1f} %  p90 {100 * rows[-1]['p90']:6.1f} %  "
@@ -102,12 +104,7 @@ def main() -> None:
 
 
 def _plot(rows, path: str, physics: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = new_figure(figsize=(7, 4.5))
     groups: dict[str, list] = {}
     for r in rows:
         key = r["agent"] + (" + atlas" if r["label"].endswith("+ atlas") else "")
@@ -121,9 +118,7 @@ def _plot(rows, path: str, physics: str) -> None:
     ax.set_title(f"Error against probing cost, live {physics}")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 
 
 if __name__ == "__main__":

@@ -21,19 +21,18 @@ from pathlib import Path
 import numpy as np
 
 import plate_env as pe
-from plate_env.measure import measure_omega_b
-from plate_env.physics.base import SLIP_LIMIT_M, ProbeSpec
-from plate_env.physics.tilelink import contact, rigid
-from plate_env.physics.tilelink import kernels as kn
+from plate_env.physics.base import SLIP_LIMIT_M, ProbeSpec, Status
+from plate_env.physics.tilelink import contact, params, rigid
 from plate_env.physics.tilelink import rigid_kernels as rk
+from plate_env.physics.tilelink.backend import result_from_arrays
 
 RESULTS = Path(__file__).resolve().parent / "results" / "dt_error_sources.md"
-COARSE = (rk.DEFAULT_DT, 2)
+COARSE = (params.DEFAULT_DT["rigid"], 2)
 FINE = (1.25e-5, 4)
 FREQS = (18.0, 22.0, 25.0)
 #: the held ("rigid") rows' stiffness and damping entries; the compression and bending rows' too
 HELD = ((rk.R_KT2, rk.R_CT2), (rk.R_KN, rk.R_CN), (rk.R_KRN, rk.R_CRN))
-SOFT = ((kn.P_KIN, kn.P_CIN), (kn.P_KB, rk.R_CB))
+SOFT = ((params.P_KIN, params.P_CIN), (params.P_KB, rk.R_CB))
 
 
 @dataclass(frozen=True)
@@ -51,7 +50,7 @@ def _scale(*cols_and_factors: tuple[int, float]) -> Callable[[np.ndarray, float]
         for col, fac in cols_and_factors:
             prm[:, col] *= fac
         # the rest penetration follows the contact stiffness (a quarter of the tile's weight per corner)
-        prm[:, kn.P_DEPTH0] = [contact.rest_depth(p[kn.P_MASS] * contact.GRAVITY * 0.25, p[kn.P_KC] * 0.25)
+        prm[:, params.P_DEPTH0] = [contact.rest_depth(p[params.P_MASS] * contact.GRAVITY * 0.25, p[params.P_KC] * 0.25)
                                for p in prm]
     return edit
 
@@ -80,10 +79,10 @@ def _hard_held_rows(erp: float, c_factor: float) -> Callable[[np.ndarray, float]
 
 VARIANTS = (
     Variant("baseline (shipped rigid model)"),
-    Variant("contact stiffness x 0.1", edit=_scale((kn.P_KC, 0.1))),
-    Variant("contact damping x 0.3", edit=_scale((kn.P_CC, 0.3))),
-    Variant("friction mu_s, mu_k x 0.6", edit=_scale((kn.P_MUS, 0.6), (kn.P_MUK, 0.6))),
-    Variant("friction transition speed x 0.1", edit=_scale((kn.P_VT, 0.1))),
+    Variant("contact stiffness x 0.1", edit=_scale((params.P_KC, 0.1))),
+    Variant("contact damping x 0.3", edit=_scale((params.P_CC, 0.3))),
+    Variant("friction mu_s, mu_k x 0.6", edit=_scale((params.P_MUS, 0.6), (params.P_MUK, 0.6))),
+    Variant("friction transition speed x 0.1", edit=_scale((params.P_VT, 0.1))),
     Variant("row damping compensated (c - dt k)", edit=_compensate_rows),
     Variant("16 sweeps at the coarse step", coarse_sweeps=16),
     Variant("block inverses rebuilt every step", config=replace(rigid.RigidTileConfig(), block_refresh=1)),
@@ -98,8 +97,9 @@ VARIANTS = (
 
 
 def _run(specs: list[ProbeSpec], configs: list[rigid.RigidTileConfig], edits: list, dt: float,
-         sweeps: list[int]) -> list[tuple[float, int]]:
-    """omega_B (deg/s) and status for each probe, each with its own config, parameter edit and sweep count."""
+         sweeps: list[int]) -> list[tuple[float, Status]]:
+    """omega_B (deg/s) and status for each probe, each with its own config, parameter edit and sweep count
+    (omega_B is 0 for a probe that failed before it completed a whole period)."""
     prm = np.stack([rk.param_vector(s, dt, SLIP_LIMIT_M, c) for s, c in zip(specs, configs, strict=True)])
     for b, (edit, n) in enumerate(zip(edits, sweeps, strict=True)):
         prm[b, rk.R_NITER] = n
@@ -108,19 +108,8 @@ def _run(specs: list[ProbeSpec], configs: list[rigid.RigidTileConfig], edits: li
     geom = rk._params(specs[0].obj, configs[0]).geom
     rest = np.stack([rk._params(s.obj, c).geom.rest for s, c in zip(specs, configs, strict=True)])
     out = rk.run_rigid_param_arrays(prm, rest, geom)
-    res = []
-    for b, s in enumerate(specs):
-        n = int(out["nrec"][b])
-        st = int(out["status"][b])
-        rec = out["prm"][b, kn.P_RECEVERY] * dt
-        t = np.arange(n) * rec
-        if n < 2:
-            res.append((float("nan"), st))
-            continue
-        w, _, _ = measure_omega_b(t, out["yaw"][b, :n], s.measure_start_s, 1.0 / s.motion.freq_hz, s.n_periods,
-                                  n * rec if st else None)
-        res.append((math.degrees(w), st))
-    return res
+    return [(result_from_arrays(s, out, b, dt).omega_b_deg_s, Status(int(out["status"][b])))
+            for b, s in enumerate(specs)]
 
 
 def _probe(wn: float, f: float, yaw: float = 0.0) -> ProbeSpec:
@@ -128,11 +117,11 @@ def _probe(wn: float, f: float, yaw: float = 0.0) -> ProbeSpec:
                      settle_s=0.6, measure_s=1.0, initial_yaw=yaw)
 
 
-def _cell(w: float, st: int) -> str:
+def _cell(w: float, st: Status) -> str:
     """omega_B with a mark: s = slipped (omega_B from the part before), * = another failure."""
-    if st != kn.OK and not (math.isfinite(w) and w != 0.0):
-        return "-" + ("s" if st == kn.SLIPPED else "*")
-    return f"{w:.1f}" + ("" if st == kn.OK else "s" if st == kn.SLIPPED else "*")
+    if st != Status.OK and not (math.isfinite(w) and w != 0.0):
+        return "-" + ("s" if st == Status.SLIPPED else "*")
+    return f"{w:.1f}" + ("" if st == Status.OK else "s" if st == Status.SLIPPED else "*")
 
 
 def _pct(a: float, b: float) -> str:

@@ -2,7 +2,7 @@
 
     python experiments/eval_rl.py [--physics tilelink] [--objects 50] [--seed 0] [--model agents/models/ppo_plate.zip]
 
-The same seeded hidden objects for every agent (held-out style, as plate_env.benchmarks and
+The same seeded hidden objects for every agent (drawn from the env's ``plate_env.objects.ObjectPrior``, as in
 experiments/compare_agents.py: omega_n log-uniform 3.5pi-33pi, alpha 30-60 deg; episode seed ``seed * 1000 + i``
 for object i, so the disc placements are seeded too), budget 30 probes (the CLI's identify default and the
 policy's training setting), each agent's own estimate (both: the atlas posterior). Per agent: median and
@@ -25,6 +25,8 @@ import numpy as np
 import plate_env  # noqa: F401 - registers the env
 from agents import make_agent
 from agents.runner import run_episode
+from plate_env.objects import ObjectPrior
+from plate_env.reporting import median_p90
 
 NOTES = """## Training variants (same 50 live tile-link objects, seed 0; coarse_to_fine there: 6.2 % / 32.1 %, 16.8 s)
 
@@ -47,13 +49,6 @@ the spread of 50 objects.
 """
 
 
-def held_out_objects(n: int, seed: int) -> list[tuple[float, float]]:
-    """(omega_n rad/s, alpha rad) drawn log-uniform 3.5pi-33pi and uniform 30-60 deg."""
-    rng = np.random.default_rng(seed)
-    return [(math.pi * math.exp(rng.uniform(math.log(3.5), math.log(33.0))), math.radians(rng.uniform(30, 60)))
-            for _ in range(n)]
-
-
 def run_agent(env, agent, objs, seed: int) -> list[dict]:
     rows = []
     for i, (w, a) in enumerate(objs):
@@ -69,7 +64,8 @@ def run_agent(env, agent, objs, seed: int) -> list[dict]:
 
 def summary(rows: list[dict]) -> dict:
     err = np.array([r["relative_error"] for r in rows])
-    return {"med": float(np.median(err)), "p90": float(np.percentile(err, 90)), "mean": float(err.mean()),
+    med, p90 = median_p90(err)
+    return {"med": med, "p90": p90, "mean": float(err.mean()),
             "probes": float(np.mean([r["n_probes"] for r in rows])),
             "sim_med": float(np.median([r["sim_s"] for r in rows])),
             "sim_mean": float(np.mean([r["sim_s"] for r in rows])),
@@ -90,7 +86,7 @@ def main() -> None:
     import torch
 
     torch.set_num_threads(1)
-    objs = held_out_objects(args.objects, args.seed)
+    objs = ObjectPrior().sample(args.objects, args.seed)  # the env's prior, as compare_agents.py
     ppo = make_agent("ppo", **({"path": args.model} if args.model else {}))
     agents = [("ppo", ppo), ("coarse_to_fine", make_agent("coarse_to_fine"))]
     physics_list = [args.physics] + (["atlas"] if args.also_atlas and args.physics != "atlas" else [])

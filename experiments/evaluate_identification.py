@@ -20,7 +20,9 @@ from plate_env import benchmarks as bm
 from plate_env.calibration import paper_calibration
 from plate_env.executor import BackendSpec, add_executor_argument
 from plate_env.identify import identify
+from plate_env.plotting import new_figure, save_figure
 from plate_env.probes import ProbeTable
+from plate_env.reporting import median_p90
 from plate_env.sweeps import run_cached
 
 
@@ -37,7 +39,8 @@ def stats(pairs):
     rel = np.abs(y - x) / x
     cover = np.mean([abs(e.omega_n - w) <= e.omega_n_stderr for w, e, _ in ok])
     aerr = [abs(e.alpha - a) for _, e, a in ok if e.alpha is not None]
-    out.update(r2=r2, slope=slope, intercept=icpt, med=np.median(rel), p90=np.percentile(rel, 90), cover=cover,
+    med, p90 = median_p90(rel)
+    out.update(r2=r2, slope=slope, intercept=icpt, med=med, p90=p90, cover=cover,
                alpha_med_deg=math.degrees(np.median(aerr)) if aerr else float("nan"), x=x, y=y)
     return out
 
@@ -112,12 +115,7 @@ def main() -> None:
 
 
 def _plot(figs, path, title) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
+    fig, axes = new_figure(1, 2, figsize=(10, 4.2))
     for ax, amp in zip(axes, (3.0, 12.0), strict=True):
         for method, marker in (("lorentz", "o"), ("atlas", "s")):
             s = figs.get((method, amp))
@@ -130,9 +128,7 @@ def _plot(figs, path, title) -> None:
         ax.set_title(f"{title}, A_p = {amp:g} deg (held-out)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ import numpy as np
 
 import plate_env as pe
 from plate_env.physics.pybullet_sheet import PyBulletPhysics
+from plate_env.plotting import new_figure, save_figure
 
 OUT = Path(__file__).resolve().parent / "results"
 FREQS = tuple(range(10, 39, 2))
@@ -100,12 +101,7 @@ def main() -> None:
                      f"{verdict} |")
     (OUT / "pybullet_response.md").write_text("\n".join(lines) + "\n")
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
+    fig, axes = new_figure(1, 2, figsize=(10, 3.8), sharey=True)
     for ax, a_deg in zip(axes, (3.0, 12.0), strict=True):
         for j, w in enumerate(OMEGAS):
             key = f"{w}pi_a36.9_A{a_deg}"
@@ -118,8 +114,7 @@ def main() -> None:
         ax.set_xlabel("f_p (Hz)")
     axes[0].set_ylabel("omega_B (deg/s)")
     axes[1].legend(fontsize=6, ncol=2)
-    fig.tight_layout()
-    fig.savefig(OUT / "pybullet_response.png", dpi=80)
+    save_figure(fig, OUT / "pybullet_response.png", dpi=80)
     print("\n".join(lines))
 
 

@@ -26,20 +26,17 @@ import argparse
 import math
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-import plate_env as pe  # noqa: E402
-from plate_env import benchmarks as bm  # noqa: E402
-from plate_env.executor import BackendSpec, add_executor_argument, make_executor  # noqa: E402
-from plate_env.fitting import LorentzFit, fit_results, lorentzian  # noqa: E402
-from plate_env.identify import identify  # noqa: E402
-from plate_env.physics.base import ProbeResult  # noqa: E402
-from plate_env.probes import ProbeTable  # noqa: E402
-from plate_env.sweeps import run_cached  # noqa: E402
+import plate_env as pe
+from plate_env import benchmarks as bm
+from plate_env.executor import BackendSpec, add_executor_argument, make_executor
+from plate_env.fitting import LorentzFit, fit_results, lorentzian
+from plate_env.identify import identify
+from plate_env.physics.base import ProbeResult
+from plate_env.plotting import new_figure, save_figure
+from plate_env.probes import ProbeTable
+from plate_env.sweeps import run_cached
 
 SCRIPT = "experiments/reproduce_paper.py"
 FREQS_HZ = bm.SWEEP_F_HZ
@@ -114,11 +111,9 @@ def linreg(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
     return float(slope), float(icpt), r2
 
 
-def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bool) -> list[str]:
-    """Run every figure for one backend; return markdown lines. ``full`` False: Figs. 5 and 7 only."""
-    md = [f"# Paper reproduction on {tag}", "", f"Regenerate: `python {SCRIPT}`"
-          + (" --rigid" if "rigid" in tag else "") + ". Sweeps 10-40 Hz (1 Hz), B_p = 3 mm, windows 0.5 s + 1.0 s, "
-          "centred disc unless said. Paper numbers beside ours.", ""]
+def figs_5_and_7(physics, tag: str, out_dir: Path, cache: Path) -> list[str]:
+    """Fig. 5 (omega_B against f_p over amplitudes and objects) and Fig. 7 (first-hump fits): markdown."""
+    md: list[str] = []
     cheese = pe.ObjectSpec.from_paper(10.0, ALPHA_CHEESE)
     # ---------------------------------------------------------------- Fig. 5
     amps = (1.0, 3.0, 6.0, 12.0, 24.0)
@@ -127,15 +122,13 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
     jobs.append((pe.ObjectSpec.from_paper(10.0, 56.3), 3.0))
     res = sweeps(physics, cache, jobs)
     fig5a, fig5b, fig7c = res[:len(amps)], res[len(amps):len(amps) + len(omegas5)], res[-1]
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.4))
+    fig, axes = new_figure(1, 2, figsize=(9, 3.4))
     plot_curves(axes[0], [(f"A_p={a:g} deg", r) for a, r in zip(amps, fig5a, strict=True)])
     axes[0].set_title("Fig. 5(a): 10pi, alpha 36.9 deg", fontsize=9)
     plot_curves(axes[1], [(f"{w:g}pi", r) for w, r in zip(omegas5, fig5b, strict=True)])
     axes[1].set_title("Fig. 5(b): A_p = 3 deg", fontsize=9)
     fig.suptitle(f"{tag} (x: unstable probe) - {SCRIPT}", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out_dir / f"reproduce_paper_{tag}_fig5.png", dpi=90)
-    plt.close(fig)
+    save_figure(fig, out_dir / f"reproduce_paper_{tag}_fig5.png", dpi=90)
     md += ["## Fig. 5: omega_B vs f_p", "", f"Plot: `reproduce_paper_{tag}_fig5.png`.", "",
            "| curve | peak omega_B [deg/s] | at f_p [Hz] | unstable probes / 31 |", "|---|---|---|---|"]
     for label, r in [(f"5(a) A_p = {a:g} deg", x) for a, x in zip(amps, fig5a, strict=True)] + \
@@ -148,7 +141,7 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
     # ---------------------------------------------------------------- Fig. 7
     fits7 = {(10.0, 36.9): fit_results(fig5b[1]), (33.0, 36.9): fit_results(fig5b[3]), (10.0, 56.3): fit_results(fig7c)}
     data7 = {(10.0, 36.9): fig5b[1], (33.0, 36.9): fig5b[3], (10.0, 56.3): fig7c}
-    fig, axes = plt.subplots(1, 3, figsize=(10, 3))
+    fig, axes = new_figure(1, 3, figsize=(10, 3))
     for ax, (key, fit) in zip(axes, fits7.items(), strict=True):
         f, w, un = xy(data7[key])
         ax.plot(f[~un], w[~un], "o", ms=3, color="0.6", label="probes")
@@ -164,9 +157,7 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
     axes[0].set_ylabel("omega_B [deg/s]")
     axes[0].legend(fontsize=6)
     fig.suptitle(f"{tag} - {SCRIPT}", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out_dir / f"reproduce_paper_{tag}_fig7.png", dpi=90)
-    plt.close(fig)
+    save_figure(fig, out_dir / f"reproduce_paper_{tag}_fig7.png", dpi=90)
     md += ["## Fig. 7: first-hump Lorentzian fits (A_p = 3 deg)", "", f"Plot: `reproduce_paper_{tag}_fig7.png`.", "",
            "| object | f0 [Hz] ours | b [Hz] ours | omega_max [deg/s] ours | R^2 ours "
            "| paper f0 / b / omega_max / R^2 |",
@@ -175,21 +166,27 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
         pf0, pb, pmax, pr2 = PAPER_FIG7[key]
         md.append(f"| {key[0]:g}pi, {key[1]:g} deg | {fit_row(fit)} {pf0} / {pb} / {pmax} / {pr2} |")
     md.append("")
-    if not full:
-        return md
+    return md
+
+
+def figs_8_to_10(physics, tag: str, out_dir: Path, cache: Path
+                 ) -> tuple[list[str], dict[float, dict[float, list[float]]], dict[tuple[float, float, float], float]]:
+    """Figs. 8-10 (omega_max and f0 against omega_n): markdown, and the fitted omega_max per amplitude and
+    omega_n (all alphas) and per (amplitude, omega_n, alpha) for Table 1."""
+    md: list[str] = []
     # ---------------------------------------------------------------- Figs. 8-10
     jobs = [(pe.ObjectSpec.from_paper(w, al), a) for a in (3.0, 12.0) for w in FIG8_OMEGAS_PI[a]
             for al in FIG8_ALPHAS_DEG]
     res8 = sweeps(physics, cache, jobs)
     fits8 = [(o, a, fit_results(r), r) for (o, a), r in zip(jobs, res8, strict=True)]
-    fig, axes = plt.subplots(3, 2, figsize=(9, 9))
+    fig, axes = new_figure(3, 2, figsize=(9, 9))
     md += ["## Figs. 8-10: omega_max and f0 against omega_n", "", f"Plot: `reproduce_paper_{tag}_fig8_10.png` "
            f"(alpha = {', '.join(f'{a:g}' for a in FIG8_ALPHAS_DEG)} deg).", "",
            "| A_p [deg] | fits ok | R^2 omega_max~omega_n (paper) | R^2 f0~omega_n (paper) | "
            "Eq. 10 p1, q1 ours [rad/s/Hz, rad/s] | paper p1, q1 | f0 range ours [Hz] | paper f0 range |",
            "|---|---|---|---|---|---|---|---|"]
     table1: dict[float, dict[float, list[float]]] = {3.0: {}, 12.0: {}}
-    table1_cheese: dict[tuple[float, float], float] = {}
+    table1_cheese: dict[tuple[float, float, float], float] = {}
     for col, a in enumerate((3.0, 12.0)):
         rows = [(o, fit, r) for o, aa, fit, r in fits8 if aa == a]
         for k, al in enumerate(FIG8_ALPHAS_DEG):
@@ -225,10 +222,15 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
             ax.grid(alpha=0.3)
             ax.legend(fontsize=6)
     fig.suptitle(f"{tag} - {SCRIPT}", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out_dir / f"reproduce_paper_{tag}_fig8_10.png", dpi=80)
-    plt.close(fig)
+    save_figure(fig, out_dir / f"reproduce_paper_{tag}_fig8_10.png", dpi=80)
     md.append("")
+    return md, table1, table1_cheese
+
+
+def table_1(table1: dict[float, dict[float, list[float]]],
+            table1_cheese: dict[tuple[float, float, float], float]) -> list[str]:
+    """Table 1 (bending frequency against frequency of rotation) from the Figs. 8-10 fits: markdown."""
+    md: list[str] = []
     # ---------------------------------------------------------------- Table 1
     md += ["## Table 1: bending frequency and frequency of rotation", "",
            "f_n = omega_n / 2pi; f_B = omega_Brmax / 360 (deg/s -> revolutions per second). Check on the paper's "
@@ -250,6 +252,12 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
                 if mean is not None else "no fit | - | -"
             md.append(f"| {a:g} | {wn:g} | {wn / 2:.2f} | {pmax} | {pfb} | {ch_txt} | {mean_txt} |")
     md.append("")
+    return md
+
+
+def fig_11(physics, tag: str, out_dir: Path, cache: Path, seed: int) -> list[str]:
+    """Fig. 11 (omega_n_hat against omega_n on held-out objects, centred and random placement): markdown."""
+    md: list[str] = []
     # ---------------------------------------------------------------- Fig. 11
     objs = bm.objects(bm.HELD_OUT_OMEGAS_PI, bm.HELD_OUT_ALPHAS_DEG)
     md += ["## Fig. 11: omega_n_hat against omega_n on held-out objects", "",
@@ -260,7 +268,7 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
            "centred, bottom random).", "",
            "| placement | A_p [deg] | method | estimates ok | R^2 | slope | intercept [pi rad/s] | median rel. error | "
            "paper R^2 / slope / intercept |", "|---|---|---|---|---|---|---|---|---|"]
-    fig, axes = plt.subplots(2, 2, figsize=(8, 7))
+    fig, axes = new_figure(2, 2, figsize=(8, 7))
     for row_i, placement in enumerate(("centred", "random")):
         rng = np.random.default_rng(seed)
         for col, a in enumerate((3.0, 12.0)):
@@ -294,10 +302,21 @@ def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bo
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7)
     fig.suptitle(f"{tag} - {SCRIPT}", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out_dir / f"reproduce_paper_{tag}_fig11.png", dpi=80)
-    plt.close(fig)
+    save_figure(fig, out_dir / f"reproduce_paper_{tag}_fig11.png", dpi=80)
     md.append("")
+    return md
+
+
+def reproduce(physics, tag: str, out_dir: Path, cache: Path, seed: int, full: bool) -> list[str]:
+    """Run every figure for one backend; return markdown lines. ``full`` False: Figs. 5 and 7 only."""
+    md = [f"# Paper reproduction on {tag}", "", f"Regenerate: `python {SCRIPT}`"
+          + (" --rigid" if "rigid" in tag else "") + ". Sweeps 10-40 Hz (1 Hz), B_p = 3 mm, windows 0.5 s + 1.0 s, "
+          "centred disc unless said. Paper numbers beside ours.", ""]
+    md += figs_5_and_7(physics, tag, out_dir, cache)
+    if not full:
+        return md
+    figs, table1, table1_cheese = figs_8_to_10(physics, tag, out_dir, cache)
+    md += figs + table_1(table1, table1_cheese) + fig_11(physics, tag, out_dir, cache, seed)
     return md
 
 
@@ -307,12 +326,10 @@ def pybullet_tiny(out_dir: Path, cache: Path) -> list[str]:
     freqs = (14.0, 18.0, 22.0, 26.0, 30.0, 34.0)
     res = sweep(physics, cache, pe.ObjectSpec.from_paper(10.0, ALPHA_CHEESE), 3.0, freqs=freqs, settle_s=0.4,
                 measure_s=0.6)
-    fig, ax = plt.subplots(figsize=(4.5, 3.2))
+    fig, ax = new_figure(figsize=(4.5, 3.2))
     plot_curves(ax, [("pybullet 30 pts/layer", res)])
     ax.set_title(f"PyBullet Fig. 5(b)-like, 10pi, 3 deg - {SCRIPT} --pybullet", fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out_dir / "reproduce_paper_pybullet_fig5.png", dpi=90)
-    plt.close(fig)
+    save_figure(fig, out_dir / "reproduce_paper_pybullet_fig5.png", dpi=90)
     md = ["# Paper reproduction on a tiny PyBullet sheet", "", f"Regenerate: `python {SCRIPT} --pybullet`.", "",
           "| f_p [Hz] | omega_B [deg/s] | unstable |", "|---|---|---|"]
     md += [f"| {r.spec.motion.freq_hz:g} | {r.omega_b_deg_s:.0f} | {r.reason or ''} |" for r in res]

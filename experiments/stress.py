@@ -25,15 +25,12 @@ import time
 from collections import Counter
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-import plate_env as pe  # noqa: E402
-from plate_env.env import PlateRotationEnv  # noqa: E402
-from plate_env.physics.base import NON_FINITE, REASONS, RUNAWAY, ProbeResult  # noqa: E402
+import plate_env as pe
+from plate_env.env import PlateRotationEnv
+from plate_env.physics.base import NON_FINITE, REASONS, RUNAWAY, ProbeResult
+from plate_env.plotting import new_figure, save_figure
 
 SCRIPT = "experiments/stress.py"
 BLOWUPS = (NON_FINITE, RUNAWAY)
@@ -200,7 +197,7 @@ def main() -> None:
         md.append(f"| {w:g} | {a if a is not None else '< ' + format(min(g['dt']), 'g')} | "
                   f"{b if b is not None else '-'} | {100 * np.mean([r.unstable for r in fin]):.0f} % |")
     # plot: unstable share dt x omega_n, blow-up share, reasons per dt
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    fig, axes = new_figure(1, 3, figsize=(12, 3.4))
     for ax, pick, title in ((axes[0], lambda r: r.unstable, "unstable share"),
                             (axes[1], lambda r: r.reason in BLOWUPS, "blow-up share (non_finite/runaway)")):
         m = np.array([[np.mean([pick(r) for r in res[dt] if math.isclose(r.spec.obj.omega_n / math.pi, w)])
@@ -222,9 +219,7 @@ def main() -> None:
     axes[2].set_title("outcomes per dt", fontsize=8)
     axes[2].legend(fontsize=6, loc="upper left")
     fig.suptitle(f"tilelink/{args.model} stress map - {SCRIPT}" + (" --quick" if args.quick else ""), fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out_dir / f"stress_{tag}.png", dpi=85)
-    plt.close(fig)
+    save_figure(fig, out_dir / f"stress_{tag}.png", dpi=85)
     md += ["", f"Plot: `stress_{tag}.png`.", ""]
     # still plate
     seconds = 10.0 if args.quick else 60.0

@@ -15,6 +15,7 @@ import numpy as np
 import plate_env as pe
 from plate_env.cli import parse_freqs
 from plate_env.fitting import first_hump_mask, fit_results
+from plate_env.plotting import new_figure, save_figure
 
 
 def main() -> None:
@@ -55,12 +56,7 @@ def main() -> None:
     with open(stem + ".md", "w") as fh:
         fh.write("\n".join(lines) + "\n")
     print("\n".join(lines[:len(summary) + 3]))
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6.5, 4))
+    fig, ax = new_figure(figsize=(6.5, 4))
     for w, res in zip(omegas, curves, strict=True):
         st = [r for r in res if not r.unstable]
         ax.plot([r.spec.motion.freq_hz for r in st], [r.omega_b_deg_s for r in st], "o-", ms=3,
@@ -70,8 +66,7 @@ def main() -> None:
     ax.set_title(f"tilelink {args.model}, $A_p$ = {args.amp:g}°, $\\alpha$ = {args.alpha}°")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(stem + ".png", dpi=110)
+    save_figure(fig, stem + ".png", dpi=110)
     print(f"wrote {stem}.md/.png ({math.fsum(r.wall_s for c in curves for r in c):.1f} s wall)")
 
 

@@ -13,15 +13,17 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Atlas:
     """Tabulated response of one physics backend (arrays shaped (n_f, n_a, n_omega, n_alpha)).
 
@@ -30,6 +32,9 @@ class Atlas:
         alpha: friction angles, rad. mean, spread: omega_B mean over stable repeats and its spread (standard
         deviation between repeats combined with their own standard errors), deg/s. p_unstable: share of
         unstable repeats. n_repeats: repeats per grid point. provenance: how it was built.
+
+    Interpolators built from an atlas are kept on the instance (:meth:`cached`), so they live and die with it;
+    they are not pickled. Equality is identity (numpy fields have no value equality).
     """
 
     physics: str
@@ -43,12 +48,21 @@ class Atlas:
     p_unstable: np.ndarray
     n_repeats: int
     provenance: dict = field(default_factory=dict, compare=False)
+    _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
-    def __hash__(self) -> int:
-        return id(self)
+    def cached(self, key: Hashable, build: Callable[[], Any]) -> Any:
+        """``build()`` once per ``key`` for this atlas (interpolators derived from its arrays)."""
+        if key not in self._cache:
+            self._cache[key] = build()
+        return self._cache[key]
 
-    def __eq__(self, other: object) -> bool:
-        return self is other
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["_cache"] = {}
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
 
     def amp_index(self, a_p_deg: float) -> int:
         idx = np.flatnonzero(np.isclose(self.a_p_deg, a_p_deg, atol=1e-6))
@@ -103,8 +117,9 @@ class Atlas:
                 out[name] = f"{_show(name, value)}: {where} was built at {_show(name, fixed[name])} only"
         return out
 
-    def _interpolator(self, kind: str, amp: int):
-        return _interp(self, kind, amp)
+    def _interpolator(self, kind: str, amp: int) -> Callable[[np.ndarray], np.ndarray]:
+        """Tensor-product cubic spline of ``kind`` (mean, spread, p_unstable) over (f_p, log omega_n, alpha)."""
+        return self.cached(("interp", kind, amp), lambda: _interp(self, kind, amp))
 
     def predict(self, f_hz, a_p_deg: float, omega_n, alpha) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(mean [deg/s], spread [deg/s], p_unstable) at the given points (broadcast), for one amplitude.
@@ -160,12 +175,11 @@ def _show(name: str, value: float, hi: float | None = None, unit: bool = True) -
     return f"{label} = {value * factor:.4g} {text}"
 
 
-@lru_cache(maxsize=64)
-def _interp(atlas: Atlas, kind: str, amp: int):
+def _interp(atlas: Atlas, kind: str, amp: int) -> Callable[[np.ndarray], np.ndarray]:
     from scipy.interpolate import RegularGridInterpolator
+    from scipy.sparse.linalg import spsolve
 
     values = getattr(atlas, kind)[:, amp, :, :]
-    from scipy.sparse.linalg import spsolve
 
     # a direct solve of the spline system: exact at the nodes (the default iterative solver leaves ~1e-6)
     return RegularGridInterpolator((atlas.f_hz, np.log(atlas.omega_n), atlas.alpha), values, method="cubic",

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from plate_env.motion import PlateMotion
-from plate_env.objects import ObjectSpec
+from plate_env.objects import ObjectPrior, ObjectSpec
 from plate_env.physics.base import ProbeSpec
 
 #: Objects the Eq. (10) calibration is fitted on (omega_n in pi rad/s, alpha in degrees).
@@ -59,15 +59,17 @@ PYBULLET_HELD_OUT_OBJECTS = ((6.0, 41.0), (8.5, 50.0), (11.5, 33.0), (16.5, 55.0
 
 
 # --------------------------------------------------------------------------- identification prior and eval sets
-#: The identification prior (the env's default object distribution): omega_n log-uniform over this range (pi rad/s)
-#: and alpha uniform over this range (deg).
-PRIOR_OMEGA_PI = (3.5, 33.0)
-PRIOR_ALPHA_DEG = (30.0, 60.0)
+#: The identification prior is the env's object prior (:class:`plate_env.objects.ObjectPrior`): omega_n
+#: log-uniform over this range (pi rad/s) and alpha uniform over this range (deg).
+PRIOR_OMEGA_PI = ObjectPrior.omega_n_range_pi
+PRIOR_ALPHA_DEG = ObjectPrior.alpha_range_deg
 
 
 def prior_objects(n: int, rng: np.random.Generator, omega_range_pi: tuple[float, float] = PRIOR_OMEGA_PI,
                   alpha_range_deg: tuple[float, float] = PRIOR_ALPHA_DEG, mass_g: float = 13.6) -> list[ObjectSpec]:
-    """``n`` objects drawn from the identification prior (per object: log omega_n, then alpha)."""
+    """``n`` objects drawn from the identification prior (per object: log omega_n, then alpha): the draws of
+    :meth:`ObjectPrior.draw`, computed in numpy (the omega_n and alpha differ from it by at most 1 ulp; kept so
+    that evaluation sets drawn with it stay bit for bit)."""
     out = []
     for _ in range(n):
         w = float(np.exp(rng.uniform(np.log(omega_range_pi[0]), np.log(omega_range_pi[1]))))

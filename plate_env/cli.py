@@ -344,6 +344,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
 def _cmd_identify(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
+    # the seam: the CLI is the application layer, the only module of plate_env that imports the agents
+    # (tests/test_code_health.py keeps it so); the library core below it does not
     from agents import make_agent
     from agents.runner import run_episode
 

@@ -39,8 +39,9 @@ from gymnasium import spaces
 
 from plate_env import checks
 from plate_env.camera import camera_omega_b
+from plate_env.estimate import Estimate
 from plate_env.motion import B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
-from plate_env.objects import ObjectSpec
+from plate_env.objects import ObjectPrior, ObjectSpec
 from plate_env.physics import make_physics
 from plate_env.physics.base import (
     MIN_PROBE_FREQ_HZ,
@@ -69,8 +70,8 @@ class PlateRotationEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
 
     def __init__(self, physics: str = "tilelink", physics_options: dict | None = None, method: str = "atlas",
-                 omega_n_range_pi: tuple[float, float] = (3.5, 33.0),
-                 alpha_range_deg: tuple[float, float] = (30.0, 60.0),
+                 omega_n_range_pi: tuple[float, float] = ObjectPrior.omega_n_range_pi,
+                 alpha_range_deg: tuple[float, float] = ObjectPrior.alpha_range_deg,
                  mass_variation: float = 0.0, f_band_hz: tuple[float, float] = (10.0, 40.0),
                  amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = 3.0, max_probes: int = 20,
                  max_sim_s: float | None = None, measure_range_s: tuple[float, float] = (0.25, 2.0),
@@ -150,9 +151,8 @@ class PlateRotationEnv(gym.Env):
         given = {k: checks.real(f"reset option {k}", v) for k, v in options.items()}
         super().reset(seed=seed)
         rng = self.np_random
-        lo, hi = self.omega_n_range_pi
-        drawn = {"omega_n": math.pi * math.exp(rng.uniform(math.log(lo), math.log(hi))),
-                 "alpha": math.radians(rng.uniform(*self.alpha_range_deg)),
+        drawn_omega, drawn_alpha = ObjectPrior(self.omega_n_range_pi, self.alpha_range_deg).draw(rng)
+        drawn = {"omega_n": drawn_omega, "alpha": drawn_alpha,
                  "mass": MASS_KG * (1.0 + self.mass_variation * rng.uniform(-1.0, 1.0))}  # drawn either way
         try:
             obj = ObjectSpec(**{**drawn, **given}, name="hidden")
@@ -280,9 +280,9 @@ class PlateRotationEnv(gym.Env):
         f, a, w, se, un, _ = zip(*self._rows, strict=True)
         return ProbeTable.from_arrays(f, a, w, se, un)
 
-    def estimate(self):
+    def estimate(self) -> Estimate:
         """The current omega_n estimate from the probes so far."""
-        from plate_env.identify import Estimate, identify
+        from plate_env.identify import identify
 
         if not self._rows:
             return Estimate(ok=False, method=self.method, reason="no probes")

@@ -7,11 +7,10 @@ high f_p while more and more probes end unstable. Only the first hump tracks ome
 default window is ``"first_hump"``: stable probes in frequency order up to and including the first one that falls
 more than ``drop`` (5 %) below the running maximum, or up to two unstable probes in a row, without the flat base
 below ``floor`` (40 %) of the hump's height. ``"all"`` uses every stable probe. ``experiments/calibrate.py``
-measures the rules: on the point-mass tile-link model at A_p = 3 deg (36 sweeps, 3.5pi-33pi, alpha 30-56 deg) the
-R^2 of omega_n on f0 was 0.01 for "all", 0.007 for the first hump with its base, 0.90 with floor 0.2, 0.91 with
-floor 0.4 (chosen) and 0.92 with floor 0.6 (but 2 of 36 sweeps then cannot be fitted). Fits whose peak lies over
-``MAX_PEAK_RATIO`` times above every fitted probe (a narrow Lorentzian's tail fitted to the foot of a hump) are
-refused, not returned.
+measures the rules (the R^2 of omega_n on f0 and the sweeps each cannot fit, per window, drop and floor) in
+``experiments/results/calibration_tilelink_pointmass.md``; the first hump with floor 0.4 is chosen there. Fits
+whose peak lies over ``MAX_PEAK_RATIO`` times above every fitted probe (a narrow Lorentzian's tail fitted to the
+foot of a hump) are refused, not returned.
 """
 
 from __future__ import annotations
@@ -20,7 +19,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.optimize
 
 WINDOWS = ("first_hump", "all")
 #: A stable probe this far below the running maximum ends the first hump.
@@ -185,6 +183,8 @@ def fit_lorentzian(f_hz, omega_deg_s, stderr_deg_s=None, unstable=None, window: 
     ``1/stderr`` when standard errors are given (zero or missing ones get the median of the others).
     Returns ``LorentzFit(ok=False, reason=...)`` instead of raising when the data cannot support three parameters.
     """
+    import scipy.optimize  # lazily: LorentzFit is imported by light modules (plate_env.estimate, the env)
+
     if window not in WINDOWS:
         raise ValueError(f"unknown fit window {window!r}; choose one of {WINDOWS}")
     f = np.asarray(f_hz, dtype=float).ravel()
@@ -280,6 +280,8 @@ def fit_lorentzian(f_hz, omega_deg_s, stderr_deg_s=None, unstable=None, window: 
         return fail("non-finite parameter uncertainties")
     ss_tot = float(np.sum((wu - wu.mean()) ** 2))
     r2 = 1.0 - float(np.sum(res ** 2)) / ss_tot if ss_tot > 0 else 0.0
+    if not math.isfinite(r2):
+        return fail("non-finite R^2: the data overflow double precision")
     return LorentzFit(ok=True, reason=None, omega_max=omega_max, f0=f0, b=b, stderr=tuple(float(e) for e in errs),
                       cov=cov, r2=r2, residuals=sign * res, n_used=n, n_unstable=n_unstable, used=used, sign=sign)
 

@@ -1,59 +1,24 @@
-"""From probes to omega_n_hat (and alpha_hat) with uncertainty, by the paper's Lorentzian method or the atlas."""
+"""From probes to omega_n_hat (and alpha_hat) with uncertainty, by the paper's Lorentzian method or the atlas.
+
+Dependencies run one way: this module uses :mod:`plate_env.inference` (the atlas method) and both build the
+:class:`~plate_env.estimate.Estimate` of :mod:`plate_env.estimate`, which imports neither.
+"""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from plate_env.calibration import Calibration, get_calibration
+from plate_env.estimate import Estimate
 from plate_env.fitting import LorentzFit, fit_lorentzian
+from plate_env.inference import identify_atlas
 from plate_env.physics.base import ProbeResult
 from plate_env.probes import ProbeTable
 
 METHODS = ("lorentz", "atlas")
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """An identification. ``ok`` False means no estimate could be made (``reason`` says why).
-
-    Attributes:
-        omega_n: omega_n_hat, rad/s; omega_n_stderr: rad/s; omega_n_ci68 / omega_n_ci95: credible or confidence
-            intervals, rad/s.
-        alpha: alpha_hat, rad (None when the method gives none); alpha_stderr: rad.
-        fits: the per-amplitude Lorentzian fits (lorentz method), keyed by A_p in degrees.
-        posterior: the atlas posterior (atlas method).
-    """
-
-    ok: bool
-    method: str
-    reason: str | None = None
-    omega_n: float = 0.0
-    omega_n_stderr: float = 0.0
-    omega_n_ci68: tuple[float, float] = (0.0, 0.0)
-    omega_n_ci95: tuple[float, float] = (0.0, 0.0)
-    alpha: float | None = None
-    alpha_stderr: float = 0.0
-    n_probes: int = 0
-    n_unstable: int = 0
-    fits: dict = field(default_factory=dict, compare=False, repr=False)
-    posterior: object = field(default=None, compare=False, repr=False)
-
-    def relative_error(self, omega_n_true: float) -> float:
-        return abs(self.omega_n - omega_n_true) / omega_n_true if self.ok else math.inf
-
-    def to_dict(self) -> dict:
-        d = {"ok": self.ok, "method": self.method, "reason": self.reason, "omega_n_rad_s": self.omega_n,
-             "omega_n_stderr_rad_s": self.omega_n_stderr, "omega_n_pi": self.omega_n / math.pi,
-             "omega_n_ci68_rad_s": list(self.omega_n_ci68), "omega_n_ci95_rad_s": list(self.omega_n_ci95),
-             "alpha_deg": math.degrees(self.alpha) if self.alpha is not None else None,
-             "alpha_stderr_deg": math.degrees(self.alpha_stderr), "n_probes": self.n_probes,
-             "n_unstable": self.n_unstable}
-        d["fits"] = {f"{a:g}": fit.to_dict() for a, fit in self.fits.items()}
-        return d
 
 
 def _table(probes: Sequence[ProbeResult] | ProbeTable) -> ProbeTable:
@@ -117,6 +82,4 @@ def identify(probes: Sequence[ProbeResult] | ProbeTable, method: str = "lorentz"
     table = _table(probes)
     if method == "lorentz":
         return identify_lorentz(table, physics, model, **options)
-    from plate_env.inference import identify_atlas
-
     return identify_atlas(table, physics, model, **options)

@@ -14,55 +14,22 @@ one-sided data, curves without a Lorentzian peak.
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-from functools import lru_cache
+from collections.abc import Callable
 
 import numpy as np
 
 from plate_env.atlas import Atlas, load_atlas
+from plate_env.estimate import Estimate, Posterior
 from plate_env.probes import ProbeTable
+
+#: A function f_p (Hz) -> (mean deg/s, spread deg/s, p_unstable) on the posterior grid, each (n_omega, n_alpha).
+GridResponse = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 P_MIN = 0.02
 #: Degrees of freedom of the Student-t likelihood.
 NU = 4.0
 #: Default model error of the atlas, deg/s (measured against live probes by experiments/build_atlas.py).
 SIGMA_MODEL = 15.0
-
-
-@dataclass(frozen=True)
-class Posterior:
-    """A normalised posterior on a grid: ``prob[i, j]`` for ``omega_n[i]`` (rad/s) and ``alpha[j]`` (rad)."""
-
-    omega_n: np.ndarray
-    alpha: np.ndarray
-    prob: np.ndarray
-
-    def marginal_omega(self) -> np.ndarray:
-        return self.prob.sum(1)
-
-    def marginal_alpha(self) -> np.ndarray:
-        return self.prob.sum(0)
-
-    @staticmethod
-    def _stats(x: np.ndarray, p: np.ndarray) -> tuple[float, float, tuple[float, float], tuple[float, float]]:
-        mean = float(np.sum(p * x))
-        std = float(math.sqrt(max(np.sum(p * (x - mean) ** 2), 0.0)))
-        cdf = np.cumsum(p)
-        cdf = cdf / cdf[-1]
-
-        def q(level: float) -> float:
-            return float(np.interp(level, cdf, x))
-
-        return mean, std, (q(0.16), q(0.84)), (q(0.025), q(0.975))
-
-    def omega_stats(self):
-        """(mean, std, 68 % interval, 95 % interval) of omega_n, rad/s."""
-        return self._stats(self.omega_n, self.marginal_omega())
-
-    def alpha_stats(self):
-        """(mean, std, 68 % interval, 95 % interval) of alpha, rad."""
-        return self._stats(self.alpha, self.marginal_alpha())
 
 
 def posterior_grid(atlas: Atlas, n_omega: int = 161, n_alpha: int = 31) -> tuple[np.ndarray, np.ndarray]:
@@ -77,15 +44,20 @@ def log_student(resid: np.ndarray, var: np.ndarray, nu: float = NU) -> np.ndarra
     return -0.5 * (nu + 1.0) * np.log1p(resid ** 2 / (nu * var)) - 0.5 * np.log(var)
 
 
-@lru_cache(maxsize=32)
-def grid_response(atlas: Atlas, a_p_deg: float, n_omega: int = 161, n_alpha: int = 31):
+def grid_response(atlas: Atlas, a_p_deg: float, n_omega: int = 161, n_alpha: int = 31) -> GridResponse:
     """The atlas on the posterior grid for one amplitude, as cubic-spline interpolators along f_p.
 
     The atlas surface is evaluated once on (atlas f_p nodes) x (posterior grid); a probe then interpolates along
     f_p alone (a not-a-knot cubic spline, the same kind the atlas uses along f_p), which is exact at the nodes
-    and costs a few microseconds per probe instead of an N-D interpolation of the whole grid.
+    and costs a few microseconds per probe instead of an N-D interpolation of the whole grid. Built once per
+    atlas, amplitude and grid (kept on the atlas).
     Returns a function ``f_hz -> (mean, spread, p_unstable)``, each (n_omega, n_alpha).
     """
+    key = ("grid_response", float(a_p_deg), int(n_omega), int(n_alpha))
+    return atlas.cached(key, lambda: _grid_response(atlas, float(a_p_deg), int(n_omega), int(n_alpha)))
+
+
+def _grid_response(atlas: Atlas, a_p_deg: float, n_omega: int, n_alpha: int) -> GridResponse:
     from scipy.interpolate import CubicSpline
 
     w, a = posterior_grid(atlas, n_omega, n_alpha)
@@ -102,18 +74,26 @@ def grid_response(atlas: Atlas, a_p_deg: float, n_omega: int = 161, n_alpha: int
     return at
 
 
+def probe_log_likelihood(mu: np.ndarray, s: np.ndarray, p: np.ndarray, omega_b_deg_s: float, stderr_deg_s: float,
+                         unstable: bool, sigma_model: float = SIGMA_MODEL) -> np.ndarray:
+    """One probe's log-likelihood (module docstring) given the atlas's mean ``mu``, spread ``s`` (deg/s) and
+    instability probability ``p`` at each grid object: ``log p`` for an unstable probe, ``log(1 - p)`` plus the
+    Student-t term for a stable one, with p clipped to [P_MIN, 1 - P_MIN]."""
+    p = np.clip(p, P_MIN, 1.0 - P_MIN)
+    if unstable:
+        return np.log(p)
+    var = s ** 2 + stderr_deg_s ** 2 + sigma_model ** 2
+    return np.log1p(-p) + log_student(omega_b_deg_s - mu, var)
+
+
 def log_likelihood(atlas: Atlas, table: ProbeTable, n_omega: int = 161, n_alpha: int = 31,
                    sigma_model: float = SIGMA_MODEL) -> np.ndarray:
     """Sum of the probes' log-likelihoods on the posterior grid (shape (n_omega, n_alpha))."""
     total = np.zeros((n_omega, n_alpha))
     for k in range(len(table)):
         mu, s, p = grid_response(atlas, float(table.a_p_deg[k]), n_omega, n_alpha)(table.f_p_hz[k])
-        p = np.clip(p, P_MIN, 1.0 - P_MIN)
-        if table.unstable[k]:
-            total += np.log(p)
-        else:
-            var = s ** 2 + table.stderr_deg_s[k] ** 2 + sigma_model ** 2
-            total += np.log1p(-p) + log_student(table.omega_b_deg_s[k] - mu, var)
+        total += probe_log_likelihood(mu, s, p, table.omega_b_deg_s[k], table.stderr_deg_s[k],
+                                      bool(table.unstable[k]), sigma_model)
     return total
 
 
@@ -128,10 +108,8 @@ def posterior(atlas: Atlas, table: ProbeTable, sigma_model: float = SIGMA_MODEL,
 
 
 def identify_atlas(table: ProbeTable, physics: str = "tilelink", model: str = "pointmass", atlas: Atlas | None = None,
-                   sigma_model: float = SIGMA_MODEL):
+                   sigma_model: float = SIGMA_MODEL) -> Estimate:
     """Estimate omega_n and alpha as posterior means, with posterior std and credible intervals."""
-    from plate_env.identify import Estimate
-
     atlas = atlas if atlas is not None else load_atlas(physics, model)
     n_un = int(table.unstable.sum())
     try:

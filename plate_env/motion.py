@@ -82,10 +82,6 @@ class PlateMotion:
     def a_p_deg(self) -> float:
         return math.degrees(self.amp_rad)
 
-    @property
-    def period_s(self) -> float:
-        return 1.0 / self.freq_hz if self.freq_hz > 0 else math.inf
-
     def state(self, t: float) -> tuple[float, float, float, float]:
         """``(Theta, dTheta/dt, X, dX/dt)`` at time ``t`` (s)."""
         return plate_state(t, self.freq_hz, self.amp_rad, self.b_p, self.ramp_s)

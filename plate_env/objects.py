@@ -84,6 +84,34 @@ PRESETS: dict[str, ObjectSpec] = {
 }
 
 
+@dataclass(frozen=True)
+class ObjectPrior:
+    """The distribution hidden objects are drawn from (the env's episodes, the agent comparisons).
+
+    Attributes:
+        omega_n_range_pi: omega_n is log-uniform over this range, in units of pi rad/s (the paper's 3.5-33).
+        alpha_range_deg: alpha is uniform over this range, degrees.
+    """
+
+    omega_n_range_pi: tuple[float, float] = (3.5, 33.0)
+    alpha_range_deg: tuple[float, float] = (30.0, 60.0)
+
+    def draw(self, rng) -> tuple[float, float]:
+        """One object's ``(omega_n rad/s, alpha rad)``: exactly two draws from ``rng`` (a numpy Generator),
+        omega_n first."""
+        lo, hi = self.omega_n_range_pi
+        omega_n = math.pi * math.exp(rng.uniform(math.log(lo), math.log(hi)))
+        alpha = math.radians(rng.uniform(*self.alpha_range_deg))
+        return omega_n, alpha
+
+    def sample(self, n: int, seed: int) -> list[tuple[float, float]]:
+        """``n`` objects from a generator seeded with ``seed`` (the same list for the same seed)."""
+        import numpy as np
+
+        rng = np.random.default_rng(seed)
+        return [self.draw(rng) for _ in range(n)]
+
+
 def preset(name: str) -> ObjectSpec:
     """Look up a preset object by name (``cheese``, ``dumpling``, ``cheese_lead``)."""
     try:

@@ -1,20 +1,41 @@
-"""Plots for sweeps and fits (matplotlib, imported only when a plot is asked for)."""
+"""Plots for sweeps and fits, and the one way the project makes and saves a figure.
+
+matplotlib is imported only when a plot is asked for. Figures are made without pyplot (``matplotlib.figure.Figure``
+renders a PNG with the Agg canvas by itself), so the library never chooses a backend for the caller
+(``matplotlib.use``) and leaves no figure open in pyplot's global state.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from plate_env.physics.base import ProbeResult
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+
+def new_figure(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float] | None = None,
+               **subplots: Any) -> tuple[Figure, Any]:
+    """A figure and its axes, as ``pyplot.subplots(nrows, ncols, figsize=..., **subplots)`` returns them."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(nrows, ncols, **subplots)
+
+
+def save_figure(fig: Figure, path: str | Path, dpi: int = 100) -> Path:
+    """Lay the figure out tightly and write it to ``path`` (format from the suffix); returns the path."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    return Path(path)
 
 
 def plot_sweep(results: Sequence[ProbeResult], path: str, title: str = "") -> None:
     """omega_B against f_p; stable probes with error bars, unstable ones as crosses at the axis."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = new_figure(figsize=(6, 4))
     stable = [r for r in results if not r.unstable]
     bad = [r for r in results if r.unstable]
     ax.errorbar([r.spec.motion.freq_hz for r in stable], [r.omega_b_deg_s for r in stable],
@@ -27,22 +48,16 @@ def plot_sweep(results: Sequence[ProbeResult], path: str, title: str = "") -> No
     ax.set_title(title)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def plot_fit(table, est, path: str) -> None:
     """Data, the fitted Lorentzian per amplitude (lorentz) and the omega_n estimate or posterior (atlas)."""
     import math
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import numpy as np
 
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    fig, (ax, ax2) = new_figure(1, 2, figsize=(10, 4))
     for amp in table.amplitudes():
         sel = np.isclose(table.a_p_deg, amp)
         st = sel & ~table.unstable
@@ -68,6 +83,4 @@ def plot_fit(table, est, path: str) -> None:
     ax2.set_xlabel(r"$\omega_n$ [$\pi$ rad/s]")
     ax2.grid(alpha=0.3)
     ax2.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)

@@ -15,10 +15,17 @@ from pathlib import Path
 from plate_env.executor import BackendSpec, Executor, InProcessExecutor, check_executor_name, make_executor
 from plate_env.physics.base import Physics, ProbeResult, ProbeSpec
 
+#: Backend settings that change results and so enter the cache key (each where the backend has it).
+TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact", "record_interval_s")
+#: Settings named in the key only when they differ from this default: they became options after caches of the
+#: default existed, which stay valid.
+TAG_DEFAULTS = {"record_interval_s": 1e-3}
+
 
 def backend_tag(physics: Physics | BackendSpec) -> str:
     """A string naming the backend and its settings (part of every cache key): every setting that changes a
-    result (model, time step, mesh, joint and contact parameters) is in it. A :class:`BackendSpec` is built
+    result (:data:`TAG_SETTINGS`: model, time step, mesh, joint and contact parameters, record interval) is in it
+    (those of :data:`TAG_DEFAULTS` only when they differ from it). A :class:`BackendSpec` is built
     (cheaply: no client or kernel is touched) to read them."""
     if isinstance(physics, BackendSpec):
         built = physics.build()
@@ -27,8 +34,8 @@ def backend_tag(physics: Physics | BackendSpec) -> str:
         finally:
             built.close()
     parts = [physics.name]
-    for attr in ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact"):
-        if hasattr(physics, attr):
+    for attr in TAG_SETTINGS:
+        if hasattr(physics, attr) and not (attr in TAG_DEFAULTS and getattr(physics, attr) == TAG_DEFAULTS[attr]):
             parts.append(f"{attr}={getattr(physics, attr)}")
     return ",".join(parts)
 

@@ -1,8 +1,7 @@
-"""Probing agents: each runs end to end; bayes narrows its posterior around the truth; identify --json schema."""
+"""Probing agents: each runs end to end; bayes narrows its posterior around the truth (identify: test_cli.py)."""
 
 from __future__ import annotations
 
-import json
 import math
 
 import gymnasium as gym
@@ -13,7 +12,6 @@ import plate_env  # noqa: F401
 from agents import make_agent
 from agents.runner import run_episode
 from plate_env.atlas import atlas_from_repeats
-from plate_env.cli import main
 from plate_env.fitting import lorentzian
 
 TRUTH = {"omega_n": 12 * math.pi, "alpha": 0.7}
@@ -96,16 +94,3 @@ def test_bayes_posterior_narrows_and_contains_truth_on_synthetic_lorentzian_data
     cdf = np.cumsum(post) / post.sum()
     lo, hi = np.interp([0.025, 0.975], cdf, agent.omega)
     assert lo <= truth <= hi
-
-
-def test_identify_json_schema(capsys):
-    code = main(["identify", "--agent", "grid", "--physics", "tilelink", "--omega-n", "17pi", "--alpha", "45",
-                 "--seed", "0", "--max-probes", "8", "--json"])
-    out = json.loads(capsys.readouterr().out)
-    assert code in (0, 1)
-    for key in ("agent", "omega_n_true_rad_s", "alpha_true_deg", "relative_error", "n_probes", "sim_s", "wall_s",
-                "estimate", "probes"):
-        assert key in out
-    assert out["n_probes"] == len(out["probes"]) == 8
-    assert set(out["estimate"]) >= {"ok", "omega_n_rad_s", "omega_n_stderr_rad_s", "method"}
-    assert out["omega_n_true_rad_s"] == pytest.approx(17 * math.pi)

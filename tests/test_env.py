@@ -1,13 +1,17 @@
-"""The Gymnasium environment PlateRotation-v0."""
+"""The Gymnasium environment PlateRotation-v0: checkers, seeding, rewards, rendering, vector envs, and robustness
+(random and malformed actions, memory over many resets)."""
 
 from __future__ import annotations
 
 import copy
+import math
 import pickle
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import plate_env  # noqa: F401 - registers the environment
 from plate_env.env import PlateRotationEnv
@@ -70,6 +74,17 @@ def test_same_seed_same_episode(physics):
     for (o1, r1, i1), (o2, r2, i2) in zip(a, b, strict=True):
         assert np.array_equal(o1, o2) and r1 == r2 and i1 == i2
     assert not np.array_equal(a[0][0], c[0][0]) or a[0][2] != c[0][2]
+
+
+def test_reset_draws_the_hidden_object_from_the_object_prior():
+    from plate_env.objects import ObjectPrior
+
+    env = PlateRotationEnv(physics="atlas", omega_n_range_pi=(5.0, 20.0), alpha_range_deg=(35.0, 50.0))
+    for seed in (0, 9):
+        _, info = env.reset(seed=seed)
+        drawn = ObjectPrior((5.0, 20.0), (35.0, 50.0)).draw(np.random.default_rng(seed))
+        assert (info["omega_n_true"], info["alpha_true"]) == drawn
+    env.close()
 
 
 def test_reward_formula_on_a_hand_made_case():
@@ -216,3 +231,65 @@ def test_pybullet_rgb_array_uses_tiny_renderer():
     assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 10
     env.close()
     assert env._renderer is None
+
+
+PROPERTY = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                                        HealthCheck.too_slow])
+
+
+@pytest.fixture(scope="module")
+def atlas_env():
+    env = PlateRotationEnv(physics="atlas", max_probes=6)
+    yield env
+    env.close()
+
+
+ACTIONS = st.one_of(
+    st.lists(st.floats(allow_nan=True, allow_infinity=True, width=32), min_size=4, max_size=4),
+    st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=4),
+    st.lists(st.floats(-1.0, 1.0), min_size=0, max_size=7),
+    st.lists(st.floats(-3.0, 3.0), min_size=4, max_size=4),
+    st.sampled_from(["abc", None, [[0.0, 0.0, 0.0, 0.0]], {"a": 1}, [0.0, 0.0, 0.0, "x"]]),
+)
+
+
+@PROPERTY
+@given(seed=st.integers(0, 2 ** 31 - 1), actions=st.lists(ACTIONS, min_size=1, max_size=12))
+def test_env_step_valid_or_valueerror(atlas_env, seed, actions):
+    env = atlas_env
+    obs, info = env.reset(seed=seed)
+    assert np.all(np.isfinite(obs)) and env.observation_space.contains(obs)
+    for action in actions:
+        try:
+            obs, reward, terminated, truncated, info = env.step(action)
+        except ValueError as exc:  # a clear refusal names the bad value
+            assert str(exc)
+            continue
+        assert np.all(np.isfinite(obs)) and env.observation_space.contains(obs)
+        assert math.isfinite(reward)
+        if terminated or truncated:
+            obs, info = env.reset(seed=seed + 1)
+            assert np.all(np.isfinite(obs))
+
+
+def _rss_bytes() -> int:
+    """Resident set size of this process from /proc/self/statm (pages -> bytes)."""
+    import os
+
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def test_env_resets_keep_rss_flat():
+    env = PlateRotationEnv(physics="atlas", max_probes=4)
+    action = np.array([0.1, -0.5, 0.0, -1.0], dtype=np.float32)
+    for i in range(100):  # warm up caches and allocator pools
+        env.reset(seed=i)
+        env.step(action)
+    before = _rss_bytes()
+    for i in range(1000):
+        env.reset(seed=1000 + i)
+        env.step(action)
+    grown = _rss_bytes() - before
+    env.close()
+    assert grown < 8 * 2 ** 20, f"RSS grew {grown / 2 ** 20:.1f} MiB over 1000 resets"

@@ -50,6 +50,21 @@ def test_object_spec_rejects_bad_values(field, value):
         pe.ObjectSpec(**{field: value})
 
 
+def test_object_prior_is_seeded_log_uniform_and_draws_two_numbers_an_object():
+    prior = pe.objects.ObjectPrior()
+    objs = prior.sample(400, seed=3)
+    assert objs == prior.sample(400, seed=3) and objs != prior.sample(400, seed=4)
+    w = np.array([o[0] for o in objs]) / math.pi
+    a = np.degrees([o[1] for o in objs])
+    assert 3.5 <= w.min() and w.max() <= 33.0 and 30.0 <= a.min() and a.max() <= 60.0
+    mid = 0.5 * (math.log(3.5) + math.log(33.0))  # log-uniform: log omega_n centred on the middle of the range
+    assert abs(np.mean(np.log(w)) - mid) < 0.1 and abs(np.mean(a) - 45.0) < 1.5
+    rng, ref = np.random.default_rng(5), np.random.default_rng(5)
+    prior.draw(rng)
+    ref.uniform(size=2)
+    assert rng.uniform() == ref.uniform()  # exactly two draws: callers' later random streams do not shift
+
+
 def test_plate_motion_rejects_nan():
     with pytest.raises(ValueError, match="f_p"):
         pe.PlateMotion(freq_hz=float("nan"), amp_rad=0.05)

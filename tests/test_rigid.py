@@ -8,11 +8,13 @@ import numpy as np
 import pytest
 
 import plate_env as pe
-from plate_env.measure import measure_omega_b
-from plate_env.physics.base import ProbeSpec
-from plate_env.physics.tilelink import kernels as kn
+from plate_env.physics.base import ProbeSpec, Status
 from plate_env.physics.tilelink import rigid
 from plate_env.physics.tilelink import rigid_kernels as rk
+from plate_env.physics.tilelink.backend import result_from_arrays
+from plate_env.physics.tilelink.params import DEFAULT_DT, P_NSTEPS, P_RECEVERY
+
+DT = DEFAULT_DT["rigid"]
 
 
 def _probe(f_hz: float, a_deg: float = 3.0, b_mm: float = 3.0, omega_pi: float = 10.0, alpha: float = 36.9,
@@ -22,15 +24,10 @@ def _probe(f_hz: float, a_deg: float = 3.0, b_mm: float = 3.0, omega_pi: float =
                      measure_s=measure)
 
 
-def _omega(out: dict, b: int, spec: ProbeSpec, dt: float) -> tuple[float, int]:
-    """omega_B (deg/s) and status of probe ``b`` from the raw arrays."""
-    n = int(out["nrec"][b])
-    st = int(out["status"][b])
-    rec = out["prm"][b, kn.P_RECEVERY] * dt
-    t = np.arange(n) * rec
-    w, _, _ = measure_omega_b(t, out["yaw"][b, :n], spec.measure_start_s, 1.0 / spec.motion.freq_hz,
-                              spec.n_periods, n * rec if st else None)
-    return math.degrees(w), st
+def _omega(out: dict, b: int, spec: ProbeSpec, dt: float) -> tuple[float, Status]:
+    """omega_B (deg/s) and status of probe ``b`` from the raw arrays (the backend's own conversion)."""
+    r = result_from_arrays(spec, out, b, dt)
+    return r.omega_b_deg_s, Status(int(out["status"][b]))
 
 
 @pytest.mark.parametrize("omega_pi", [1.4, 10.0, 33.0, 50.0])
@@ -46,9 +43,9 @@ def test_still_plate_leaves_disc_still():
     spec = ProbeSpec(obj=obj, motion=pe.PlateMotion(freq_hz=20.0, amp_rad=0.0, b_p=0.0), settle_s=0.3,
                      measure_s=0.3)
     out = rk.run_rigid_arrays([spec])
-    w, st = _omega(out, 0, spec, rk.DEFAULT_DT)
+    w, st = _omega(out, 0, spec, DT)
     n = int(out["nrec"][0])
-    assert st == kn.OK
+    assert st == Status.OK
     assert abs(w) < 0.5
     assert math.hypot(out["cu"][0, n - 1], out["cv"][0, n - 1]) < 5e-4
 
@@ -56,8 +53,8 @@ def test_still_plate_leaves_disc_still():
 def test_rotation_sign_flips_with_b_p():
     specs = [_probe(22.0, b_mm=3.0), _probe(22.0, b_mm=-3.0)]
     out = rk.run_rigid_arrays(specs)
-    (w_pos, s_pos), (w_neg, s_neg) = (_omega(out, b, s, rk.DEFAULT_DT) for b, s in enumerate(specs))
-    assert s_pos == kn.OK and s_neg == kn.OK
+    (w_pos, s_pos), (w_neg, s_neg) = (_omega(out, b, s, DT) for b, s in enumerate(specs))
+    assert s_pos == Status.OK and s_neg == Status.OK
     assert w_pos > 50.0 and w_neg < -50.0  # A_p B_p > 0 turns clockwise in the paper, sign convention of motion.py
 
 
@@ -74,18 +71,18 @@ def test_batch_equals_single():
 
 def test_energy_from_nowhere_is_runaway():
     spec = _probe(20.0, settle=0.2, measure=0.1)
-    prm = rk.param_vector(spec, rk.DEFAULT_DT, 0.010)
+    prm = rk.param_vector(spec, DT, 0.010)
     prm[rk.R_CB] = -20.0 * prm[rk.R_CB] - 1e-6  # a negative bending damper pumps energy in
     geom = rigid.disc_geometry(spec.obj.diameter)
     out = rk.run_rigid_param_arrays(prm[None, :], geom.rest[None], geom)
-    assert int(out["status"][0]) in (kn.RUNAWAY, kn.FOLDED, kn.NON_FINITE)
+    assert int(out["status"][0]) in (Status.RUNAWAY, Status.FOLDED, Status.NON_FINITE)
 
 
 def test_returns_backend_keys():
     out = rk.run_rigid_arrays([_probe(20.0, settle=0.05, measure=0.1)])
     for key in ("prm", "yaw", "cu", "cv", "status", "nrec"):
         assert key in out
-    assert out["prm"][0, kn.P_NSTEPS] > 0 and out["prm"][0, kn.P_RECEVERY] >= 1
+    assert out["prm"][0, P_NSTEPS] > 0 and out["prm"][0, P_RECEVERY] >= 1
 
 
 @pytest.mark.slow
@@ -95,13 +92,13 @@ def test_returns_backend_keys():
                    "to contact, friction, row damping and sweeps (experiments/results/dt_error_sources.md).")
 def test_dt_convergence_three_frequencies():
     specs = [_probe(f, settle=0.6, measure=1.0) for f in (18.0, 22.0, 25.0)]
-    coarse = rk.run_rigid_arrays(specs, dt=rk.DEFAULT_DT)
-    fine = rk.run_rigid_arrays(specs, dt=rk.DEFAULT_DT / 4,
+    coarse = rk.run_rigid_arrays(specs, dt=DT)
+    fine = rk.run_rigid_arrays(specs, dt=DT / 4,
                                config=rigid.RigidTileConfig(iterations=2 * rigid.RigidTileConfig().iterations))
     for b, s in enumerate(specs):
-        wc, sc = _omega(coarse, b, s, rk.DEFAULT_DT)
-        wf, sf = _omega(fine, b, s, rk.DEFAULT_DT / 4)
-        assert sc == kn.OK and sf == kn.OK
+        wc, sc = _omega(coarse, b, s, DT)
+        wf, sf = _omega(fine, b, s, DT / 4)
+        assert sc == Status.OK and sf == Status.OK
         assert wc == pytest.approx(wf, rel=0.01)
 
 
@@ -129,7 +126,7 @@ def test_large_fold_is_detected_not_launched():
     specs = [_probe(f, a_deg=12.0, omega_pi=wn, settle=0.8, measure=1.0) for wn in (3.0, 5.0) for f in (12.0, 16.0)]
     out = rk.run_rigid_arrays(specs)
     for b in range(len(specs)):
-        assert int(out["status"][b]) not in (kn.NON_FINITE, kn.RUNAWAY)
+        assert int(out["status"][b]) not in (Status.NON_FINITE, Status.RUNAWAY)
         assert out["diag"][b, 0] <= 0.1 * out["diag"][b, 2] + 2e-4
 
 

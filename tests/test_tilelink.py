@@ -1,4 +1,5 @@
-"""The paper's tile-link model (point-mass reduction): geometry, modal omega_n, behaviour, robustness."""
+"""The paper's tile-link model (point-mass reduction): geometry, modal omega_n, behaviour, and extreme settings
+(a seconds-long version of experiments/stress.py): unstable with a reason and finite numbers, never NaN."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import numpy as np
 import pytest
 
 import plate_env as pe
+from plate_env.physics.base import REASONS, ProbeResult
 from plate_env.physics.tilelink.geometry import disc_geometry
 from plate_env.physics.tilelink.pointmass import build_params, modal
 
@@ -34,11 +36,20 @@ def test_modal_omega_n_hit_within_half_percent(omega_n_pi):
     assert result.omega_bending == pytest.approx(obj.omega_n, rel=5e-3)
 
 
-def test_still_plate_leaves_disc_still(tilelink, cheese):
-    r = tilelink.run([probe(cheese, 25.0, a_p_deg=0.0, b_p_mm=0.0, record_trace=True)])[0]
-    assert not r.unstable
+@pytest.mark.parametrize("dt", [2e-4, 4e-4])
+def test_still_plate_leaves_disc_still(dt, cheese):
+    """A plate that does not move leaves the disc where it is, at the default step and at twice it (2.7 s)."""
+    physics = pe.make_physics("tilelink", dt=dt)
+    spec = pe.ProbeSpec(cheese, pe.PlateMotion(freq_hz=20.0, amp_rad=0.0, b_p=0.0), settle_s=0.5, measure_s=2.0,
+                        record_trace=True)
+    r = physics.run([spec])[0]
+    assert not r.unstable and _finite(r)
+    tr = r.trace
+    assert tr is not None and np.all(np.isfinite(tr.yaw)) and np.all(np.isfinite(tr.centre_u))
     assert abs(r.omega_b_deg_s) < 0.01
-    assert np.max(np.abs(r.trace.centre_u)) < 1e-6 and np.max(np.abs(r.trace.centre_v)) < 1e-6
+    assert np.max(np.abs(tr.centre_u)) < 1e-6 and np.max(np.abs(tr.centre_v)) < 1e-6
+    drift = math.hypot(tr.centre_u[-1] - tr.centre_u[0], tr.centre_v[-1] - tr.centre_v[0])
+    assert drift < 1e-4  # m over 2.7 s
 
 
 def test_rotation_sign_flips_with_bp(tilelink, cheese):
@@ -65,25 +76,28 @@ def test_batch_equals_single_runs(tilelink):
             s.omega_b_deg_s, s.stderr_deg_s, s.unstable, s.reason, s.sim_s)
 
 
-def test_huge_dt_is_reported_unstable_not_nan(cheese):
+def test_huge_dt_is_reported_unstable_with_a_reason_not_nan(cheese):
     with pytest.warns(UserWarning, match="dt = 0.005 s is above the largest time step measured stable"):
         physics = pe.make_physics("tilelink", dt=5e-3)
-    r = physics.run([probe(cheese, 25.0)])[0]
-    assert r.unstable and r.reason in ("non_finite", "runaway_energy", "left_plate", "overturned")
-    assert math.isfinite(r.omega_b_deg_s) and math.isfinite(r.stderr_deg_s)
+    specs = [probe(cheese, 25.0)] + [probe(pe.ObjectSpec.from_paper(w, 36.9), 25.0, settle_s=0.2, measure_s=0.3)
+                                     for w in (1.4, 10.0, 40.0)]
+    res = physics.run(specs)
+    assert all(r.unstable and r.reason in ("non_finite", "runaway_energy", "left_plate", "overturned") for r in res)
+    assert all(_finite(r) for r in res)
 
 
 def test_injected_nan_is_reported_non_finite(tilelink, cheese):
-    from plate_env.physics.tilelink import kernels as kn
+    from plate_env.physics.base import Status
     from plate_env.physics.tilelink.backend import _ainv, _pointmass_params, result_from_arrays
+    from plate_env.physics.tilelink.params import P_KB
 
     spec = probe(cheese, 25.0)
     prm = tilelink._param_vector(spec)[None, :]
-    prm[0, kn.P_KB] = float("nan")
+    prm[0, P_KB] = float("nan")
     params = _pointmass_params(cheese, tilelink.config)
     raw = tilelink.run_param_arrays(prm, _ainv(cheese, tilelink.config, tilelink.dt)[None], params.geom.rest[None],
                                     params.geom)
-    assert raw["status"][0] == kn.NON_FINITE
+    assert raw["status"][0] == Status.NON_FINITE
     result = result_from_arrays(spec, raw, 0, tilelink.dt)
     assert result.unstable and result.reason == "non_finite"
     assert result.omega_b_deg_s == 0.0
@@ -119,3 +133,19 @@ def test_rigid_model_is_a_different_model_behind_the_same_interface(cheese):
     rg = pe.make_physics("tilelink", model="rigid").run([spec])[0]
     assert not rg.unstable and rg.omega_b_deg_s > 100
     assert rg.omega_b_deg_s != pm.omega_b_deg_s
+
+
+def _finite(r: ProbeResult) -> bool:
+    nums = (r.omega_b_deg_s, r.stderr_deg_s, r.sim_s, r.wall_s)
+    return all(math.isfinite(x) for x in nums) and r.periods_measured >= 0
+
+
+def test_extreme_amplitudes_and_frequencies_are_finite(tilelink):
+    specs = [probe(pe.ObjectSpec.from_paper(w, al), f, a, settle_s=0.2, measure_s=0.3) for w in (1.4, 40.0)
+             for a in (1.0, 24.0, 45.0) for f in (5.0, 45.0) for al in (20.0, 70.0)]
+    res = tilelink.run(specs)
+    assert all(_finite(r) for r in res)
+    assert all((r.reason in REASONS) if r.unstable else r.reason is None for r in res)
+    # a 45 deg plate shaken at 45 Hz throws the disc off
+    wild = [r for r in res if r.spec.motion.a_p_deg > 40 and r.spec.motion.freq_hz > 40]
+    assert all(r.unstable for r in wild)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from enum import IntEnum
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -12,14 +13,45 @@ import numpy as np
 from plate_env.motion import PlateMotion
 from plate_env.objects import ObjectSpec
 
-# Reasons a probe ends unstable.
-OVERTURNED = "overturned"  #: the disc turned upside down
-SLIPPED = "slipped"  #: its centre moved more than ``slip_limit`` from the plate centre (plate frame)
-NON_FINITE = "non_finite"  #: NaN or inf in the state (e.g. too large a time step)
-RUNAWAY = "runaway_energy"  #: a node moved faster than the plate could ever make it (energy from nowhere)
-LEFT_PLATE = "left_plate"  #: the disc flew far above the plate or sank through it
-FOLDED = "folded"  #: the disc folded onto itself
-REASONS = (OVERTURNED, SLIPPED, NON_FINITE, RUNAWAY, LEFT_PLATE, FOLDED)
+
+class Status(IntEnum):
+    """How a probe ended: ``OK``, or the reason it is unstable. One encoding for every backend.
+
+    The numba kernels return the code (an ``int``); a :class:`ProbeResult` carries ``Status(code).reason``, the
+    reason string (``None`` for ``OK``).
+    """
+
+    reason: str | None
+
+    def __new__(cls, code: int, reason: str | None) -> Status:
+        member = int.__new__(cls, code)
+        member._value_ = code
+        member.reason = reason
+        return member
+
+    OK = 0, None
+    #: the disc turned upside down
+    OVERTURNED = 1, "overturned"
+    #: its centre moved more than ``slip_limit`` from the plate centre (plate frame)
+    SLIPPED = 2, "slipped"
+    #: NaN or inf in the state (e.g. too large a time step)
+    NON_FINITE = 3, "non_finite"
+    #: a node moved faster than the plate could ever make it, or the energy grew beyond the plate's work
+    RUNAWAY = 4, "runaway_energy"
+    #: the disc flew far above the plate or sank through it
+    LEFT_PLATE = 5, "left_plate"
+    #: the disc folded onto itself
+    FOLDED = 6, "folded"
+
+
+# The reason strings, for backends that report reasons directly (pybullet, atlas).
+OVERTURNED = Status.OVERTURNED.reason
+SLIPPED = Status.SLIPPED.reason
+NON_FINITE = Status.NON_FINITE.reason
+RUNAWAY = Status.RUNAWAY.reason
+LEFT_PLATE = Status.LEFT_PLATE.reason
+FOLDED = Status.FOLDED.reason
+REASONS = tuple(s.reason for s in Status if s.reason is not None)
 
 #: The paper's instability test: centre more than 10 mm from the plate centre.
 SLIP_LIMIT_M = 0.010
@@ -42,8 +74,8 @@ class ProbeSpec:
     The plate ramps up over ``motion.ramp_s``, the disc settles for ``settle_s`` more, then omega_B is measured
     over ``measure_s`` rounded to whole plate periods (at least 2). Times in seconds. The disc starts flat at
     rest, turned by ``initial_yaw`` (rad) and shifted by ``initial_offset`` (u, v in m, plate frame).
-    The default windows (0.5 s, 1.0 s) agree with 3 s + 6 s windows within 0.1 % median / 0.3 % max
-    (``experiments/bench_physics.py``).
+    How the default windows (0.5 s, 1.0 s) compare with 3 s + 6 s windows is measured in
+    ``experiments/results/bench_physics.md`` (``experiments/bench_physics.py``).
     ``record_trace`` keeps the yaw trace in the result (for camera models and plots).
     """
 

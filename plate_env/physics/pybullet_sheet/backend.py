@@ -74,9 +74,9 @@ class PyBulletPhysics:
     on the probe list, so a pool of ``n_workers`` processes gives bit-identical results to the serial run.
 
     Args:
-        dt: time step, s (4e-4 s default: within 0.5 % of dt = 1e-4 s, see ``experiments/bench_pybullet.py``).
-        n_layer: mesh points per layer (the sheet has twice as many nodes). 91 is the knee: 0.1 % from the
-            300-node reference at 18 Hz; 70 is 6.5 % below, 50 is 12 % below. dt 8e-4 s runs away at 33pi.
+        dt: time step, s (4e-4 s default; omega_B against dt: ``experiments/results/pybullet_notes.md``).
+        n_layer: mesh points per layer (the sheet has twice as many nodes); 91, the default, is the knee of
+            omega_B against the mesh (``experiments/results/pybullet_notes.md``).
         thickness: sheet thickness (layer gap), m.
         n_workers: processes (1 = run in this process). Use at most one per core.
         sequence_len: probes per unit (1 = a fresh scene for every probe).

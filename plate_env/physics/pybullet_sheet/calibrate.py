@@ -85,16 +85,6 @@ def spectral_peak_frequency(y: np.ndarray, dt: float, f_lo: float, f_hi: float) 
     return float(freqs[int(np.argmax(spec))])
 
 
-def zero_crossing_frequency(y: np.ndarray, dt: float) -> float:
-    """Frequency (Hz) from the linearly interpolated zero crossings of ``y`` sampled every ``dt`` s; NaN if < 3."""
-    s = np.signbit(y)
-    idx = np.where(s[1:] != s[:-1])[0]
-    if len(idx) < 3:
-        return math.nan
-    tc = (idx + y[idx] / (y[idx] - y[idx + 1])) * dt
-    return float((len(tc) - 1) / (2.0 * (tc[-1] - tc[0])))
-
-
 def _config_key(config: SheetConfig) -> dict:
     d = asdict(config)
     return {k: d[k] for k in ("n_layer", "thickness", "dt", "margin", "damping_time", "bending_ratio")}

@@ -44,23 +44,6 @@ class SheetMesh:
     def n_nodes(self) -> int:
         return len(self.nodes)
 
-    def node_areas(self) -> np.ndarray:
-        """Area (m^2) lumped to each in-plane point (a third of each adjacent triangle)."""
-        pts = self.nodes[: self.n_layer, :2]
-        tri = Delaunay(pts).simplices
-        a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
-        area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
-        out = np.zeros(self.n_layer)
-        for k in range(3):
-            np.add.at(out, tri[:, k], area / 3.0)
-        return out
-
-    def edges(self) -> np.ndarray:
-        """(E, 2) unique node pairs joined by a tetrahedron edge (each is a spring in PyBullet's mass-spring)."""
-        pairs = np.concatenate([self.tets[:, [i, j]] for i in range(4) for j in range(i + 1, 4)])
-        pairs.sort(axis=1)
-        return np.unique(pairs, axis=0)
-
 
 def sunflower_points(n: int, radius: float, rim_factor: float = 2.0) -> np.ndarray:
     """(n, 2) points of equal area in a disc of ``radius`` (m): a Vogel spiral plus one rim ring.

@@ -12,15 +12,10 @@ import numpy as np
 from plate_env.measure import measure_omega_b
 from plate_env.objects import ObjectSpec
 from plate_env.physics.base import (
-    FOLDED,
-    LEFT_PLATE,
-    NON_FINITE,
-    OVERTURNED,
-    RUNAWAY,
     SLIP_LIMIT_M,
-    SLIPPED,
     ProbeResult,
     ProbeSpec,
+    Status,
     YawTrace,
     check_probes,
     check_step_counts,
@@ -28,6 +23,8 @@ from plate_env.physics.base import (
 )
 from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
 from plate_env.physics.tilelink.params import (
+    DEFAULT_DT,
+    DEFAULT_RECORD_INTERVAL_S,
     P_CIN,
     P_KB,
     P_KIN,
@@ -40,15 +37,12 @@ from plate_env.physics.tilelink.pointmass import PointMassConfig, build_params, 
 from plate_env.physics.tilelink.rigid import RIGID_LIMIT_CONFIG, RigidTileConfig
 
 MODELS = ("pointmass", "rigid", "rigid_limit")
-#: Default time step of each model, s.
-DEFAULT_DT = {"pointmass": 2e-4, "rigid": 2e-4, "rigid_limit": 2.5e-5}
 #: Largest time step measured stable for each model, s, and where: point mass, no blow-up over the 1600-probe
 #: stress map at <= 4e-4 s, 52 % ran away at 6e-4 s; rigid, every probe ran away at 4e-4 s; rigid_limit, the
 #: coarsest step measured (its rows at half the stiffness already run away at 2e-4 s).
 STABLE_DT = {"pointmass": (4e-4, "experiments/results/stress_tilelink_pointmass.md"),
              "rigid": (2e-4, "experiments/results/bench_models.md, rigid: omega_B against dt"),
              "rigid_limit": (5e-5, "experiments/results/bench_models.md, rigid_limit: omega_B against dt")}
-_REASONS = {1: OVERTURNED, 2: SLIPPED, 3: NON_FINITE, 4: RUNAWAY, 5: LEFT_PLATE, 6: FOLDED}
 #: Probes per kernel call when a progress bar is shown.
 PROGRESS_CHUNK = 8
 
@@ -76,19 +70,22 @@ class TileLinkPhysics:
 
     Args:
         model: ``"pointmass"`` (the fast point-mass reduction, default), ``"rigid"`` (52 rigid tiles with the
-            joints' held motions as stiff rows at 5000 rad/s: ~8x slower than point masses) or ``"rigid_limit"``
-            (the same tiles with the rows in their converged rigid limit, :data:`rigid.RIGID_LIMIT_CONFIG`, at
-            dt = 2.5e-5 s: the paper's model, ~1x real time). See ``experiments/bench_models.py``.
-        dt: time step, s; None takes the model's default (:data:`DEFAULT_DT`). Point mass at 2e-4 s: omega_B
-            0.85 % median / 3.6 % max from its dt -> 0 value (``experiments/bench_physics.py``).
+            joints' held motions as stiff rows at 5000 rad/s) or ``"rigid_limit"`` (the same tiles with the rows
+            in their converged rigid limit, :data:`rigid.RIGID_LIMIT_CONFIG`, at dt = 2.5e-5 s: the paper's
+            model). Their speeds and first-hump fits: ``experiments/results/bench_models.md``.
+        dt: time step, s; None takes the model's default (:data:`params.DEFAULT_DT`; its error against
+            smaller steps: ``experiments/results/bench_physics.md`` and ``bench_models.md``).
         slip_limit: centre displacement (m, plate frame) beyond which a probe is unstable (the paper: 10 mm).
         config: joint parameters the paper does not give (point mass); rigid_config: those of the rigid tiles.
         contact: the plate contact law's coefficients (default: the paper's).
+        record_interval_s: simulated seconds between recorded yaw/centre samples (rounded to whole steps, at
+            least one); omega_B interpolates the records at the plate periods' boundaries, so this is part of
+            a result's provenance (and of the sweep cache key, :func:`plate_env.sweeps.backend_tag`).
     """
 
     def __init__(self, model: str = "pointmass", dt: float | None = None, slip_limit: float = SLIP_LIMIT_M,
                  config: PointMassConfig | None = None, rigid_config: RigidTileConfig | None = None,
-                 contact: ContactLaw = PAPER_CONTACT) -> None:
+                 contact: ContactLaw = PAPER_CONTACT, record_interval_s: float = DEFAULT_RECORD_INTERVAL_S) -> None:
         if model not in MODELS:
             raise ValueError(f"unknown tilelink model {model!r}; choose one of {MODELS}")
         if dt is None:
@@ -97,12 +94,16 @@ class TileLinkPhysics:
             raise ValueError(f"time step dt = {dt!r} s is outside the allowed range (0, 0.01]")
         if not (math.isfinite(slip_limit) and slip_limit > 0):
             raise ValueError(f"slip_limit = {slip_limit!r} m must be a positive distance")
+        if not (isinstance(record_interval_s, (int, float)) and math.isfinite(record_interval_s)
+                and 0.0 < record_interval_s <= 0.1):
+            raise ValueError(f"record_interval_s = {record_interval_s!r} s is outside the allowed range (0, 0.1]")
         limit, source = STABLE_DT[model]
         warn_above_stable_dt(float(dt), limit, f"the {model} model", source)
         self.name = "tilelink"
         self.model = model
         self.dt = float(dt)
         self.slip_limit = float(slip_limit)
+        self.record_interval_s = float(record_interval_s)
         self.config = config or PointMassConfig()
         if rigid_config is None:
             rigid_config = RIGID_LIMIT_CONFIG if model == "rigid_limit" else RigidTileConfig()
@@ -120,7 +121,8 @@ class TileLinkPhysics:
     # ------------------------------------------------------------------ arrays
     def _param_vector(self, spec: ProbeSpec) -> np.ndarray:
         params = _pointmass_params(spec.obj, self.config)
-        prm = common_vector(spec, self.dt, self.slip_limit, params.node_mass, law=self.contact)
+        prm = common_vector(spec, self.dt, self.slip_limit, params.node_mass, law=self.contact,
+                            record_interval_s=self.record_interval_s)
         prm[P_KB] = params.k_bending
         prm[P_KIN] = params.k_inplane
         prm[P_CIN] = params.c_inplane
@@ -131,7 +133,8 @@ class TileLinkPhysics:
         if self.model in ("rigid", "rigid_limit"):
             from plate_env.physics.tilelink.rigid_kernels import run_rigid_arrays
 
-            return run_rigid_arrays(probes, self.dt, self.slip_limit, config=self.rigid_config, law=self.contact)
+            return run_rigid_arrays(probes, self.dt, self.slip_limit, config=self.rigid_config, law=self.contact,
+                                    record_interval_s=self.record_interval_s)
         prm = np.stack([self._param_vector(s) for s in probes])
         geom = _pointmass_params(probes[0].obj, self.config).geom
         rest = np.stack([_pointmass_params(s.obj, self.config).geom.rest for s in probes])
@@ -189,14 +192,12 @@ def result_from_arrays(spec: ProbeSpec, raw: dict[str, np.ndarray], b: int, dt: 
     """The :class:`ProbeResult` of probe ``b`` of a tile-link kernel's raw arrays (``run_arrays`` or
     ``run_rigid_param_arrays`` output) run at time step ``dt`` (s): omega_B from the yaw trace by
     :func:`measure_omega_b`, status, simulated time; ``wall``: wall seconds charged to the probe."""
-    from plate_env.physics.tilelink import kernels as kn
-
     rec_dt = raw["prm"][b, P_RECEVERY] * dt
     nrec = int(raw["nrec"][b])
     t = np.arange(nrec) * rec_dt
     yaw = raw["yaw"][b, :nrec]
-    status = int(raw["status"][b])
-    unstable = status != kn.OK
+    status = Status(int(raw["status"][b]))
+    unstable = status != Status.OK
     t_end = nrec * rec_dt if unstable else None
     period = 1.0 / spec.motion.freq_hz
     if nrec >= 2:
@@ -209,5 +210,5 @@ def result_from_arrays(spec: ProbeSpec, raw: dict[str, np.ndarray], b: int, dt: 
         trace = YawTrace(t=t, yaw=yaw.copy(), centre_u=raw["cu"][b, :nrec].copy(),
                          centre_v=raw["cv"][b, :nrec].copy())
     return ProbeResult(spec=spec, omega_b_deg_s=math.degrees(omega), stderr_deg_s=math.degrees(se),
-                       unstable=unstable, reason=_REASONS.get(status), sim_s=float(max(sim_s, 0.0)),
+                       unstable=unstable, reason=status.reason, sim_s=float(max(sim_s, 0.0)),
                        wall_s=wall, periods_measured=used, trace=trace)

@@ -21,11 +21,11 @@ import numba
 import numpy as np
 
 from plate_env.motion import plate_state as _plate_state_py
+from plate_env.physics.base import Status
 from plate_env.physics.tilelink.contact import damped_normal_force as _damped_normal_force_py
 from plate_env.physics.tilelink.contact import friction_scale as _friction_scale_py
 from plate_env.physics.tilelink.contact import spring_force as _spring_force_py
-from plate_env.physics.tilelink.params import (  # noqa: F401 - re-exported for the kernels' users
-    N_PARAMS,
+from plate_env.physics.tilelink.params import (
     P_AMP,
     P_BP,
     P_CC,
@@ -55,10 +55,6 @@ plate_state = numba.njit(cache=True, inline="always")(_plate_state_py)
 spring_force = numba.njit(cache=True, inline="always")(_spring_force_py)
 damped_normal_force = numba.njit(cache=True, inline="always")(_damped_normal_force_py)
 friction_scale = numba.njit(cache=True, inline="always")(_friction_scale_py)
-
-# Status codes (see plate_env.physics.base for the reasons' names).
-OK, OVERTURNED, SLIPPED, NON_FINITE, RUNAWAY, LEFT_PLATE, FOLDED = 0, 1, 2, 3, 4, 5, 6
-
 
 #: fastmath without the no-NaN/no-inf assumptions, so blow-ups are still detected.
 FAST = {"reassoc", "contract", "arcp", "nsz", "afn"}
@@ -105,18 +101,18 @@ def observe(pos, rest, cells, x_plate, s_th, c_th, prev_yaw):
 
 @numba.njit(cache=True, inline="always")
 def check_state(cu, cv, cw, nw, vmax2, prm):
-    """Instability status from one observation (0 = fine)."""
+    """The :class:`Status` of one observation (``Status.OK``: fine)."""
     if not (math.isfinite(cu) and math.isfinite(cv) and math.isfinite(cw) and math.isfinite(vmax2)):
-        return NON_FINITE
+        return Status.NON_FINITE
     if vmax2 > prm[P_VLIM] * prm[P_VLIM]:
-        return RUNAWAY
+        return Status.RUNAWAY
     if nw <= 0.0:
-        return OVERTURNED
+        return Status.OVERTURNED
     if cw > 0.05 or cw < -0.005:
-        return LEFT_PLATE
+        return Status.LEFT_PLATE
     if cu * cu + cv * cv > prm[P_SLIP] * prm[P_SLIP]:
-        return SLIPPED
-    return OK
+        return Status.SLIPPED
+    return Status.OK
 
 
 @numba.njit(cache=True, inline="always")
@@ -125,9 +121,9 @@ def record(x, rest, cells, x_plate, s_th, c_th, prev_yaw, vmax2, extra_status, p
     ``extra_status``) and, if still fine, write yaw and centre. Returns (status, yaw, records written)."""
     cu, cv, cw, yaw, nw = observe(x, rest, cells, x_plate, s_th, c_th, prev_yaw)
     status = check_state(cu, cv, cw, nw, vmax2, prm)
-    if status == OK:
+    if status == Status.OK:
         status = extra_status
-    if status == OK:
+    if status == Status.OK:
         yaw_out[n_rec] = yaw
         cu_out[n_rec] = cu
         cv_out[n_rec] = cv
@@ -163,7 +159,7 @@ def pointmass_probe(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out,
         x[i, 2] = -prm[P_DEPTH0]
     yaw = prm[P_YAW0]
     n_rec = 0
-    status = OK
+    status = Status.OK
     for step in range(n_steps + 1):
         t = step * dt
         th, th_dot, xp, xp_dot = plate_state(t, prm[P_FREQ], prm[P_AMP], prm[P_BP], prm[P_RAMP])
@@ -175,9 +171,9 @@ def pointmass_probe(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out,
                 sp = v[i, 0] ** 2 + v[i, 1] ** 2 + v[i, 2] ** 2
                 if not (sp <= vmax2):
                     vmax2 = sp
-            status, yaw, n_rec = record(x, rest, cells, xp, s_th, c_th, yaw, vmax2, OK, prm, yaw_out, cu_out,
+            status, yaw, n_rec = record(x, rest, cells, xp, s_th, c_th, yaw, vmax2, Status.OK, prm, yaw_out, cu_out,
                                         cv_out, n_rec)
-            if status != OK:
+            if status != Status.OK:
                 break
         if step == n_steps:
             break

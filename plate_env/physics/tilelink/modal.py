@@ -21,7 +21,6 @@ class ModalResult:
     omegas: np.ndarray
     n_zero: int
     omega_bending: float
-    bending_index: int
 
 
 def modal_analysis(stiffness: np.ndarray, mass: np.ndarray, out_of_plane: np.ndarray,
@@ -38,5 +37,5 @@ def modal_analysis(stiffness: np.ndarray, mass: np.ndarray, out_of_plane: np.nda
         vec = evecs[:, idx]
         energy = vec * (mass @ vec)
         if energy[out_of_plane].sum() > 0.5 * energy.sum():
-            return ModalResult(omegas=omegas, n_zero=n_zero, omega_bending=float(omegas[idx]), bending_index=idx)
+            return ModalResult(omegas=omegas, n_zero=n_zero, omega_bending=float(omegas[idx]))
     raise ValueError("the linearised model has no out-of-plane (bending) mode")

@@ -49,8 +49,8 @@ class RigidTileConfig:
         zeta_rigid: damping ratio of the rigid rows.
         iterations: Gauss-Seidel sweeps over the joints per step (warm started).
         block_refresh: the joints' 3x3/2x2 block inverses are rebuilt every this many steps (0: only at the
-            start). They set GS's convergence rate, not its fixed point: at dt = 2e-4, rebuilding only once
-            moved omega_B by <= 0.3 % (18/22/25 Hz) and saved ~2 us of ~16.5 us per step.
+            start). They set GS's convergence rate, not its fixed point (rebuilding every step against every
+            10th: ``experiments/results/dt_error_sources.md``).
         contact_points: plate contact sampling per tile; only 4 (the corners) is implemented.
         fold_angle: a joint bending angle beyond this (rad) ends the probe as FOLDED (tiles would pass
             through each other at pi; the joint spring's angle is exact up to +-pi).
@@ -86,11 +86,9 @@ class RigidTileConfig:
                 raise ValueError(f"{label} = {value!r} must be positive")
 
 
-#: The joint rows in their rigid limit (``model="rigid_limit"``, at dt = 2.5e-5 s). omega_B stops moving with the
-#: rows' stiffness from ~20000 rad/s (10pi, 22 / 25 Hz: 450 / 543 deg/s at 5000 rad/s, 482 / 582 at 20000, 483 /
-#: 576 at 40000, 482 / 569 at 80000; ``experiments/bench_models.py``). Stiffer rows need a smaller step: 20000 rad/s
-#: ran away at dt = 2e-4 s, 40000 at 5e-5 s with 2 sweeps. 4 sweeps at 2.5e-5 s gave what 8, 16 and 32 gave
-#: (483.5 / 575.6 deg/s); dt = 5e-5 s was ~1 % low at 22 Hz.
+#: The joint rows in their rigid limit (``model="rigid_limit"``, at dt = 2.5e-5 s): omega_B stops moving with the
+#: rows' stiffness from ~20000 rad/s, and stiffer rows need a smaller step (omega_B against the rows' stiffness
+#: and against dt: ``experiments/results/bench_models.md``).
 RIGID_LIMIT_CONFIG = RigidTileConfig(omega_rigid=40000.0, iterations=4)
 
 
@@ -117,7 +115,7 @@ class RigidTileParams:
 def joint_order(geom: DiscGeometry) -> np.ndarray:
     """Order in which the solver visits the joints: four colour classes (u-links from even/odd columns, v-links
     from even/odd rows), so consecutive joints never share a tile and their Gauss-Seidel updates do not wait on
-    each other. Any order is a valid Gauss-Seidel sweep; this one measured ~25 % faster than the row order."""
+    each other. Any order is a valid Gauss-Seidel sweep; this one was chosen for speed over the row order."""
     grid = np.rint(geom.rest / geom.spacing - 0.5).astype(np.int64)
     a = geom.links[:, 0]
     colour = np.where(geom.link_dir == 0, grid[a, 0] % 2, 2 + grid[a, 1] % 2)
@@ -218,41 +216,6 @@ def modal(obj: ObjectSpec, k_bending: float, config: RigidTileConfig = RigidTile
     m = obj.mass / geom.n_nodes
     row_k, _ = _row_values(geom, m, k_bending, obj.omega_n, config)
     return modal_analysis(linear_stiffness(geom, row_k), mass_matrix(geom, m), out_of_plane_dofs(geom))
-
-
-def modal_constrained(obj: ObjectSpec, k_bending: float, config: RigidTileConfig = RigidTileConfig()) -> ModalResult:
-    """Modal analysis with the rigid rows as exact constraints (null-space reduction), for comparison.
-
-    At the flat rest state the in-plane (x, y, rot_z) and out-of-plane (z, rot_x, rot_y) dofs decouple, so the
-    null space is built per block and the out-of-plane flag is kept per reduced coordinate.
-    """
-    import scipy.linalg
-
-    geom = disc_geometry(obj.diameter)
-    m = obj.mass / geom.n_nodes
-    row_k, _ = _row_values(geom, m, k_bending, obj.omega_n, config)
-    soft_k = row_k.copy()
-    soft_k[[1, 2, 4]] = 0.0
-    stiff = linear_stiffness(geom, soft_k)
-    mass = mass_matrix(geom, m)
-    jac = joint_jacobian(geom)
-    rigid_rows = np.array([5 * j + r for j in range(len(geom.links)) for r in (1, 2, 4)])
-    jr = jac[rigid_rows]
-    oop = out_of_plane_dofs(geom)
-    bases, flags = [], []
-    for block in (oop, ~oop):
-        cols = np.flatnonzero(block)
-        sub = jr[:, cols]
-        sub = sub[np.abs(sub).sum(axis=1) > 0]
-        ns = scipy.linalg.null_space(sub)
-        basis = np.zeros((len(oop), ns.shape[1]))
-        basis[cols] = ns
-        bases.append(basis)
-        flags.append(np.full(ns.shape[1], block is oop))
-    basis = np.hstack(bases)
-    kr = basis.T @ stiff @ basis
-    mr = basis.T @ mass @ basis
-    return modal_analysis(0.5 * (kr + kr.T), 0.5 * (mr + mr.T), np.concatenate(flags))
 
 
 @lru_cache(maxsize=256)

@@ -1,0 +1,160 @@
+"""Design rules checked on the source text (ast, no imports): dependencies one way, one home per fact, short
+functions, no process-wide settings changed by the library.
+
+``python tests/test_code_health.py`` prints the report these tests check (import cycles, the longest functions).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = "plate_env"
+#: No function or method in the project may be longer than this many lines (decorators and docstring included).
+MAX_FUNCTION_LINES = 150
+#: The only module of the library that may import the top-level ``agents`` package: the command line is the
+#: application layer (``plate-env identify`` runs an agent); everything else in plate_env is the core below it.
+AGENTS_SEAM = {"plate_env.cli"}
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _sources(*folders: str) -> dict[str, tuple[Path, ast.Module]]:
+    out = {}
+    for folder in folders:
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            out[_module_name(path)] = (path, ast.parse(path.read_text(), filename=str(path)))
+    return out
+
+
+def _imports(name: str, path: Path, tree: ast.Module, modules: set[str] = frozenset()) -> list[str]:
+    """Every module this one imports, at module level or inside functions (lazy imports count too).
+
+    ``from pkg import x`` names ``pkg.x`` where that is one of ``modules``, else ``pkg``."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(anchor + ([base] if base else []))
+            found += [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names]
+    return found
+
+
+def import_graph() -> dict[str, set[str]]:
+    """plate_env module -> the plate_env modules it imports. Explicit imports only: the parent packages'
+    ``__init__`` that Python runs on the way to a submodule are not edges."""
+    src = _sources(PACKAGE)
+    return {name: {m for m in _imports(name, path, tree, set(src)) if m in src and m != name}
+            for name, (path, tree) in src.items()}
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def function_lengths() -> list[tuple[int, str]]:
+    """(lines, "path:line name") of every function and method in the project, longest first."""
+    out = []
+    for _, (path, tree) in _sources(PACKAGE, "agents", "experiments", "tests").items():
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                first = min([node.lineno] + [d.lineno for d in node.decorator_list])
+                out.append((node.end_lineno - first + 1, f"{path.relative_to(ROOT)}:{node.lineno} {node.name}"))
+    return sorted(out, reverse=True)
+
+
+def test_no_import_cycle_in_the_library():
+    graph = import_graph()
+    assert len(graph) > 30  # the walk found the package
+    assert cycles(graph) == []
+
+
+def test_cycle_finder_finds_a_planted_cycle():
+    graph = import_graph()
+    graph["plate_env.estimate"] = graph["plate_env.estimate"] | {"plate_env.identify"}
+    assert any({"plate_env.estimate", "plate_env.identify"} <= set(c) for c in cycles(graph))
+
+
+def test_the_core_does_not_import_the_agents():
+    importers = {name for name, (path, tree) in _sources(PACKAGE).items()
+                 if any(m == "agents" or m.startswith("agents.") for m in _imports(name, path, tree))}
+    assert importers <= AGENTS_SEAM
+
+
+def test_parameter_indices_are_imported_from_params_only():
+    params = ROOT / PACKAGE / "physics" / "tilelink" / "params.py"
+    names = {t.id for node in ast.parse(params.read_text()).body if isinstance(node, ast.Assign)
+             for target in node.targets for t in (target.elts if isinstance(target, ast.Tuple) else [target])
+             if isinstance(t, ast.Name) and t.id.startswith("P_")}
+    assert {"P_MASS", "P_RECEVERY", "P_V0"} <= names
+    wrong = []
+    for name, (_, tree) in _sources(PACKAGE, "agents", "experiments", "tests").items():
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module != "plate_env.physics.tilelink.params":
+                wrong += [f"{name}: {a.name} from {node.module}" for a in node.names if a.name in names]
+            if isinstance(node, ast.Attribute) and node.attr in names and not (
+                    isinstance(node.value, ast.Name) and node.value.id == "params"):
+                wrong.append(f"{name}:{node.lineno}: .{node.attr}")
+    assert wrong == []
+
+
+def test_the_library_does_not_choose_a_matplotlib_backend():
+    calls = [f"{name}:{node.lineno}" for name, (_, tree) in _sources(PACKAGE).items() for node in ast.walk(tree)
+             if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "use"
+             and isinstance(node.func.value, ast.Name) and node.func.value.id == "matplotlib"]
+    assert calls == []
+
+
+def test_no_function_longer_than_the_limit():
+    lengths = function_lengths()
+    assert lengths[0][0] > 50  # the walk measured real functions
+    assert [f for f in lengths if f[0] > MAX_FUNCTION_LINES] == []
+
+
+if __name__ == "__main__":
+    print("import cycles in plate_env:", cycles(import_graph()) or "none")
+    print(f"longest functions (limit {MAX_FUNCTION_LINES} lines):")
+    for n, where in function_lengths()[:8]:
+        print(f"  {n:4d}  {where}")
