@@ -137,7 +137,7 @@ def main() -> None:
     spec_grid = AtlasGrid.from_json(args.grid_file) if args.grid_file else GRIDS[grid]
     if args.grid_file:
         grid = args.grid_file
-    n_held = args.held_out if args.held_out is not None else (0 if grid == "pybullet" else 120)
+    n_held = args.held_out if args.held_out is not None else (0 if args.physics == "pybullet" else 120)
     nuisance = None
     if args.nuisance:
         try:

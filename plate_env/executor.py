@@ -21,9 +21,10 @@ Executors (:func:`make_executor`):
 Workers run with one BLAS and one numba thread (``WORKER_ENV``): one chunk per core.
 
 Determinism: a chunk's results depend only on its probes and its backend description, not on the executor, the
-process or the other chunks: bit for bit for the point-mass kernel and PyBullet; for the rigid kernels bit for bit
-between processes that run the same machine code (numba's first compile and its cached reload differ in the last
-bits, see the README), which the tests pin.
+process or the other chunks: bit for bit (tests/test_executor.py, tests/test_ray.py). Two facts make that hold: the
+point-mass builders hold BLAS to one thread (their eigensolve's last bits depend on the BLAS thread count, grown by
+the kernel to ~1e-10 of omega_B), and a process that compiles the kernels runs the same code as one that loads them
+from numba's disk cache (README, Determinism).
 """
 
 from __future__ import annotations
@@ -123,13 +124,8 @@ class Executor(Protocol):
 
 
 class InProcessExecutor:
-    """Chunks one after another in this process; ``physics`` (optional) is an already built backend to use.
-
-    Each chunk runs with numpy's and scipy's BLAS held to one thread (``threadpoolctl``), as in the pool and Ray
-    workers (linear algebra's last bits depend on the BLAS thread count: the point-mass modal analysis grew such a
-    difference to ~1e-10 of omega_B, so its builders hold BLAS to one thread themselves). Numba's threads are not
-    limited (the point-mass kernel spreads a chunk over the cores).
-    """
+    """Chunks one after another in this process; ``physics`` (optional) is an already built backend to use. Numba's
+    threads are not limited here (the point-mass kernel spreads a chunk over the cores)."""
 
     name = "inprocess"
 
@@ -137,13 +133,9 @@ class InProcessExecutor:
         self.physics = physics
 
     def map(self, backend: BackendSpec | None, chunks):
-        from threadpoolctl import threadpool_limits
-
         for i, chunk in enumerate(chunks):
             phys = self.physics if self.physics is not None else worker_backend(backend)
-            with threadpool_limits(limits=1, user_api="blas"):
-                res = phys.run(list(chunk))
-            yield i, res
+            yield i, phys.run(list(chunk))
 
     def close(self) -> None:
         """Nothing to release (backends built here stay cached for the process)."""
@@ -292,29 +284,33 @@ def default_local(backend: BackendSpec) -> str:
     return "inprocess"
 
 
+def check_executor_name(name: str | None) -> None:
+    """Refuse an executor name :func:`make_executor` would not accept (ValueError naming it), starting nothing."""
+    name = name or "local"
+    if name in EXECUTOR_NAMES or name.startswith("ray://"):
+        return
+    if name.startswith("pool:"):
+        n = name.split(":", 1)[1]
+        if n.isdigit() and int(n) >= 1:
+            return
+        raise ValueError(f"executor {name!r}: pool:N needs a positive number of workers N")
+    raise ValueError(f"unknown executor {name!r}; choose local, inprocess, pool, pool:N, ray or ray://HOST:PORT")
+
+
 def make_executor(name: str | None = "local", backend: BackendSpec | None = None, **kw: Any) -> Executor:
     """An executor by name: ``local`` (default, by backend), ``inprocess``, ``pool[:N]``, ``ray`` or
     ``ray://HOST:PORT``; ``kw`` go to its constructor. Refuses an unknown name before any work starts."""
+    check_executor_name(name)
     name = name or "local"
     if name == "local":
         name = default_local(backend) if backend is not None else "inprocess"
     if name == "inprocess":
         return InProcessExecutor(**kw)
     if name == "pool" or name.startswith("pool:"):
-        workers = None
-        if name != "pool":
-            try:
-                workers = int(name.split(":", 1)[1])
-            except ValueError:
-                workers = -1
-            if workers < 1:
-                raise ValueError(f"executor {name!r}: pool:N needs a positive number of workers N")
-        return PoolExecutor(workers=workers, **kw)
-    if name == "ray":
-        return RayExecutor(**kw)
+        return PoolExecutor(workers=int(name.split(":", 1)[1]) if ":" in name else None, **kw)
     if name.startswith("ray://"):
         return RayExecutor(address=name, **kw)
-    raise ValueError(f"unknown executor {name!r}; choose local, inprocess, pool, pool:N, ray or ray://HOST:PORT")
+    return RayExecutor(**kw)
 
 
 def add_executor_argument(parser) -> None:

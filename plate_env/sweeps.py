@@ -12,7 +12,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from plate_env.executor import BackendSpec, Executor, InProcessExecutor, make_executor
+from plate_env.executor import BackendSpec, Executor, InProcessExecutor, check_executor_name, make_executor
 from plate_env.physics.base import Physics, ProbeResult, ProbeSpec
 
 #: Backend settings that change results and so enter the cache key (each where the backend has it).
@@ -117,7 +117,8 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
     if isinstance(physics, BackendSpec):
         backend = physics
         if own:
-            executor = make_executor(executor, backend)
+            check_executor_name(executor)
+            executor = make_executor(executor, backend) if chunks else None  # workers only if there is work
     else:
         backend = None
         if executor not in (None, "local", "inprocess"):
@@ -147,7 +148,7 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
         raise SweepInterrupted([_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)
                                 if k in done]) from None
     finally:
-        if own:
+        if own and executor is not None:
             executor.close()
         if fh is not None:
             fh.close()
@@ -156,4 +157,3 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
     out = [_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)]
     assert all(math.isfinite(r.omega_b_deg_s) for r in out)
     return out
-

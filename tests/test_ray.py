@@ -12,7 +12,14 @@ import pytest
 
 pytest.importorskip("ray")
 
-from executor_helpers import POINTMASS, Counting, Interrupting, run_killing_one, same, short_specs  # noqa: E402
+from executor_helpers import (  # noqa: E402
+    POINTMASS,
+    Counting,
+    Interrupting,
+    run_killing_one,
+    same,
+    short_specs,
+)
 
 from plate_env.executor import BackendSpec, InProcessExecutor, RayExecutor  # noqa: E402
 from plate_env.sweeps import load_cache, run_cached  # noqa: E402
@@ -63,7 +70,7 @@ def _running_chunk_pids() -> list[int]:
 
 
 def test_ray_gives_the_local_results_bit_for_bit(ray_executor):
-    specs = short_specs(6)
+    specs = short_specs(6, measure_s=1.0)
     local = run_cached(POINTMASS, specs, None, chunk=2, progress=False)  # the local default: in-process
     remote = run_cached(POINTMASS, specs, None, chunk=2, progress=False, executor=ray_executor)
     assert not any(r.unstable for r in local)
