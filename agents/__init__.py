@@ -1,31 +1,119 @@
-"""Probing agents: the paper's grid sweep, a coarse-to-fine heuristic, Bayesian design, a trained PPO policy."""
+"""Probing agents: the paper's grid sweep, a coarse-to-fine heuristic, Bayesian design, a trained PPO policy.
+
+Installed as ``plate_env_agents`` (the folder is ``agents/``). They follow the protocol of
+:mod:`plate_env.protocol`; :func:`load_agent` also loads an agent of your own from a file or a Stable-Baselines3
+model, by the specs ``plate-env bench --agent`` takes.
+"""
 
 from __future__ import annotations
 
-from agents.base import Agent, Probe, ProbeContext
+import ast
+import hashlib
+import importlib.util
+import sys
+from pathlib import Path
+
+from plate_env.protocol import check_agent
+from plate_env_agents.base import Agent, Probe, ProbeContext
 
 AGENT_NAMES = ("grid", "coarse_to_fine", "bayes", "ppo")
 
 
 def make_agent(name: str, **options) -> Agent:
-    """Create an agent by name; options go to its constructor."""
+    """Create a shipped agent by name; options go to its constructor."""
     if name == "grid":
-        from agents.grid import GridAgent
+        from plate_env_agents.grid import GridAgent
 
         return GridAgent(**options)
     if name == "coarse_to_fine":
-        from agents.coarse_to_fine import CoarseToFineAgent
+        from plate_env_agents.coarse_to_fine import CoarseToFineAgent
 
         return CoarseToFineAgent(**options)
     if name == "bayes":
-        from agents.bayes import BayesAgent
+        from plate_env_agents.bayes import BayesAgent
 
         return BayesAgent(**options)
     if name == "ppo":
-        from agents.ppo import PPOAgent
+        from plate_env_agents.ppo import PPOAgent
 
         return PPOAgent(**options)
     raise ValueError(f"unknown agent {name!r}; choose one of {AGENT_NAMES}")
 
 
-__all__ = ["AGENT_NAMES", "Agent", "Probe", "ProbeContext", "make_agent"]
+def _value(text: str):
+    try:
+        return ast.literal_eval(text)
+    except (ValueError, SyntaxError):
+        return text
+
+
+def _options(text: str, spec: str) -> dict:
+    out = {}
+    for item in filter(None, text.split(",")):
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip().isidentifier():
+            raise ValueError(f"agent {spec!r}: options are key=value pairs separated by commas, got {item!r}")
+        out[key.strip()] = _value(value.strip())
+    return out
+
+
+def load_file_agent(path: str | Path, class_name: str):
+    """An instance (no arguments) of class ``class_name`` defined in the Python file ``path``."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"agent file {str(path)!r} does not exist")
+    module_name = f"plate_env_user_agent_{hashlib.sha256(str(path.resolve()).encode()).hexdigest()[:12]}"
+    module = sys.modules.get(module_name)
+    if module is None:
+        spec = importlib.util.spec_from_file_location(module_name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[module_name] = module
+        try:
+            spec.loader.exec_module(module)
+        except Exception:
+            del sys.modules[module_name]
+            raise
+    cls = getattr(module, class_name, None)
+    if not isinstance(cls, type):
+        found = sorted(k for k, v in vars(module).items() if isinstance(v, type) and hasattr(v, "next_probe"))
+        raise ValueError(f"agent file {str(path)!r} has no class {class_name!r} (agent classes there: {found})")
+    return cls()
+
+
+def load_agent(spec: str):
+    """An agent from a spec (what ``plate-env bench --agent`` takes):
+
+    * ``bayes``, ``grid``, ``coarse_to_fine``, ``ppo``, with options ``name:key=value,...``
+      (``grid:n=30,method=atlas``);
+    * ``path/to/file.py:MyAgent``: an instance of class ``MyAgent`` from that file, made without arguments;
+    * ``sb3:model.zip`` or ``sb3:a2c:model.zip``: a Stable-Baselines3 policy trained on PlateRotation-v0
+      (:class:`plate_env_agents.ppo.PPOAgent`; algorithm PPO unless named).
+
+    The agent is checked against the protocol (:func:`plate_env.protocol.check_agent`); a bad spec is a ValueError
+    naming it."""
+    if not isinstance(spec, str) or not spec:
+        raise ValueError(f"agent spec {spec!r}: give a name, file.py:Class or sb3:model.zip")
+    if spec.startswith("sb3:"):
+        from plate_env_agents.ppo import SB3_ALGOS, PPOAgent
+
+        rest = spec[4:]
+        algo, sep, path = rest.partition(":")
+        if not sep or algo not in SB3_ALGOS:
+            algo, path = "ppo", rest
+        agent = PPOAgent(path=path, algo=algo)
+        agent.name = spec
+    else:
+        head, sep, tail = spec.partition(":")
+        if head.endswith(".py"):
+            agent = load_file_agent(head, tail) if sep and tail.isidentifier() else None
+            if agent is None:
+                raise ValueError(f"agent {spec!r}: a file agent is path/to/file.py:ClassName")
+        elif head in AGENT_NAMES:
+            agent = make_agent(head, **_options(tail, spec))
+        else:
+            raise ValueError(f"unknown agent {spec!r}; choose one of {AGENT_NAMES} (options: name:key=value,...), "
+                             "path/to/file.py:ClassName or sb3:model.zip")
+    return check_agent(agent, where=f"agent {spec!r}")
+
+
+__all__ = ["AGENT_NAMES", "Agent", "Probe", "ProbeContext", "load_agent", "load_file_agent", "make_agent"]

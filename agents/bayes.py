@@ -25,7 +25,6 @@ import math
 
 import numpy as np
 
-from agents.base import Agent, Probe
 from plate_env import checks
 from plate_env.forward import ForwardModel, load_forward_model
 from plate_env.inference import (
@@ -39,6 +38,7 @@ from plate_env.inference import (
     smoothed_p,
 )
 from plate_env.probes import ProbeTable
+from plate_env_agents.base import Agent, Probe
 
 #: Typical standard error of a probe's omega_B over a 1 s window, deg/s (tile-link probes: 0.5-2 deg/s).
 SE_1S = 2.0

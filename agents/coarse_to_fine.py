@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from agents.base import Agent, Probe
 from plate_env.fitting import first_hump_mask
 from plate_env.probes import ProbeTable
+from plate_env_agents.base import Agent, Probe
 
 
 class CoarseToFineAgent(Agent):

@@ -1,4 +1,4 @@
-"""A trained Stable-Baselines3 PPO probing policy (experiments/train_rl.py), acting from the env observation.
+"""A trained Stable-Baselines3 probing policy (experiments/train_rl.py), acting from the env observation.
 
 The shipped model, ``agents/models/ppo_plate.zip``, was trained on ``PlateRotation-v0`` with ``physics="atlas"``
 (probes answered from the tile-link response atlas in microseconds) and the settings the CLI's ``identify`` uses:
@@ -6,8 +6,15 @@ max_probes 30, plate amplitudes 3 and 12 deg, band 10-40 Hz, windows 0.25-2 s. I
 timesteps, seed, evaluation reward, date) is in ``ppo_plate.json`` next to it. The estimate is the atlas
 posterior (``method = "atlas"``), the estimator the policy was rewarded with.
 
-``next_probe`` returns the raw action of ``model.predict(obs, deterministic=True)`` (f_p, amplitude, window and
-stop, each in [-1, 1]; agents.runner passes it to the env as is), or None when the stop component is positive.
+Start-up. Importing torch and Stable-Baselines3 takes seconds, so the shipped policy acts in numpy: its weights
+are exported beside the zip (``ppo_plate.npz``, :func:`export_policy`, written by experiments/train_rl.py, with the
+zip's SHA-256 so a stale export is never used) and the MLP's forward pass (Linear-Tanh layers, then the action
+mean; deterministic) is a few matrix products. Its actions equal ``model.predict(obs, deterministic=True)`` to
+float32 rounding (tests/test_agents_ppo.py). A model without an export (``sb3:model.zip``), another algorithm or
+``deterministic=False`` loads Stable-Baselines3 and acts through ``model.predict``.
+
+``next_probe`` returns the raw action (f_p, amplitude, window and stop, each in [-1, 1]; the episode loop passes it
+to the env as is), or None when the stop component is positive.
 
 Other budgets. The observation has one 7-feature row per probe slot, so its length depends on ``max_probes``.
 An observation of another length is re-laid out to the model's: the filled rows are copied (up to the model's
@@ -16,42 +23,101 @@ fraction is passed through. Once the model's slots are full the agent stops. Wit
 None) the agent rebuilds one from the probe table and the windows it chose itself.
 
 Other band, amplitudes or windows. The model's actions and observation rows are in its training coordinates
-(``ppo_plate.json`` env_kwargs); when the env's differ, the agent translates both ways through physical units
-(Hz, deg, s), clipping to the env's ranges and taking the nearest amplitude (a warning names amplitudes the
-policy never saw). With the training settings (the CLI's defaults) the action is the model's, untouched.
+(``ppo_plate.json`` env_kwargs; the env's defaults without one); when the env's differ, the agent translates both
+ways through physical units (Hz, deg, s), clipping to the env's ranges and taking the nearest amplitude (a warning
+names amplitudes the policy never saw). With the training settings the action is the model's, untouched.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import warnings
 from pathlib import Path
 
 import numpy as np
 
-from agents.base import Agent, ProbeContext
 from plate_env.env import N_FEATURES
 from plate_env.probes import ProbeTable
+from plate_env_agents.base import Agent, ProbeContext
 
 #: The model shipped with the package.
 DEFAULT_MODEL = Path(__file__).parent / "models" / "ppo_plate.zip"
+#: Stable-Baselines3 algorithms a model file may hold.
+SB3_ALGOS = ("ppo", "a2c", "sac")
+#: Activations of SB3's MlpPolicy that the numpy forward pass knows.
+ACTIVATIONS = {"Tanh": np.tanh, "ReLU": lambda x: np.maximum(x, 0.0)}
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def export_policy(model, zip_path: str | Path) -> Path:
+    """Write the deterministic forward pass of an SB3 ``ActorCriticPolicy`` (PPO/A2C MlpPolicy, Box actions) beside
+    ``zip_path`` as ``.npz``: the policy network's Linear layers, the action head, the activation's name and the
+    zip's SHA-256. Returns the file written."""
+    policy = model.policy
+    sd = {k: v.detach().cpu().numpy() for k, v in policy.state_dict().items()}
+    layers = sorted({int(k.split(".")[2]) for k in sd if k.startswith("mlp_extractor.policy_net.")})
+    out = {}
+    for i, j in enumerate(layers):
+        out[f"w{i}"] = sd[f"mlp_extractor.policy_net.{j}.weight"]
+        out[f"b{i}"] = sd[f"mlp_extractor.policy_net.{j}.bias"]
+    n = len(layers)
+    path = Path(zip_path).with_suffix(".npz")
+    np.savez(path, **out, n_hidden=np.array(n), w_out=sd["action_net.weight"], b_out=sd["action_net.bias"],
+             activation=np.array(type(policy.activation_fn()).__name__), zip_sha256=np.array(_sha256(zip_path)),
+             obs_dim=np.array(int(model.observation_space.shape[0])))
+    return path
+
+
+class NumpyPolicy:
+    """The deterministic action of an exported MlpPolicy (:func:`export_policy`), in numpy (no torch)."""
+
+    def __init__(self, path: Path) -> None:
+        with np.load(path) as d:
+            n = int(d["n_hidden"])
+            self.layers = [(d[f"w{i}"], d[f"b{i}"]) for i in range(n)]
+            self.out = (d["w_out"], d["b_out"])
+            self.act = ACTIVATIONS[str(d["activation"])]
+            self.zip_sha256 = str(d["zip_sha256"])
+            self.obs_dim = int(d["obs_dim"])
+
+    def predict(self, obs: np.ndarray) -> np.ndarray:
+        h = np.asarray(obs, dtype=np.float32)
+        for w, b in self.layers:
+            h = self.act(h @ w.T + b)
+        return h @ self.out[0].T + self.out[1]
 
 
 class PPOAgent(Agent):
-    """Probing by a trained PPO policy; ``path`` is its SB3 zip (default: the shipped model)."""
+    """Probing by a trained SB3 policy; ``path`` is its zip (default: the shipped PPO model), ``algo`` its
+    algorithm (PPO by default; A2C and SAC load through Stable-Baselines3)."""
 
     name = "ppo"
     method = "atlas"
 
-    def __init__(self, path: str | Path | None = None, deterministic: bool = True, device: str = "cpu") -> None:
-        from stable_baselines3 import PPO
-
+    def __init__(self, path: str | Path | None = None, deterministic: bool = True, device: str = "cpu",
+                 algo: str = "ppo") -> None:
+        if algo not in SB3_ALGOS:
+            raise ValueError(f"algo = {algo!r}: choose one of {SB3_ALGOS}")
         self.path = Path(path) if path is not None else DEFAULT_MODEL
         if not self.path.exists():
             raise FileNotFoundError(f"no PPO model at {self.path}; train one with experiments/train_rl.py")
-        self.model = PPO.load(self.path, device=device)
+        self.algo = algo
         self.deterministic = deterministic
-        self.obs_dim = int(self.model.observation_space.shape[0])
+        self.device = device
+        self.model_sha256 = _sha256(self.path)
+        export = self.path.with_suffix(".npz")
+        self._numpy = None
+        if deterministic and algo in ("ppo", "a2c") and export.exists():
+            pol = NumpyPolicy(export)
+            if pol.zip_sha256 == self.model_sha256:
+                self._numpy = pol
+        self._sb3 = None if self._numpy is not None else self._load_sb3()
+        self.obs_dim = self._numpy.obs_dim if self._numpy is not None else int(
+            self._sb3.observation_space.shape[0])
         self.n_slots = (self.obs_dim - 2) // N_FEATURES
         meta = self.path.with_suffix(".json")
         self.provenance = json.loads(meta.read_text()) if meta.exists() else {}
@@ -61,6 +127,27 @@ class PPOAgent(Agent):
         self.trained_amps = tuple(env_kwargs.get("amplitudes_deg", (3.0, 12.0)))
         self.trained_windows = tuple(env_kwargs.get("measure_range_s", (0.25, 2.0)))
         self._windows: list[float] = []
+
+    def _load_sb3(self):
+        import stable_baselines3 as sb3
+
+        return getattr(sb3, self.algo.upper()).load(self.path, device=self.device)
+
+    @property
+    def model(self):
+        """The Stable-Baselines3 model (loaded on first use when the agent acts in numpy)."""
+        if self._sb3 is None:
+            self._sb3 = self._load_sb3()
+        return self._sb3
+
+    @property
+    def backend(self) -> str:
+        """``"numpy"`` (the exported forward pass) or ``"sb3"``."""
+        return "numpy" if self._numpy is not None else "sb3"
+
+    def fingerprint(self) -> str:
+        """The model file's SHA-256 (names this policy in benchmark records)."""
+        return self.model_sha256
 
     def reset(self, context: ProbeContext, rng: np.random.Generator) -> None:
         super().reset(context, rng)
@@ -155,6 +242,8 @@ class PPOAgent(Agent):
     # ----------------------------------------------------------------- policy
     def act(self, obs: np.ndarray) -> np.ndarray:
         """The policy's action for a model-shaped observation, clipped to [-1, 1]^4."""
+        if self._numpy is not None:
+            return np.clip(self._numpy.predict(obs).astype(np.float32).reshape(4), -1.0, 1.0)
         action, _ = self.model.predict(obs, deterministic=self.deterministic)
         return np.clip(np.asarray(action, dtype=np.float32).reshape(4), -1.0, 1.0)
 

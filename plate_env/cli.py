@@ -1,4 +1,5 @@
-"""``plate-env`` command line: identify, probe, sweep, fit. ``--json`` on every command prints one JSON document."""
+"""``plate-env`` command line: identify, probe, sweep, fit, bench. ``--json`` on every command prints one JSON
+document."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from plate_env import checks
+from plate_env.env import DEFAULT_MAX_PROBES
 from plate_env.executor import BackendSpec, add_executor_argument, make_executor
 from plate_env.motion import AMP_RANGE_RAD, B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
 from plate_env.objects import ObjectSpec, preset
@@ -197,12 +199,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_object(i, true="true ")
     i.add_argument("--seed", type=_arg(checks.integer, *SEED_RANGE), default=0,
                    help="seed of the episode (placement, camera noise)")
-    i.add_argument("--max-probes", type=_arg(checks.integer, 1, 500), default=30, help="probe budget")
+    i.add_argument("--max-probes", type=_arg(checks.integer, 1, 500), default=DEFAULT_MAX_PROBES, help="probe budget")
     i.add_argument("--target", type=_arg(checks.real, 0.0, 1.0, open_lo=True, open_hi=True), default=None,
                    help="bayes only: stop at this relative posterior std of omega_n")
     _add_dt(i)
     i.add_argument("--plot", default=None, help="write a PNG of the probes, fit and estimate (after the results)")
     i.add_argument("--json", action="store_true", help="print one JSON document")
+    _add_bench(sub)
     f = sub.add_parser("fit", help="fit a lab sweep (CSV) and estimate omega_n")
     f.add_argument("csv", help="CSV with columns f_p_hz, omega_b_deg_s[, stderr_deg_s, a_p_deg, unstable]")
     f.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees")
@@ -222,6 +225,88 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--plot", default=None, help="write a PNG of data, fitted curve and posterior (after the results)")
     f.add_argument("--json", action="store_true", help="print one JSON document")
     return parser
+
+
+#: Where ``bench`` keeps finished episodes unless told otherwise (a rerun resumes from there).
+BENCH_CACHE_DIR = ".plate_env_bench"
+
+
+def _add_bench(sub) -> None:
+    b = sub.add_parser("bench", help="score agents on a versioned suite: error against probing seconds, intervals")
+    b.add_argument("--suite", default="atlas-v0", help="suite name (atlas-v0, tilelink-v0, pybullet-v0) or a "
+                   "suite .json file")
+    b.add_argument("--agent", action="extend", nargs="+", required=True,
+                   help="one or more agents: bayes, grid, coarse_to_fine, ppo (options: grid:n=30,method=atlas), "
+                        "path/to/file.py:MyAgent, sb3:model.zip (sb3:a2c:model.zip)")
+    b.add_argument("--budgets", default=None, help="probing budgets to score, simulated s, comma list (default: the "
+                   "suite's; each at most its largest)")
+    b.add_argument("--limit", type=_arg(checks.integer, 1, 100_000), default=None,
+                   help="only the first N objects (a quick look, not the suite's result)")
+    b.add_argument("--cache", default=None, help=f"JSON-lines file of finished episodes, a rerun resumes (default "
+                   f"{BENCH_CACHE_DIR}/<suite>.jsonl)")
+    b.add_argument("--no-cache", action="store_true", help="keep no episodes on disk")
+    b.add_argument("--chunk", type=_arg(checks.integer, 1, 1000), default=2, help="episodes per task")
+    b.add_argument("--markdown", default=None, help="also write the leaderboard to this markdown file")
+    b.add_argument("--plot", default=None, help="write the error curves (after the results are printed)")
+    b.add_argument("--no-progress", action="store_true", help="no progress bar")
+    b.add_argument("--json", action="store_true", help="print one JSON document")
+    add_executor_argument(b)
+
+
+def _parse_budgets(text: str | None) -> list[float] | None:
+    if text is None:
+        return None
+    try:
+        return [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise CliError(f"--budgets {text!r}: a comma list of simulated seconds, e.g. 10,20,40") from None
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    import functools
+
+    from plate_env import benchmark
+    from plate_env.executor import check_executor_name, default_local
+    from plate_env.suites import load_suite
+
+    # the seam: the CLI is the application layer, the only module of plate_env that imports the agents
+    from plate_env_agents import load_agent
+
+    suite = load_suite(args.suite)
+    budgets = benchmark._check_budgets(suite, _parse_budgets(args.budgets))
+    plot = plot_path(args.plot) if args.plot else None
+    check_executor_name(args.executor)
+    if len(set(args.agent)) != len(args.agent):
+        raise CliError(f"--agent: each agent once, got {args.agent}")
+    agents = {spec: load_agent(spec) for spec in args.agent}  # every spec checked before any episode runs
+    where = args.executor if args.executor not in (None, "local") else default_local(
+        BackendSpec.of(suite.physics, **dict(suite.env_kwargs.get("physics_options") or {})))
+    cache = None if args.no_cache else (args.cache or str(Path(BENCH_CACHE_DIR) / f"{suite.name}.jsonl"))
+    runs = []
+    for spec, agent in agents.items():
+        what = agent if where == "inprocess" else functools.partial(load_agent, spec)
+        try:
+            runs.append(benchmark.evaluate(what, suite, label=spec, budgets_s=budgets, executor=args.executor,
+                                           cache=cache, limit=args.limit, chunk=args.chunk,
+                                           progress=not (args.json or args.no_progress)))
+        except benchmark.BenchInterrupted as exc:
+            kept = f"kept in {exc.cache}; rerun the same command to resume" if exc.cache else "not kept (--no-cache)"
+            print(f"plate-env bench: interrupted during {spec} after {exc.finished} episodes ({kept})",
+                  file=sys.stderr)
+            return 130
+    b = benchmark.board(runs, budgets)
+    text = benchmark.leaderboard_markdown(b["summaries"], b["paired"], b["leader"])
+    if args.json:
+        print(json.dumps({"suite": suite.name, "suite_sha256": suite.sha256, "budgets_s": list(budgets),
+                          **benchmark.board_to_dict(b)}), flush=True)
+    else:
+        print(text, flush=True)
+    if args.markdown:
+        Path(args.markdown).write_text(text)
+    if plot is not None:
+        benchmark.plot_curves(b["summaries"], str(plot))
+        _say_plot(args, plot)
+    return 0
 
 
 def _cmd_probe(args: argparse.Namespace) -> int:
@@ -361,8 +446,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
     # the seam: the CLI is the application layer, the only module of plate_env that imports the agents
     # (tests/test_code_health.py keeps it so); the library core below it does not
-    from agents import make_agent
-    from agents.runner import run_episode
+    from plate_env_agents import make_agent
+    from plate_env_agents.runner import run_episode
 
     if args.target is not None and args.agent != "bayes":
         raise CliError(f"--target applies to --agent bayes only (its stopping rule), not to --agent {args.agent}")
@@ -420,7 +505,8 @@ def _print_identify(res) -> None:
     print(f"{res.n_probes} probes, {res.sim_s:.1f} s simulated, {res.wall_s:.1f} s wall", flush=True)
 
 
-COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep, "fit": _cmd_fit, "identify": _cmd_identify}
+COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep, "fit": _cmd_fit, "identify": _cmd_identify,
+            "bench": _cmd_bench}
 
 
 #: A command-line token that is a negative value, not an option: "-10pi", "-1e-3", "-inf", "-.5".

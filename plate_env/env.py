@@ -1,31 +1,7 @@
 """Gymnasium environment ``PlateRotation-v0``: probes as actions, identification of omega_n as the goal.
 
-Episode. ``reset`` hides an object drawn from a seeded distribution: omega_n log-uniform over
-``omega_n_range_pi`` (units of pi rad/s, default the paper's 3.5-33), alpha uniform over ``alpha_range_deg``
-(default 30-60), the mass optionally varied by +-``mass_variation``. Each ``step`` is one probe, the action
-choosing it; the physics runs it and a camera model measures omega_B. The episode ends when the action says stop
-or the budget (``max_probes`` and/or ``max_sim_s`` simulated seconds) is spent.
-
-Action: ``Box(-1, 1, (4,))``:
-    [0] plate frequency f_p, mapped linearly onto ``f_band_hz``;
-    [1] plate amplitude: the interval [-1, 1] split evenly among ``amplitudes_deg``;
-    [2] measurement window, mapped linearly onto ``measure_range_s``;
-    [3] stop: > 0 ends the episode before this probe is run (ignored on the first step).
-
-Observation (Markov): ``Box(-10, 10, (7 * max_probes + 2,))``: one row per probe slot
-    [f_p (-1..1 over the band), A_p (-1..1 over the amplitudes), omega_B / 1000 deg/s, its standard error / 1000,
-     unstable (0/1), window (-1..1 over measure_range_s), filled (0/1)]
-followed by the probes left and the simulated seconds left, as fractions of the budget.
-
-Reward: each probe costs ``cost_per_sim_s`` per simulated second it took (ramp + settle + window). At the end the
-estimate omega_n_hat (``method``: the atlas posterior or the paper's Lorentzian fit) is scored:
-``-min(|omega_n_hat - omega_n| / omega_n, error_cap)``, or ``-no_estimate_penalty`` when no estimate can be made.
-Defaults: cost 0.005 per simulated second, error cap 1, no-estimate penalty 1.
-
-``info`` carries the truth and the diagnostics: ``omega_n_true`` (rad/s), ``alpha_true`` (rad), ``estimate``
-(a dict: omega_n_hat and its standard error, alpha_hat, fit parameters), ``sim_s`` (the episode's simulated
-seconds so far) and the last probe's details; the final step adds ``wall_s``, the episode's wall-clock seconds
-(the one non-deterministic number, so it is kept out of the per-step infos that seeding must reproduce).
+The environment's documentation, in Gymnasium's layout, is :class:`PlateRotationEnv`'s docstring (and the README's
+"The environment" section).
 """
 
 from __future__ import annotations
@@ -43,7 +19,7 @@ from plate_env.estimate import Estimate
 from plate_env.forward import KnownInputs
 from plate_env.motion import B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
 from plate_env.objects import ObjectPrior, ObjectSpec
-from plate_env.physics import make_physics
+from plate_env.physics import PHYSICS_NAMES, make_physics
 from plate_env.physics.base import (
     MIN_PROBE_FREQ_HZ,
     WINDOW_RANGE_S,
@@ -55,6 +31,9 @@ from plate_env.physics.base import (
 from plate_env.probes import ProbeTable
 
 N_FEATURES = 7
+#: The probe budget of an episode when none is given: the one default of the env, the CLI, the suites and the
+#: shipped policy (the observation's length, 7 * max_probes + 2, depends on it).
+DEFAULT_MAX_PROBES = 30
 #: Mass of the hidden object before ``mass_variation``, kg (the paper's cheese slice).
 MASS_KG = ObjectSpec().mass
 #: Keys ``reset(options=...)`` accepts: the hidden object's omega_n (rad/s), alpha (rad), mass (kg).
@@ -66,7 +45,126 @@ OPTION_OF = {"f_p_hz": "f_band_hz", "a_p_deg": "amplitudes_deg", "omega_n": "ome
 
 
 class PlateRotationEnv(gym.Env):
-    """Identify a hidden object's bending natural frequency by choosing plate probes. See the module docstring."""
+    """Identify a hidden object's bending natural frequency by choosing plate probes.
+
+    ## Description
+
+    A thin disc (the paper's cheese slice by default) lies on a plate that rocks about a horizontal axis
+    (amplitude A_p) while translating along it (B_p) at a frequency f_p; the disc walks round at a rate omega_B
+    that follows its first bending natural frequency omega_n. Each episode hides an object (omega_n, friction
+    angle alpha, mass); each step runs one probe of the agent's choosing on the physics backend and a 30 fps
+    camera model measures omega_B; the episode ends when the agent stops or the probe budget is spent, and the
+    probes are turned into an estimate of omega_n. The reward trades its error against the simulated seconds the
+    probes took.
+
+    ## Action Space
+
+    ``Box(-1, 1, (4,), float32)``:
+
+    | index | meaning | mapping |
+    |---|---|---|
+    | 0 | plate frequency f_p | linearly onto ``f_band_hz`` |
+    | 1 | plate amplitude A_p | [-1, 1] split evenly among ``amplitudes_deg`` |
+    | 2 | measurement window | linearly onto ``measure_range_s`` |
+    | 3 | stop | > 0 ends the episode before this probe runs (ignored on the first step: it runs the probe) |
+
+    Actions outside [-1, 1], NaN, or of another shape are refused (ValueError), never clipped.
+    :meth:`encode_action` builds an action from physical values.
+
+    ## Observation Space
+
+    ``Box(-10, 10, (7 * max_probes + 2,), float32)`` (212 with the default ``max_probes`` = 30): one row of 7 per
+    probe slot, in the order the probes ran, zeros for slots not yet used:
+
+    | column | meaning |
+    |---|---|
+    | 0 | f_p, -1..1 over ``f_band_hz`` |
+    | 1 | A_p, the amplitude's code (2k + 1) / n - 1 (0 with one amplitude) |
+    | 2 | omega_B / 1000, deg/s (0 when the probe ended unstable) |
+    | 3 | its standard error / 1000, deg/s |
+    | 4 | unstable (1) or stable (0) |
+    | 5 | window, -1..1 over ``measure_range_s`` |
+    | 6 | filled (1) |
+
+    followed by the share of probes left and the share of ``max_sim_s`` left (1 without a time budget). The
+    observation is Markov: it holds every probe so far.
+
+    ## Rewards
+
+    Each probe costs ``cost_per_sim_s`` per simulated second it took (ramp 0.2 s + ``settle_s`` + the window; a
+    probe that ends unstable costs the seconds it ran). At the end the estimate omega_n_hat (``method``) is
+    scored: ``-min(|omega_n_hat - omega_n| / omega_n, error_cap)``, or ``-no_estimate_penalty`` when no estimate
+    can be made (too few usable probes, an answer at the edge of the identifiable range). Defaults: 0.005 per
+    simulated second, error cap 1, no-estimate penalty 1.
+
+    ## Starting State
+
+    ``reset`` hides an object drawn from the seeded generator: omega_n log-uniform over ``omega_n_range_pi``
+    (units of pi rad/s), alpha uniform over ``alpha_range_deg``, mass 13.6 g times 1 + ``mass_variation`` * U(-1,
+    1) (always drawn, in this order, so fixing one by a reset option leaves the others' draws unchanged); no
+    probes yet. Each probe places the disc at a random yaw and a 0.2 mm offset from the same generator.
+
+    ## Episode End
+
+    Terminated when the action says stop (after the first probe), when ``max_probes`` probes have run, or when the
+    probes have taken ``max_sim_s`` simulated seconds (the probe that crosses it still runs). Never truncated.
+    The final step's ``info`` carries the estimate (``estimate``: omega_n_hat and its 68 %/95 % intervals, alpha_hat;
+    ``relative_error``, None without estimate) and ``wall_s``, the episode's wall-clock seconds (the one
+    non-deterministic number). Every ``info`` has ``omega_n_true`` (rad/s), ``alpha_true`` (rad), ``mass_true`` (kg),
+    ``probes``, ``sim_s`` and, after a probe, ``last_probe`` (the probe's settings and outcome).
+
+    ## Arguments
+
+    ``gym.make("PlateRotation-v0", **kwargs)``; every argument is checked at construction (ValueError naming it
+    and the allowed values), including whether the physics can answer every probe the settings allow:
+
+    | argument | default | meaning |
+    |---|---|---|
+    | ``physics`` | ``"tilelink"`` | ``tilelink`` (the paper's model), ``pybullet``, ``atlas`` (training) |
+    | ``physics_options`` | None | the backend's options (below) |
+    | ``method`` | ``"atlas"`` | estimate: ``atlas`` (forward-model posterior) or ``lorentz`` (the paper's) |
+    | ``omega_n_range_pi`` | (3.5, 33) | hidden omega_n range, pi rad/s |
+    | ``alpha_range_deg`` | (30, 60) | hidden friction-angle range, deg |
+    | ``mass_variation`` | 0 | relative mass variation around 13.6 g, [0, 1) |
+    | ``f_band_hz`` | (10, 40) | plate frequencies the actions span, Hz |
+    | ``amplitudes_deg`` | (3, 12) | plate amplitudes the actions choose from, deg |
+    | ``b_p_mm`` | 3 | plate translation amplitude B_p, mm |
+    | ``max_probes`` | 30 (:data:`DEFAULT_MAX_PROBES`) | probe budget; sets the observation length |
+    | ``max_sim_s`` | None | budget in simulated seconds (None: none) |
+    | ``measure_range_s`` | (0.25, 2) | measurement windows the actions span, s |
+    | ``settle_s`` | 0.5 | settling time after the 0.2 s ramp, s |
+    | ``camera_fps`` | 30 | camera frame rate, Hz |
+    | ``angle_noise_deg`` | 0.5 | camera angle noise (sd), deg |
+    | ``cost_per_sim_s`` | 0.005 | reward cost per simulated second |
+    | ``error_cap`` | 1 | largest error charged |
+    | ``no_estimate_penalty`` | 1 | reward when no estimate can be made |
+    | ``render_mode`` | None | ``rgb_array`` or ``human`` |
+
+    ``physics_options``: e.g. ``{"model": "rigid"}`` or ``{"dt": 2e-4}`` for tilelink; for the atlas
+    ``{"instability_rho": 0.9, "instability_corr_hz": 2.0}`` draws instability correlated along f_p within an
+    object, as live probes are (the shipped policy's training setting).
+
+    ## Reset Options
+
+    ``reset(seed=..., options={...})`` with keys ``omega_n`` (rad/s), ``alpha`` (rad), ``mass`` (kg) fixes the hidden
+    object (the other quantities are still drawn). Unknown keys, non-numbers and objects the physics cannot answer
+    are refused (ValueError naming the option).
+
+    ## Vector Environments
+
+    ``gym.make_vec("PlateRotation-v0", num_envs=8, vectorization_mode="vector_entry_point", physics="atlas")``:
+    one batched physics call per step for all sub-environments (Gymnasium's next-step autoreset);
+    ``plate_env.sb3.make_sb3_vec_env(n_envs=8, physics="atlas")``: the same as a Stable-Baselines3 ``VecEnv``.
+
+    ## Version History
+
+    * v0 (plate-env 0.1.0, unreleased): this definition. Before the first release v0 changed in place; changes
+      that alter results of code written against earlier commits: the default ``max_probes`` 20 -> 30 (one default
+      everywhere; the observation grew from 142 to 212), the estimate from forward models with the known inputs
+      B_p, mass and diameter (issue 13), every argument and reset option checked (issue 16). From the first
+      release on, a change that alters observations, rewards or episodes for the same arguments gets a new id
+      (``PlateRotation-v1``), as the benchmark's suites do.
+    """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
 
@@ -74,7 +172,8 @@ class PlateRotationEnv(gym.Env):
                  omega_n_range_pi: tuple[float, float] = ObjectPrior.omega_n_range_pi,
                  alpha_range_deg: tuple[float, float] = ObjectPrior.alpha_range_deg,
                  mass_variation: float = 0.0, f_band_hz: tuple[float, float] = (10.0, 40.0),
-                 amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = 3.0, max_probes: int = 20,
+                 amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = 3.0,
+                 max_probes: int = DEFAULT_MAX_PROBES,
                  max_sim_s: float | None = None, measure_range_s: tuple[float, float] = (0.25, 2.0),
                  settle_s: float = 0.5, camera_fps: float = 30.0, angle_noise_deg: float = 0.5,
                  cost_per_sim_s: float = 0.005, error_cap: float = 1.0, no_estimate_penalty: float = 1.0,
@@ -99,11 +198,12 @@ class PlateRotationEnv(gym.Env):
         cost_per_sim_s = checks.real("cost_per_sim_s", cost_per_sim_s, 0.0, 1e3)
         error_cap = checks.real("error_cap", error_cap, 0.0, 1e3, open_lo=True)
         no_estimate_penalty = checks.real("no_estimate_penalty", no_estimate_penalty, 0.0, 1e3)
+        physics = checks.one_of("physics", physics, PHYSICS_NAMES)
         if physics_options is not None and not isinstance(physics_options, dict):
             raise ValueError(f"physics_options = {physics_options!r} must be a dict of backend options or None")
         self.physics_name = physics
         self.physics_options = dict(physics_options or {})
-        self.physics = make_physics(physics, **self.physics_options)
+        self.physics = _build_physics(physics, self.physics_options)
         # identification uses the calibration/atlas of the physics the probes come from
         self.source = getattr(self.physics, "source", physics)
         self.model = getattr(self.physics, "model", physics)
@@ -372,6 +472,17 @@ class PlateRotationEnv(gym.Env):
         self.__dict__.update(state)
         self.physics = make_physics(self.physics_name, **self.physics_options)
         self._closed = False
+
+
+def _build_physics(name: str, options: dict):
+    """``make_physics(name, **options)``, an option the backend does not take or refuses named as a
+    ``physics_options`` error."""
+    try:
+        return make_physics(name, **options)
+    except TypeError as exc:  # an unknown keyword
+        raise ValueError(f"physics_options {options!r}: physics {name!r} does not take that option ({exc})") from None
+    except ValueError as exc:
+        raise ValueError(f"physics_options {options!r} for physics {name!r}: {exc}") from None
 
 
 def _amplitudes(values) -> tuple[float, ...]:

@@ -32,7 +32,7 @@ from __future__ import annotations
 import contextlib
 import os
 from collections import deque
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -112,10 +112,12 @@ class Executor(Protocol):
 
     name: str
 
-    def map(self, backend: BackendSpec,
-            chunks: Sequence[Sequence[ProbeSpec]]) -> Iterator[tuple[int, list[ProbeResult]]]:
+    def map(self, backend: BackendSpec, chunks: Sequence[Sequence[ProbeSpec]],
+            task: Callable = run_chunk) -> Iterator[tuple[int, list[ProbeResult]]]:
         """Every chunk's results, in completion order. Closing the iterator early (Ctrl-C, an error in the
-        consumer) cancels the chunks not yet finished."""
+        consumer) cancels the chunks not yet finished. ``task(backend, chunk)`` is what runs a chunk (default
+        :func:`run_chunk`; the benchmark runs whole episodes, :func:`plate_env.benchmark.run_episode_chunk`): a
+        module-level function, so that workers can import it."""
         ...
 
     def close(self) -> None:
@@ -132,8 +134,11 @@ class InProcessExecutor:
     def __init__(self, physics: Physics | None = None) -> None:
         self.physics = physics
 
-    def map(self, backend: BackendSpec | None, chunks):
+    def map(self, backend: BackendSpec | None, chunks, task: Callable = run_chunk):
         for i, chunk in enumerate(chunks):
+            if task is not run_chunk:
+                yield i, task(backend, list(chunk))
+                continue
             phys = self.physics if self.physics is not None else worker_backend(backend)
             yield i, phys.run(list(chunk))
 
@@ -186,7 +191,7 @@ class PoolExecutor:
         procs = getattr(self._pool, "_processes", None) or {}
         return [p.pid for p in procs.values() if p.is_alive()]
 
-    def map(self, backend: BackendSpec, chunks):
+    def map(self, backend: BackendSpec, chunks, task: Callable = run_chunk):
         from concurrent.futures import as_completed
         from concurrent.futures.process import BrokenProcessPool
 
@@ -196,7 +201,7 @@ class PoolExecutor:
             if self._pool is None:
                 self._pool = self._new_pool()
             with _env(WORKER_ENV):  # workers spawn during submit and inherit this environment
-                futures = {self._pool.submit(run_chunk, backend, list(chunks[i])): i for i in pending}
+                futures = {self._pool.submit(task, backend, list(chunks[i])): i for i in pending}
             try:
                 for fut in as_completed(futures):
                     i = futures[fut]
@@ -248,12 +253,16 @@ class RayExecutor:
                 kw.update(num_cpus=num_cpus, include_dashboard=False, object_store_memory=200 * 2**20)
             ray.init(address=address, **kw)
             self._owns = True
-        self._task = ray.remote(num_cpus=1, max_retries=max_retries)(run_chunk)
+        self._max_retries = max_retries
+        self._tasks: dict[Callable, Any] = {}
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.max_in_flight = max_in_flight or 2 * max(cpus, 1)
 
-    def map(self, backend: BackendSpec, chunks):
+    def map(self, backend: BackendSpec, chunks, task: Callable = run_chunk):
         ray = self._ray
+        if task not in self._tasks:
+            self._tasks[task] = ray.remote(num_cpus=1, max_retries=self._max_retries)(task)
+        remote = self._tasks[task]
         backend_ref = ray.put(backend)
         pending = deque(range(len(chunks)))
         refs: dict[Any, int] = {}
@@ -261,7 +270,7 @@ class RayExecutor:
             while pending or refs:
                 while pending and len(refs) < self.max_in_flight:
                     i = pending.popleft()
-                    refs[self._task.remote(backend_ref, list(chunks[i]))] = i
+                    refs[remote.remote(backend_ref, list(chunks[i]))] = i
                 ready, _ = ray.wait(list(refs), num_returns=1)
                 for ref in ready:
                     i = refs.pop(ref)

@@ -80,6 +80,26 @@ def per_object(truth: Sequence[float], estimates: Sequence) -> dict[str, np.ndar
             "ok": ok.astype(float)}
 
 
+def _stat(values: np.ndarray, fn, idx: np.ndarray) -> Stat:
+    """``fn`` of ``values`` (objects along axis 0) and its 95 % percentile interval over the resamples ``idx``
+    (n_boot, n). ``fn`` reduces the object axis of an array (..., n, *rest) to (..., ) -- it is given ``values``
+    with a leading resample axis."""
+    with np.errstate(invalid="ignore"):
+        boot = np.concatenate([fn(values[idx[i:i + 256]]) for i in range(0, len(idx), 256)])  # bounded memory
+        return Stat(float(fn(values[None])[0]), float(_percentile(boot, 2.5, 0)), float(_percentile(boot, 97.5, 0)))
+
+
+def bootstrap(values: Sequence | np.ndarray, fn, rng: np.random.Generator, n_boot: int = 2000) -> Stat:
+    """Any statistic of per-object values with its 95 % percentile-bootstrap interval over objects.
+
+    ``values``: (n, ...) with the objects along axis 0 (e.g. (n objects, n budgets) for a whole error curve);
+    ``fn(x)`` maps x of shape (b, n, ...) to b numbers (e.g. ``lambda x: np.median(x, axis=1)``)."""
+    v = np.asarray(values, dtype=float)
+    if v.ndim == 0 or v.shape[0] == 0:
+        raise ValueError("bootstrap of no objects")
+    return _stat(v, fn, rng.integers(0, v.shape[0], size=(n_boot, v.shape[0])))
+
+
 def score(truth: Sequence[float], estimates: Sequence, rng: np.random.Generator, n_boot: int = 2000) -> Scores:
     """Scores with 95 % bootstrap intervals over objects."""
     d = per_object(truth, estimates)
@@ -89,9 +109,7 @@ def score(truth: Sequence[float], estimates: Sequence, rng: np.random.Generator,
     idx = rng.integers(0, n, size=(n_boot, n))
 
     def stat(values: np.ndarray, fn) -> Stat:
-        boot = fn(values[idx])
-        with np.errstate(invalid="ignore"):
-            return Stat(float(fn(values[None])[0]), float(_percentile(boot, 2.5, 0)), float(_percentile(boot, 97.5, 0)))
+        return _stat(values, fn, idx)
 
     return Scores(n=n,
                   median_error=stat(d["error"], lambda x: np.median(x, axis=-1)),

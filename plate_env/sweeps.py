@@ -83,7 +83,7 @@ class SweepInterrupted(KeyboardInterrupt):
         self.results = results
 
 
-def _open_for_append(path: Path):
+def open_for_append(path: Path):
     """``path`` opened for appending (binary), after cutting off a torn last line (an interrupted write), so the
     next record starts on a line of its own instead of completing the fragment into an invalid line."""
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -130,7 +130,7 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
         from tqdm.auto import tqdm
 
         bar = tqdm(total=sum(map(len, chunks)), desc=desc, unit="probe")
-    fh = _open_for_append(Path(cache)) if cache and chunks else None
+    fh = open_for_append(Path(cache)) if cache and chunks else None
     try:
         if chunks:
             for j, results in executor.map(backend, [[specs[i] for i in c] for c in chunks]):

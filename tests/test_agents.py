@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 import plate_env  # noqa: F401
-from agents import make_agent
-from agents.runner import run_episode
 from plate_env.atlas import atlas_from_repeats
 from plate_env.fitting import lorentzian
+from plate_env_agents import make_agent
+from plate_env_agents.runner import run_episode
 
 TRUTH = {"omega_n": 12 * math.pi, "alpha": 0.7}
 
@@ -83,7 +83,7 @@ def test_bayes_posterior_narrows_and_contains_truth_on_synthetic_lorentzian_data
     widths = []
     e = env.unwrapped
     obs, _ = env.reset(seed=3, options={"omega_n": truth, "alpha": math.radians(45)})
-    from agents.base import ProbeContext
+    from plate_env_agents.base import ProbeContext
 
     agent.reset(ProbeContext.from_env(env), np.random.default_rng(3))
     widths.append(agent.relative_std())  # the prior's: log-uniform over the atlas's 2pi-40pi

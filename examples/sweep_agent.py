@@ -1,0 +1,20 @@
+"""A third-party probing agent in ~20 lines (README, "Write your own agent"): sweep up the band at 3 deg and stop
+two probes after the response has passed its peak."""
+
+import numpy as np
+
+from plate_env.protocol import Agent, Probe
+
+
+class SweepAgent(Agent):
+    name = "sweep_until_past_peak"
+    method = "atlas"  # estimate with the forward model's posterior
+
+    def next_probe(self, history, obs=None):
+        lo, hi = self.context.f_band_hz
+        n = len(history)
+        stable = history.omega_b_deg_s[~history.unstable]
+        past_peak = stable.size >= 3 and np.argmax(stable) <= stable.size - 3
+        if n >= self.context.max_probes or past_peak or lo + 2.0 * n > hi:
+            return None  # stop: the episode's probes are turned into an estimate
+        return Probe(f_p_hz=lo + 2.0 * n, a_p_deg=3.0, measure_s=1.0)

@@ -1,0 +1,109 @@
+"""One identification episode: an agent probes a PlateRotation-v0 env until it stops or the budget ends, then its
+probes are turned into an estimate by the agent's method. The one episode loop of the CLI, the benchmark and the
+experiment scripts."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from plate_env.estimate import Estimate
+from plate_env.probes import ProbeTable
+from plate_env.protocol import Probe, ProbeContext
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    """One identification: the truth, the agent's estimate (by its own method), and what the probing cost.
+
+    ``probe_sim_s``: simulated seconds of each probe in order (ramp + settle + window, less if it ended unstable);
+    ``decision_wall_s``: wall seconds of each ``next_probe`` call (the last one may be the decision to stop).
+    """
+
+    agent: str
+    omega_n_true: float
+    alpha_true: float
+    estimate: Estimate
+    probes: ProbeTable = field(repr=False)
+    n_probes: int
+    sim_s: float
+    wall_s: float
+    probe_sim_s: tuple[float, ...] = ()
+    decision_wall_s: tuple[float, ...] = ()
+
+    @property
+    def relative_error(self) -> float:
+        return self.estimate.relative_error(self.omega_n_true)
+
+    def to_dict(self) -> dict:
+        return {"agent": self.agent, "omega_n_true_rad_s": self.omega_n_true, "alpha_true_deg":
+                float(np.degrees(self.alpha_true)), "relative_error": self.relative_error if self.estimate.ok
+                else None, "n_probes": self.n_probes, "sim_s": self.sim_s, "wall_s": self.wall_s,
+                "estimate": self.estimate.to_dict(), "probes": self.probes.to_rows()}
+
+
+def estimate_of(env, table: ProbeTable, method: str) -> Estimate:
+    """``method``'s estimate from ``table`` for ``env``'s physics and known inputs (no estimate, with the reason,
+    when the method cannot make one)."""
+    from plate_env.identify import identify
+
+    e = env.unwrapped
+    if len(table) == 0:
+        return Estimate(ok=False, method=method, reason="no probes")
+    try:
+        return identify(table, method=method, physics=e.source, model=e.model, known=e.known_inputs())
+    except ValueError as exc:
+        return Estimate(ok=False, method=method, reason=str(exc))
+
+
+def _step(env, agent, choice):
+    """``env.step`` of an agent's answer (ValueError naming the agent for an answer the env refuses; the env is
+    left as it was)."""
+    e = env.unwrapped
+    try:
+        if choice is None:
+            action = e.encode_action(stop=True)
+        elif isinstance(choice, Probe):
+            action = e.encode_action(choice.f_p_hz, choice.a_p_deg, choice.measure_s)
+        else:
+            action = np.asarray(choice, dtype=np.float32)
+        return env.step(action)  # the env checks the action before it runs anything
+    except ValueError as exc:
+        raise ValueError(f"agent {agent.name!r}: next_probe returned {choice!r}: {exc}") from None
+
+
+def run_episode(env, agent, seed: int, options: dict | None = None,
+                on_probe: Callable[[int, dict], None] | None = None,
+                max_sim_s: float | None = None) -> EpisodeResult:
+    """Reset ``env`` with ``seed`` (and ``options``: omega_n, alpha, mass), let ``agent`` probe until it stops, the
+    env's budget ends or the probes have taken ``max_sim_s`` simulated seconds (a budget enforced here, without
+    changing the env's observation; the agent's context names it), then estimate omega_n with the agent's method.
+    ``on_probe(k, probe_dict)`` is called after each probe."""
+    t0 = time.perf_counter()
+    e = env.unwrapped
+    obs, info = env.reset(seed=seed, options=options)
+    agent.reset(ProbeContext.from_env(env, max_sim_s), np.random.default_rng(seed))
+    sims: list[float] = []
+    decisions: list[float] = []
+    done = False
+    while not done and not (max_sim_s is not None and info["sim_s"] >= max_sim_s):
+        table = e.table()
+        t = time.perf_counter()
+        choice = agent.next_probe(table, obs)
+        decisions.append(time.perf_counter() - t)
+        if choice is None and len(table) == 0:
+            raise RuntimeError(f"agent {agent.name} stopped before its first probe")
+        obs, _, terminated, truncated, info = _step(env, agent, choice)
+        done = terminated or truncated
+        if info["probes"] > len(sims):
+            sims.append(float(info["last_probe"]["sim_s"]))
+            if on_probe is not None:
+                on_probe(info["probes"], info["last_probe"])
+    table = e.table()
+    return EpisodeResult(agent=agent.name, omega_n_true=info["omega_n_true"], alpha_true=info["alpha_true"],
+                         estimate=estimate_of(env, table, agent.method), probes=table, n_probes=len(table),
+                         sim_s=info["sim_s"], wall_s=time.perf_counter() - t0, probe_sim_s=tuple(sims),
+                         decision_wall_s=tuple(decisions))

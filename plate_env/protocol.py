@@ -1,0 +1,103 @@
+"""The probing-agent protocol: what an agent is given (:class:`ProbeContext`, the probe table, the env's
+observation) and what it answers (a :class:`Probe`, an env action, or None to stop).
+
+It lives in the library core so that the episode loop (:mod:`plate_env.episode`), the benchmark
+(:mod:`plate_env.benchmark`) and third-party agents depend on it without importing the shipped agents
+(``plate_env_agents``, which subclass :class:`Agent`).
+
+An agent is any object with
+
+* ``name`` (str) and ``method`` (``"atlas"``: the forward model's posterior, or ``"lorentz"``: the paper's fit),
+  how its probes are turned into an estimate;
+* ``reset(context, rng)``: a new episode starts (no probes yet); ``rng`` is the episode's seeded generator, the
+  only randomness an agent may use;
+* ``next_probe(history, obs)``: given the probes so far (a :class:`~plate_env.probes.ProbeTable`, in the order
+  they ran) and the env's observation, return the next :class:`Probe`, a raw env action (4 numbers in [-1, 1]), or
+  None to stop and estimate.
+
+Subclassing :class:`Agent` is optional (:func:`check_agent` checks the duck type).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from plate_env.forward import KnownInputs
+from plate_env.probes import ProbeTable
+
+#: The estimators an agent may name as its ``method``.
+AGENT_METHODS = ("atlas", "lorentz")
+
+
+@dataclass(frozen=True)
+class Probe:
+    """A probe an agent asks for: plate frequency (Hz), amplitude (deg, one the env offers), window (s)."""
+
+    f_p_hz: float
+    a_p_deg: float
+    measure_s: float = 1.0
+
+
+@dataclass(frozen=True)
+class ProbeContext:
+    """What an agent may know about the task (not the hidden object).
+
+    Attributes: f_band_hz, amplitudes_deg, measure_range_s, max_probes, max_sim_s (the probing budget in simulated
+    seconds, or None), overhead_s (ramp + settle, the simulated seconds every probe costs besides its window),
+    physics/model (whose forward model and calibration apply), known (what a lab knows: B_p, the disc's mass and
+    diameter).
+    """
+
+    f_band_hz: tuple[float, float]
+    amplitudes_deg: tuple[float, ...]
+    measure_range_s: tuple[float, float]
+    max_probes: int
+    max_sim_s: float | None
+    overhead_s: float
+    physics: str
+    model: str
+    known: KnownInputs = KnownInputs()
+
+    @classmethod
+    def from_env(cls, env, max_sim_s: float | None = None) -> ProbeContext:
+        """The context of ``env``'s current episode; ``max_sim_s`` (a budget the caller enforces) tightens the
+        env's own."""
+        e = env.unwrapped
+        budgets = [b for b in (e.max_sim_s, max_sim_s) if b is not None]
+        return cls(f_band_hz=e.f_band_hz, amplitudes_deg=e.amplitudes_deg, measure_range_s=e.measure_range_s,
+                   max_probes=e.max_probes, max_sim_s=min(budgets) if budgets else None,
+                   overhead_s=0.2 + e.settle_s, physics=e.source, model=e.model, known=e.known_inputs())
+
+
+class Agent(ABC):
+    """A probing policy (see the module docstring). Subclasses implement :meth:`next_probe`."""
+
+    name: str = "agent"
+    method: str = "atlas"
+
+    def reset(self, context: ProbeContext, rng: np.random.Generator) -> None:
+        """Start a new episode (no probes yet)."""
+        self.context = context
+        self.rng = rng
+
+    @abstractmethod
+    def next_probe(self, history: ProbeTable, obs: np.ndarray | None = None) -> Probe | np.ndarray | None:
+        """The next probe to run (a :class:`Probe` or a raw env action), or None to stop and estimate."""
+
+
+def check_agent(agent: object, where: str = "agent") -> object:
+    """``agent`` if it follows the protocol (callable ``reset`` and ``next_probe``, a string ``name``, ``method``
+    one of :data:`AGENT_METHODS`), else ValueError naming ``where`` and what is missing."""
+    missing = [m for m in ("reset", "next_probe") if not callable(getattr(agent, m, None))]
+    if missing:
+        raise ValueError(f"{where}: {type(agent).__name__} has no method(s) {missing}; an agent needs "
+                         "reset(context, rng) and next_probe(history, obs) (see plate_env.protocol)")
+    if not isinstance(getattr(agent, "name", None), str):
+        raise ValueError(f"{where}: {type(agent).__name__}.name must be a string")
+    method = getattr(agent, "method", "atlas")
+    if method not in AGENT_METHODS:
+        raise ValueError(f"{where}: {type(agent).__name__}.method = {method!r}; choose one of {AGENT_METHODS}")
+    return agent
