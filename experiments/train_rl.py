@@ -2,18 +2,22 @@
 
     python experiments/train_rl.py [--algo ppo] [--seed 0] [--timesteps N] [--out agents/models/ppo_plate.zip]
 
-Hyperparameters come from experiments/hyperparams/<algo>.yml (rl-zoo3 style: an entry per env id with n_envs,
-n_timesteps, policy, learning_rate, n_steps, batch_size, gamma, ent_coef, policy_kwargs, env_kwargs, ...). The
-training env is ``gym.make("PlateRotation-v0", physics="atlas", ...)`` vectorised with SB3's make_vec_env (a probe
-costs microseconds there; the policy is meant to be evaluated on live physics, see experiments/eval_rl.py). An
-EvalCallback scores the deterministic policy every ``eval_freq`` steps on the same seeded objects each time and
-keeps the best model; that model is copied to ``--out`` with a JSON provenance file next to it (env kwargs,
-timesteps, seed, evaluation reward, learning curve, date, versions). One torch thread: the machine is shared.
+Public API only: the training envs are ``plate_env.sb3.make_sb3_vec_env(n_envs, seed, **env_kwargs)`` (one batched
+physics call per step), every setting of the env an argument of PlateRotation-v0 (``env_kwargs``, including the
+atlas backend's correlated instability through ``physics_options``). Hyperparameters come from
+experiments/hyperparams/<algo>.yml in rl-zoo3's format (an entry per env id: n_envs, n_timesteps, policy,
+policy_kwargs -- a dict or rl-zoo3's "dict(...)" string --, env_kwargs, and the algorithm's constructor arguments;
+rl-zoo3's other run keys are refused here rather than ignored). An EvalCallback scores the deterministic policy
+every ``--eval-freq`` steps on the same seeded objects each time and keeps the best model; that model is copied to
+``--out``, its numpy forward pass exported beside it (plate_env_agents.ppo.export_policy: the agent then acts without
+torch) and a JSON provenance file written (env kwargs, hyperparameters, timesteps, seed, evaluation reward, learning
+curve, wall time, date, versions). One torch thread: the machine is shared.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import datetime as dt
 import json
 import platform
@@ -28,12 +32,16 @@ import torch
 import yaml
 
 import plate_env  # noqa: F401 - registers the env
+from plate_env.sb3 import make_sb3_vec_env
+from plate_env_agents.ppo import export_policy
 
 ENV_ID = "PlateRotation-v0"
 ALGOS = ("ppo", "a2c", "sac")
-#: Keys of the yml entry that are not arguments of the algorithm's constructor.
-RUN_KEYS = ("n_envs", "n_timesteps", "policy", "env_kwargs", "eval_freq", "n_eval_episodes", "eval_seed",
-            "correlated_instability")
+#: rl-zoo3's run keys this script honours (the rest of an entry goes to the algorithm's constructor).
+RUN_KEYS = ("n_envs", "n_timesteps", "policy", "env_kwargs")
+#: rl-zoo3's run keys this script does not implement: refused, not ignored.
+UNSUPPORTED = ("normalize", "frame_stack", "env_wrapper", "vec_env_wrapper", "callback", "monitor_kwargs",
+               "noise_type", "noise_std")
 
 
 def load_hyperparams(path: Path, env_id: str = ENV_ID) -> dict:
@@ -41,7 +49,22 @@ def load_hyperparams(path: Path, env_id: str = ENV_ID) -> dict:
         table = yaml.safe_load(fh)
     if env_id not in table:
         raise KeyError(f"{path} has no entry for {env_id!r} (entries: {sorted(table)})")
-    return dict(table[env_id])
+    hp = dict(table[env_id])
+    bad = [k for k in UNSUPPORTED if k in hp]
+    if bad:
+        raise ValueError(f"{path}: rl-zoo3 keys {bad} are not supported by experiments/train_rl.py")
+    return hp
+
+
+def policy_kwargs_of(value) -> dict:
+    """rl-zoo3's ``policy_kwargs``: a dict, or a ``"dict(key=literal, ...)"`` string (read without eval)."""
+    if value is None or isinstance(value, dict):
+        return dict(value or {})
+    call = ast.parse(value, mode="eval").body
+    if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Name) and call.func.id == "dict"
+            and not call.args):
+        raise ValueError(f"policy_kwargs {value!r}: expected dict(key=literal, ...)")
+    return {kw.arg: ast.literal_eval(kw.value) for kw in call.keywords}
 
 
 def env_kwargs_of(hp: dict) -> dict:
@@ -50,24 +73,6 @@ def env_kwargs_of(hp: dict) -> dict:
         if key in kw:
             kw[key] = tuple(float(x) for x in kw[key])
     return kw
-
-
-def physics_wrapper(options: dict | None):
-    """A make_vec_env ``wrapper_class`` that swaps the atlas backend for one with correlated instability
-    (plate_env.physics.atlas_physics.AtlasPhysics, ``instability_rho``/``instability_corr_hz``)."""
-    if not options:
-        return None
-    from plate_env.physics.atlas_physics import AtlasPhysics
-
-
-    def wrap(env):
-        base = env.unwrapped
-        base.physics = AtlasPhysics(atlas=base.physics.atlas, source=base.physics.source, model=base.physics.model,
-                                    instability_rho=options.get("rho", 0.9),
-                                    instability_corr_hz=options.get("corr_hz", 2.0))
-        return env
-
-    return wrap
 
 
 def _rel(path: Path) -> str:
@@ -117,11 +122,13 @@ def main() -> None:
     ap.add_argument("--timesteps", type=int, default=None, help="override n_timesteps")
     ap.add_argument("--out", type=Path, default=None, help="default: agents/models/<algo>_plate.zip")
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--eval-freq", type=int, default=8192, help="evaluate every this many steps (all envs)")
+    ap.add_argument("--eval-episodes", type=int, default=100)
+    ap.add_argument("--eval-seed", type=int, default=10_000)
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
 
     import stable_baselines3 as sb3
-    from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.utils import set_random_seed
 
     hp_path = args.hyperparams or Path(__file__).parent / "hyperparams" / f"{args.algo}.yml"
@@ -129,16 +136,14 @@ def main() -> None:
     n_envs = int(hp.get("n_envs", 1))
     timesteps = int(args.timesteps or hp["n_timesteps"])
     env_kwargs = env_kwargs_of(hp)
-    eval_freq = int(hp.get("eval_freq", 10_000))
-    n_eval = int(hp.get("n_eval_episodes", 100))
-    eval_seed = int(hp.get("eval_seed", 10_000))
+    eval_freq, n_eval, eval_seed = args.eval_freq, args.eval_episodes, args.eval_seed
     algo_kwargs = {k: v for k, v in hp.items() if k not in RUN_KEYS}
+    algo_kwargs["policy_kwargs"] = policy_kwargs_of(hp.get("policy_kwargs"))
     out = args.out or Path("agents/models") / f"{args.algo}_plate.zip"
 
     set_random_seed(args.seed)
-    wrap = physics_wrapper(hp.get("correlated_instability"))
-    venv = make_vec_env(ENV_ID, n_envs=n_envs, seed=args.seed, env_kwargs=env_kwargs, wrapper_class=wrap)
-    eval_env = make_vec_env(ENV_ID, n_envs=1, seed=eval_seed, env_kwargs=env_kwargs, wrapper_class=wrap)
+    venv = make_sb3_vec_env(n_envs, seed=args.seed, **env_kwargs)
+    eval_env = make_sb3_vec_env(1, seed=eval_seed, **env_kwargs)
     cls = {"ppo": sb3.PPO, "a2c": sb3.A2C, "sac": sb3.SAC}[args.algo]
     model = cls(hp.get("policy", "MlpPolicy"), venv, seed=args.seed, verbose=0, device="cpu", **algo_kwargs)
     with tempfile.TemporaryDirectory() as tmp:
@@ -153,10 +158,14 @@ def main() -> None:
             model.save(best)
         out.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(best, out)
+    if args.algo in ("ppo", "a2c"):  # the agent acts in numpy from this export (SAC's actor is another network)
+        export_policy(cls.load(out, device="cpu"), out)
     best_i = int(np.argmax([p["eval_reward"] for p in callback.curve])) if callback.curve else None
     prov = {
         "algo": args.algo, "env_id": ENV_ID, "env_kwargs": {k: list(v) if isinstance(v, tuple) else v
                                                             for k, v in env_kwargs.items()},
+        "command": f"python experiments/train_rl.py --algo {args.algo} --seed {args.seed}"
+                   + (f" --timesteps {args.timesteps}" if args.timesteps else ""),
         "hyperparams_file": _rel(hp_path), "hyperparams": hp, "timesteps": int(model.num_timesteps),
         "seed": args.seed, "n_envs": n_envs, "train_wall_s": round(train_s, 1), "torch_threads": args.threads,
         "eval": {"episodes": n_eval, "seed": eval_seed, "deterministic": True,

@@ -52,14 +52,38 @@ class PlateRotationVectorEnv(VectorEnv):
         return self._obs.copy(), infos
 
     def step(self, actions):
+        actions = self._check_actions(actions)
+        outcomes = self.step_envs(actions, ~self._autoreset)
+        obs, infos = [], {}
+        rewards = np.zeros(self.num_envs)
+        terms = np.zeros(self.num_envs, dtype=bool)
+        truncs = np.zeros(self.num_envs, dtype=bool)
+        for i, (env, out) in enumerate(zip(self.envs, outcomes, strict=True)):
+            if out is None:  # NEXT_STEP autoreset: this env ended on the previous step
+                o, info = env.reset()
+            else:
+                o, rewards[i], terms[i], truncs[i], info = out
+            obs.append(o)
+            infos = self._add_info(infos, info, i)
+        self._autoreset = terms | truncs
+        self._obs = concatenate(self.single_observation_space, obs, self._obs)
+        return self._obs.copy(), rewards, terms, truncs, infos
+
+    def _check_actions(self, actions) -> np.ndarray:
         actions = np.asarray(actions)
         if actions.shape != self.action_space.shape:
             raise ValueError(f"actions must have shape {self.action_space.shape}, got {actions.shape}")
-        plans: list[tuple[str, object]] = []
+        return actions
+
+    def step_envs(self, actions: np.ndarray, active: np.ndarray) -> list[tuple | None]:
+        """Step the sub-environments where ``active`` is True, their probes in one batched physics call: per
+        sub-environment ``(obs, reward, terminated, truncated, info)``, or None where inactive. (The step of this
+        vector env and of :class:`plate_env.sb3.PlateRotationSB3VecEnv`; they differ in how they reset.)"""
+        plans: list[tuple[str, int | None]] = []
         specs = []
         for i, env in enumerate(self.envs):
-            if self._autoreset[i]:
-                plans.append(("reset", None))
+            if not active[i]:
+                plans.append(("skip", None))
                 continue
             stop, spec = env.prepare(actions[i])
             if stop:
@@ -68,20 +92,8 @@ class PlateRotationVectorEnv(VectorEnv):
                 plans.append(("probe", len(specs)))
                 specs.append(spec)
         results = self.physics.run(specs) if specs else []
-        obs, infos = [], {}
-        rewards = np.zeros(self.num_envs)
-        terms = np.zeros(self.num_envs, dtype=bool)
-        truncs = np.zeros(self.num_envs, dtype=bool)
-        for i, (env, (kind, k)) in enumerate(zip(self.envs, plans, strict=True)):
-            if kind == "reset":
-                o, info = env.reset()
-            else:
-                o, rewards[i], terms[i], truncs[i], info = env.finish(results[k] if kind == "probe" else None)
-            obs.append(o)
-            infos = self._add_info(infos, info, i)
-        self._autoreset = terms | truncs
-        self._obs = concatenate(self.single_observation_space, obs, self._obs)
-        return self._obs.copy(), rewards, terms, truncs, infos
+        return [None if kind == "skip" else env.finish(results[k] if kind == "probe" else None)
+                for env, (kind, k) in zip(self.envs, plans, strict=True)]
 
     def render(self):
         return tuple(env.render() for env in self.envs)

@@ -81,3 +81,27 @@ def test_other_band_and_windows_are_translated(agent):
     env.close()
     assert 1 <= res.n_probes <= 8 and res.estimate.ok
     assert np.all((res.probes.f_p_hz >= 12.0 - 1e-6) & (res.probes.f_p_hz <= 36.0 + 1e-6))
+
+
+def test_numpy_forward_pass_equals_sb3_predict(agent, tmp_path: Path):
+    """The shipped agent acts from the numpy export; its actions are SB3's predict to float32 rounding, and an
+    export of another model file (a stale one) is not used."""
+    import shutil
+
+    from stable_baselines3 import PPO
+
+    assert agent.backend == "numpy"
+    model = PPO.load(DEFAULT_MODEL, device="cpu")
+    rng = np.random.default_rng(0)
+    env = gym.make("PlateRotation-v0", physics="atlas")
+    obs = [env.reset(seed=s)[0] for s in range(3)] + list(rng.uniform(-1, 1, (200, agent.obs_dim)).astype(np.float32))
+    env.close()
+    for o in obs:
+        ref = np.clip(model.predict(o, deterministic=True)[0], -1, 1)
+        assert np.max(np.abs(agent.act(o) - ref)) < 1e-5
+    copy = tmp_path / "ppo.zip"
+    shutil.copyfile(DEFAULT_MODEL, copy)
+    shutil.copyfile(DEFAULT_MODEL.with_suffix(".npz"), copy.with_suffix(".npz"))
+    with open(copy, "ab") as fh:
+        fh.write(b"\0")  # another file: the export's hash no longer matches
+    assert make_agent("ppo", path=copy).backend == "sb3"

@@ -90,10 +90,45 @@ def test_atlas_domain_follows_its_provenance():
     (dict(omega_n_range_pi=(1.0, 33.0)), "omega_n_range_pi"),
     (dict(render_mode="human2"), "render_mode"),
     (dict(physics_options=3), "physics_options"),
+    (dict(physics_options={"instability_rh": 0.9}), "physics_options"),  # misspelt: was a TypeError
+    (dict(physics_options={"instability_rho": 1.5}), "physics_options"),
+    (dict(physics="bullet"), "physics"),
+    (dict(method="fit"), "method"),
+    (dict(alpha_range_deg=(60.0, 30.0)), "alpha_range_deg"),
+    (dict(measure_range_s=(0.5,)), "measure_range_s"),
+    (dict(camera_fps=True), "camera_fps"),
 ])
 def test_env_options_refused_at_construction_naming_them(kwargs, name):
     with pytest.raises(ValueError, match=name):
-        PlateRotationEnv(physics="atlas", **kwargs)
+        PlateRotationEnv(physics=kwargs.pop("physics", "atlas"), **kwargs)
+
+
+def test_every_constructor_argument_has_a_refusal_case():
+    """Each argument of PlateRotationEnv is refused with a message naming it somewhere in the table above (a new
+    argument without a check fails here)."""
+    import inspect
+
+    named = {name for _, name in test_env_options_refused_at_construction_naming_them.pytestmark[0].args[1]}
+    params = set(inspect.signature(PlateRotationEnv.__init__).parameters) - {"self"}
+    assert params <= named, params - named
+
+
+def test_max_probes_has_one_default_everywhere():
+    from plate_env.cli import build_parser
+    from plate_env.env import DEFAULT_MAX_PROBES
+    from plate_env.protocol import ProbeContext  # noqa: F401 - the agents read the env's budget through it
+    from plate_env.suites import load_suite
+
+    assert PlateRotationEnv(physics="atlas").max_probes == DEFAULT_MAX_PROBES == 30
+    args = build_parser().parse_args(["identify"])
+    assert args.max_probes == DEFAULT_MAX_PROBES
+    assert load_suite("tilelink-v0").env_kwargs["max_probes"] == DEFAULT_MAX_PROBES
+    import json
+
+    from plate_env_agents.ppo import DEFAULT_MODEL
+
+    prov = json.loads(DEFAULT_MODEL.with_suffix(".json").read_text())
+    assert prov["env_kwargs"]["max_probes"] == DEFAULT_MAX_PROBES  # the shipped policy's training budget
 
 
 def test_env_options_the_live_physics_can_honour_are_accepted():

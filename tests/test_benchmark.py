@@ -1,0 +1,180 @@
+"""The benchmark (plate_env.benchmark, plate-env bench): the plug-in protocol, budgets read from one run, resumable
+records, determinism, summaries and the leaderboard. Fast: the atlas suite, a few objects."""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from plate_env import benchmark
+from plate_env.cli import main
+from plate_env.episode import estimate_of, run_episode
+from plate_env.protocol import Agent, Probe
+from plate_env.suites import load_suite
+from plate_env_agents import load_agent
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "sweep_agent.py"
+SUITE = load_suite("atlas-v0")
+
+
+class Fixed(Agent):
+    """Probes at fixed frequencies with 1 s windows, then stops."""
+
+    name = "fixed"
+
+    def __init__(self, freqs=(14.0, 18.0, 22.0, 26.0, 30.0), amp=3.0, window=1.0) -> None:
+        self.freqs, self.amp, self.window = tuple(freqs), amp, window
+
+    def next_probe(self, history, obs=None):
+        k = len(history)
+        return Probe(self.freqs[k], self.amp, self.window) if k < len(self.freqs) else None
+
+
+def test_the_readme_example_agent_is_the_file_the_tests_run():
+    readme = (ROOT / "README.md").read_text()
+    block = re.search(r"```python\n(# examples/sweep_agent\.py\n.*?)```", readme, re.S)
+    assert block, "the README shows examples/sweep_agent.py in a python block starting with its path"
+    code = EXAMPLE.read_text()
+    body = code[code.index("import numpy"):]
+    assert block.group(1).split("\n", 1)[1] == body
+    assert len(body.strip().splitlines()) <= 25
+
+
+def test_example_agent_through_the_command_line(capsys):
+    rc = main(["bench", "--suite", "atlas-v0", "--agent", f"{EXAMPLE}:SweepAgent", "--limit", "3", "--json",
+               "--no-cache"])
+    out = json.loads(capsys.readouterr().out)
+    assert rc == 0 and out["suite"] == "atlas-v0" and out["budgets_s"] == [10.0, 20.0, 40.0]
+    (agent,) = out["agents"]
+    assert agent["label"].endswith("sweep_agent.py:SweepAgent") and agent["n"] == 3 and agent["limit"] == 3
+    top = agent["budgets"][-1]
+    assert top["no_estimate"]["value"] == 0.0 and 0.0 <= top["median_error"]["value"] < 0.2
+    assert top["probes_mean"] >= 3  # at least three stable probes before it can see the peak pass
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("examples/nope.py:A", "does not exist"),
+    (f"{EXAMPLE}:Missing", "no class 'Missing'.*SweepAgent"),
+    (f"{EXAMPLE}", "file.py:ClassName"),
+    ("grid:n", "key=value"),
+    ("gridd", "unknown agent"),
+    ("sb3:nowhere.zip", "no PPO model"),
+])
+def test_bad_agent_specs_are_refused_before_any_episode(spec, message, capsys):
+    assert main(["bench", "--suite", "atlas-v0", "--agent", spec, "--no-cache"]) == 2
+    err = capsys.readouterr().err
+    assert re.search(message, err) and err.count("\n") == 1
+
+
+def test_an_object_without_the_protocol_is_refused_naming_what_is_missing(tmp_path):
+    path = tmp_path / "bad.py"
+    path.write_text("class NotAnAgent:\n    name = 'x'\n    def reset(self, context, rng):\n        pass\n")
+    with pytest.raises(ValueError, match=r"next_probe"):
+        load_agent(f"{path}:NotAnAgent")
+
+
+def test_an_agent_answer_the_env_refuses_names_the_agent():
+    env = SUITE.make_env()
+    with pytest.raises(ValueError, match="agent 'fixed'.*A_p = 5"):
+        run_episode(env, Fixed(amp=5.0), seed=0)
+    env.close()
+
+
+def test_cli_bench_refuses_bad_budgets_and_suites(capsys):
+    assert main(["bench", "--suite", "atlas-v0", "--agent", "grid", "--budgets", "10,80", "--no-cache"]) == 2
+    assert "(0, 40]" in capsys.readouterr().err
+    assert main(["bench", "--suite", "nope-v0", "--agent", "grid", "--no-cache"]) == 2
+    assert "unknown suite" in capsys.readouterr().err
+
+
+def test_every_budget_is_read_from_one_run_as_separate_runs_would_give():
+    """The estimate at budget B from the long run equals that of a separate run cut at B (a deterministic agent
+    plays the same first probes), and an agent that stopped early keeps its final estimate at larger budgets."""
+    agent = load_agent("coarse_to_fine")
+    run = benchmark.evaluate(agent, SUITE, limit=2)
+    env = SUITE.make_env()
+    for ep, obj in zip(run.episodes, SUITE.objects, strict=False):
+        cum = np.cumsum(ep.probe_sim_s)
+        assert ep.n_at(cum[0] * 0.99) == 0 and not ep.estimate_at(cum[0] * 0.99).ok
+        for budget in (cum[2], cum[2] + 0.01, 0.5 * (cum[3] + cum[4])):
+            short = run_episode(env, load_agent("coarse_to_fine"), seed=obj.seed, options=obj.reset_options(),
+                                max_sim_s=budget)
+            k = int(np.sum(np.cumsum(short.probe_sim_s) <= budget))
+            cut = short.probes.subset(np.arange(len(short.probes)) < k)
+            assert k == ep.n_at(budget)
+            assert estimate_of(env, cut, "atlas").omega_n == ep.estimate_at(budget).omega_n
+        assert cum[-1] < SUITE.max_budget_s  # coarse_to_fine stopped on its own (12 probes) ...
+        final = ep.prefix[-1]
+        assert ep.estimate_at(SUITE.max_budget_s).omega_n == final.omega_n  # ... and keeps its last estimate
+    env.close()
+
+
+def test_episodes_stop_at_the_largest_budget():
+    run = benchmark.evaluate(load_agent("grid:n=30,method=atlas"), SUITE, limit=2)
+    for ep in run.episodes:
+        cum = np.cumsum(ep.probe_sim_s)
+        assert cum[-2] < SUITE.max_budget_s <= cum[-1]  # the probe that crosses the budget is the last one
+        assert ep.n_at(SUITE.max_budget_s) == len(cum) - 1
+
+
+def test_records_resume_and_name_the_agent(tmp_path):
+    cache = tmp_path / "bench.jsonl"
+    a = benchmark.evaluate(Fixed(), SUITE, limit=3, cache=cache)
+    assert len(cache.read_text().splitlines()) == 3
+    b = benchmark.evaluate(Fixed(), SUITE, limit=4, cache=cache)
+    assert len(cache.read_text().splitlines()) == 4  # only the fourth episode was played
+    assert [e.wall_s for e in b.episodes[:3]] == [e.wall_s for e in a.episodes]  # read back, not replayed
+    benchmark.evaluate(Fixed(freqs=(15.0, 19.0, 23.0)), SUITE, limit=2, cache=cache)
+    assert len(cache.read_text().splitlines()) == 6  # other options: another agent, its own records
+    with open(cache, "a") as fh:
+        fh.write('{"key": "torn')  # an interrupted write
+    c = benchmark.evaluate(Fixed(), SUITE, limit=4, cache=cache)
+    assert _outcome(c) == _outcome(b)
+
+
+def _outcome(run):
+    return [(e.index, e.probe_sim_s, e.probes, [benchmark._est_record(x) for x in e.prefix]) for e in run.episodes]
+
+
+def test_same_records_in_process_and_in_a_process_pool():
+    spec = "coarse_to_fine:n_coarse=4,n_fine=3"
+    here = benchmark.evaluate(load_agent(spec), SUITE, limit=4)
+    pool = benchmark.evaluate(functools.partial(load_agent, spec), SUITE, limit=4, executor="pool:2", chunk=1)
+    assert _outcome(here) == _outcome(pool)
+
+
+def test_summary_agrees_with_scoring_and_the_board_ranks_by_area():
+    runs = [benchmark.evaluate(load_agent(s), SUITE, limit=6, label=s) for s in ("coarse_to_fine", "grid")]
+    b = benchmark.board(runs)
+    by = {s.label: s for s in b["summaries"]}
+    grid = by["grid"]
+    errs = [e.estimate_at(20.0).relative_error(e.omega_n_true) for e in runs[1].episodes]
+    assert grid.at(20.0).scores.median_error.value == pytest.approx(float(np.median(errs)))
+    assert grid.at(10.0).scores.no_estimate.value == 1.0  # the paper's fit needs more of its sweep than 10 s
+    assert b["leader"] == min(by.values(), key=lambda s: s.area.value).label == "coarse_to_fine"
+    curve = np.minimum(np.array(by["coarse_to_fine"].curve_median), 1.0)
+    assert by["coarse_to_fine"].area.value == pytest.approx(float(np.mean(0.5 * (curve[1:] + curve[:-1]))))
+    text = benchmark.leaderboard_markdown(b["summaries"], b["paired"], b["leader"])
+    assert text.index("| 1 | coarse_to_fine") < text.index("| 2 | grid")
+    assert "Paired differences against the leader, `coarse_to_fine`" in text
+    self_diff = benchmark.compare(runs[0], runs[0], 20.0)
+    assert (self_diff.value, self_diff.lo, self_diff.hi) == (0.0, 0.0, 0.0)
+    d = json.loads(json.dumps(benchmark.board_to_dict(b)))
+    assert d["leader"] == "coarse_to_fine" and math.isfinite(d["agents"][0]["area"]["value"])
+
+
+def test_bench_plot_is_written_after_the_table(tmp_path, capsys):
+    plot = tmp_path / "curves.png"
+    md = tmp_path / "board.md"
+    assert main(["bench", "--suite", "atlas-v0", "--agent", "coarse_to_fine", "ppo", "--limit", "2", "--plot",
+                 str(plot), "--markdown", str(md), "--cache", str(tmp_path / "c.jsonl"), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert out.index("| rank |") < out.index(f"plot: {plot}") and plot.stat().st_size > 1000
+    assert md.read_text() in out

@@ -1,0 +1,63 @@
+"""Packaging: the agents install under the project's namespace (``plate_env_agents``, from the folder agents/), the
+package list is complete, heavy imports stay lazy."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_package_list_names_every_package():
+    cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    found = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "plate_env").rglob("__init__.py")}
+    assert set(cfg["packages"]) == found | {"plate_env_agents"}
+    assert cfg["package-dir"] == {"plate_env_agents": "agents"}
+
+
+def test_nothing_imports_the_generic_name_agents():
+    bad = []
+    for folder in ("plate_env", "agents", "experiments", "tests", "examples"):
+        for path in (ROOT / folder).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text())):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else (
+                    [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+                bad += [f"{path.relative_to(ROOT)}: {n}" for n in names if n.split(".")[0] == "agents"]
+    assert bad == []
+
+
+def test_installed_names_and_lazy_heavy_imports(tmp_path):
+    """Outside the source tree: plate_env_agents imports, ``agents`` does not exist, and the shipped PPO policy
+    acts without importing torch or Stable-Baselines3 (its numpy export)."""
+    code = ("import importlib.util, sys, numpy as np\n"
+            "import plate_env_agents\n"
+            "assert importlib.util.find_spec('agents') is None\n"
+            "a = plate_env_agents.make_agent('ppo')\n"
+            "from plate_env.env import PlateRotationEnv\n"
+            "from plate_env.protocol import ProbeContext\n"
+            "env = PlateRotationEnv(physics='atlas')\n"
+            "obs, _ = env.reset(seed=0)\n"
+            "a.reset(ProbeContext.from_env(env), np.random.default_rng(0))\n"
+            "act = a.next_probe(env.unwrapped.table(), obs)\n"
+            "print(a.backend, 'torch' in sys.modules, 'stable_baselines3' in sys.modules, act.shape)\n")
+    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["numpy", "False", "False", "(4,)"]
+
+
+@pytest.mark.slow
+def test_a_regular_wheel_holds_the_agents_under_their_namespace(tmp_path):
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w",
+                    str(tmp_path), str(ROOT)], check=True)
+    (wheel,) = tmp_path.glob("plate_env-*.whl")
+    names = zipfile.ZipFile(wheel).namelist()
+    assert "plate_env_agents/models/ppo_plate.zip" in names and "plate_env_agents/models/ppo_plate.npz" in names
+    assert "plate_env/data/suites/tilelink-v0.json" in names and "plate_env/data/forward_models.json" in names
+    assert not any(n.startswith("agents/") for n in names)
