@@ -43,7 +43,8 @@ gap is the transfer to live physics. Restricting windows to 1-2 s (the atlas ans
 of a 1 s window, and live short windows scatter more, agents/bayes.py) did not help: at the default cost the
 policy then stops after 9-10 probes of 1.7 s; at a lower cost it probes longer and gets the best p90 but costs
 twice the simulated time. A2C/SAC were not tried (time).
-Correlating instability along f_p within an object (experiments/train_rl.py, ``correlated_instability``) is what
+Correlating instability along f_p within an object (the env argument ``physics_options={"instability_rho": 0.9,
+"instability_corr_hz": 2.0}``, experiments/hyperparams/ppo.yml) is what
 the shipped policy was trained with. Single training seeds: differences of ~1 point in median error are within
 the spread of 50 objects.
 """

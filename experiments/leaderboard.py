@@ -85,7 +85,9 @@ def main() -> None:
     print(table, flush=True)
     benchmark.plot_curves(b["summaries"], str(stem.with_suffix(".png")))
     if args.readme:
-        splice_readme(table, suite.name)
+        short = benchmark.leaderboard_markdown(b["summaries"], b["paired"], b["leader"], detail=False,
+                                               note=note + f" Every metric per budget: `{stem.with_suffix('.md')}`.")
+        splice_readme(short, suite.name)
 
 
 def _load() -> str:

@@ -475,9 +475,9 @@ def paired_table(runs: dict[str, AgentRun], leader: str, budgets: Sequence[float
 
 
 def leaderboard_markdown(summaries: Sequence[AgentSummary], paired: dict, leader: str | None = None,
-                         note: str = "") -> str:
-    """The leaderboard: ranked agents with their errors at each budget and intervals, then every metric per budget,
-    then the paired differences against the leader."""
+                         note: str = "", detail: bool = True) -> str:
+    """The leaderboard: ranked agents with their errors at each budget and intervals, then (``detail``) every metric
+    per budget, then the paired differences against the leader."""
     ranked = rank(summaries)
     s0 = ranked[0]
     budgets = [b.budget_s for b in s0.budgets]
@@ -498,7 +498,7 @@ def leaderboard_markdown(summaries: Sequence[AgentSummary], paired: dict, leader
                      f"{_pct(b.scores.coverage68, 0)} / {_pct(b.scores.coverage95, 0)} | {b.probes:.1f} | "
                      f"{s.seconds_per_decision.value:.3g} [{s.seconds_per_decision.lo:.3g}, "
                      f"{s.seconds_per_decision.hi:.3g}] |")
-    for x in budgets:
+    for x in budgets if detail else ():
         lines += ["", f"### Budget {x:g} simulated s", "",
                   "| agent | median error | p90 error | no estimate | coverage 68 % | coverage 95 % "
                   "| median 95 % width | probes (mean) | probing s (median) |", "|---|---|---|---|---|---|---|---|---|"]
@@ -509,7 +509,8 @@ def leaderboard_markdown(summaries: Sequence[AgentSummary], paired: dict, leader
                          f"{_pct(sc.coverage68, 0)} | {_pct(sc.coverage95, 0)} | {_pct(sc.width95)} | {b.probes:.1f}"
                          f" | {b.sim_s:.1f} |")
     if paired and leader:
-        lines += ["", f"### Paired differences against the leader, `{leader}` (same episodes)", "",
+        lines += ["", f"{'###' if detail else '**'} Paired differences against the leader, `{leader}` (same "
+                  f"episodes){'' if detail else '**'}", "",
                   "Median over objects of (agent's error - leader's error), errors capped at 100 %, in percentage "
                   "points with 95 % bootstrap intervals; an interval above 0: the leader is more accurate there.", "",
                   "| agent | " + " | ".join(f"@ {b:g} s" for b in budgets) + " |",

@@ -178,3 +178,32 @@ def test_bench_plot_is_written_after_the_table(tmp_path, capsys):
     out = capsys.readouterr().out
     assert out.index("| rank |") < out.index(f"plot: {plot}") and plot.stat().st_size > 1000
     assert md.read_text() in out
+
+
+def test_ctrl_c_keeps_the_finished_episodes_and_a_rerun_resumes(tmp_path, monkeypatch, capsys):
+    cache = tmp_path / "c.jsonl"
+    real = benchmark.play
+    played = []
+
+    def interrupted(*args, **kw):
+        if len(played) == 2:
+            raise KeyboardInterrupt
+        played.append(1)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(benchmark, "play", interrupted)
+    argv = ["bench", "--suite", "atlas-v0", "--agent", "coarse_to_fine", "--limit", "4", "--cache", str(cache),
+            "--no-progress", "--chunk", "1"]
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert "after 2 episodes" in err and str(cache) in err and len(cache.read_text().splitlines()) == 2
+    monkeypatch.setattr(benchmark, "play", real)
+    assert main(argv) == 0 and len(cache.read_text().splitlines()) == 4
+
+
+@pytest.mark.slow
+def test_pybullet_suite_plays_an_episode():
+    run = benchmark.evaluate(load_agent("coarse_to_fine:n_coarse=4,n_fine=2,width_hz=2.0"), "pybullet-v0", limit=1)
+    (ep,) = run.episodes
+    assert 1 <= len(ep.probe_sim_s) <= 6 and sum(ep.probe_sim_s) > 0
+    assert len(ep.prefix) == len(ep.probe_sim_s)

@@ -4,6 +4,7 @@ package list is complete, heavy imports stay lazy."""
 from __future__ import annotations
 
 import ast
+import os
 import subprocess
 import sys
 import zipfile
@@ -61,3 +62,16 @@ def test_a_regular_wheel_holds_the_agents_under_their_namespace(tmp_path):
     assert "plate_env_agents/models/ppo_plate.zip" in names and "plate_env_agents/models/ppo_plate.npz" in names
     assert "plate_env/data/suites/tilelink-v0.json" in names and "plate_env/data/forward_models.json" in names
     assert not any(n.startswith("agents/") for n in names)
+    target = tmp_path / "site"
+    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],
+                   check=True)
+    code = ("import importlib.util, plate_env_agents\n"
+            "from plate_env.benchmark import evaluate\n"
+            "assert importlib.util.find_spec('agents') is None\n"
+            "run = evaluate(plate_env_agents.load_agent('ppo'), 'atlas-v0', limit=1)\n"
+            f"print(plate_env_agents.__file__.startswith({str(target)!r}), "
+            "plate_env_agents.load_agent('ppo').backend)\n")
+    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(target)})
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["True", "numpy"]  # the installed copy, its package data, no source tree
