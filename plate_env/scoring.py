@@ -57,7 +57,18 @@ class Scores:
 
 
 def _percentile(x: np.ndarray, q: float, axis: int = -1) -> np.ndarray:
-    return np.percentile(x, q, axis=axis, method="linear")
+    """numpy's linear percentile, with infinite errors (no estimate) handled: a quantile that lies on an order
+    statistic is that statistic, one that lies beyond a finite and an infinite one, or between two infinite ones, is
+    inf (numpy gives NaN for some of these: inf - inf, 0 * inf)."""
+    with np.errstate(invalid="ignore"):
+        out = np.percentile(x, q, axis=axis, method="linear")
+    bad = np.isnan(out)
+    if np.any(bad) and not np.any(np.isnan(x)):
+        n = np.shape(x)[axis]
+        on_statistic = (q / 100.0 * (n - 1)) % 1.0 == 0.0
+        fix = np.percentile(x, q, axis=axis, method="lower") if on_statistic else np.inf
+        out = np.where(bad, fix, out)
+    return out
 
 
 def per_object(truth: Sequence[float], estimates: Sequence) -> dict[str, np.ndarray]:

@@ -75,3 +75,14 @@ def test_identical_values_give_a_point_interval_and_no_estimate_counts_as_infini
 def test_bootstrap_refuses_no_objects():
     with pytest.raises(ValueError, match="no objects"):
         bootstrap([], np.mean, np.random.default_rng(0))
+
+
+def test_quantiles_with_no_estimates_are_inf_or_an_estimate_never_nan():
+    from plate_env.scoring import _percentile
+
+    x = np.array([0.01, 0.02, math.inf, math.inf])
+    assert _percentile(x, 100 / 3) == 0.02  # exactly on an order statistic (numpy: 0 * inf = NaN)
+    assert _percentile(x, 90) == math.inf  # between two no-estimates (numpy: inf - inf = NaN)
+    assert _percentile(x, 50) == math.inf and _percentile(x, 20) == pytest.approx(0.016)
+    s = bootstrap(np.r_[np.full(90, 0.05), np.full(10, math.inf)], lambda v: _percentile(v, 90), np.random.default_rng(0))
+    assert not any(math.isnan(v) for v in (s.value, s.lo, s.hi))
