@@ -215,21 +215,34 @@ class _Same:
         return self.agent
 
 
-#: This process's envs, by suite content hash (workers keep theirs between chunks).
+#: This process's envs, by suite content hash, and agents, by their pickled factory (a worker keeps both between
+#: chunks: loading a policy through torch takes seconds; an agent starts every episode afresh by ``reset``).
 _ENVS: dict[str, object] = {}
+_AGENTS: dict[bytes, object] = {}
+
+
+def _agent_of(factory):
+    if isinstance(factory, _Same):
+        return factory()
+    try:
+        key = pickle.dumps(factory)
+    except Exception:  # noqa: BLE001 - an unpicklable factory only runs in this process: no reuse across chunks
+        return factory()
+    if key not in _AGENTS:
+        _AGENTS.clear()  # one agent at a time
+        _AGENTS[key] = factory()
+    return _AGENTS[key]
 
 
 def run_episode_chunk(backend, items: Sequence[tuple]) -> list[Episode]:
     """Executor task: play episodes ``(agent factory, suite, index, max budget)`` in this process (the env of a
-    suite is built once per process; the agent once per chunk)."""
+    suite and the agent of a factory are built once per process)."""
     out = []
-    agent = None
     for factory, suite, index, budget in items:
         env = _ENVS.get(suite.sha256)
         if env is None:
             env = _ENVS[suite.sha256] = suite.make_env()
-        agent = agent or factory()
-        out.append(play(env, agent, suite.objects[index], index, budget))
+        out.append(play(env, _agent_of(factory), suite.objects[index], index, budget))
     return out
 
 

@@ -84,5 +84,6 @@ def test_quantiles_with_no_estimates_are_inf_or_an_estimate_never_nan():
     assert _percentile(x, 100 / 3) == 0.02  # exactly on an order statistic (numpy: 0 * inf = NaN)
     assert _percentile(x, 90) == math.inf  # between two no-estimates (numpy: inf - inf = NaN)
     assert _percentile(x, 50) == math.inf and _percentile(x, 20) == pytest.approx(0.016)
-    s = bootstrap(np.r_[np.full(90, 0.05), np.full(10, math.inf)], lambda v: _percentile(v, 90), np.random.default_rng(0))
+    s = bootstrap(np.r_[np.full(90, 0.05), np.full(10, math.inf)], lambda v: _percentile(v, 90),
+                  np.random.default_rng(0))
     assert not any(math.isnan(v) for v in (s.value, s.lo, s.hi))

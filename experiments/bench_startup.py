@@ -1,0 +1,126 @@
+"""Start-up costs, measured in fresh processes: the PPO agent to its first action, and the first PyBullet probe.
+
+    python experiments/bench_startup.py [--repeats 5] [--no-pybullet]
+
+PPO: ``make_agent("ppo")`` then one action on an atlas env, in ``--repeats`` fresh interpreters, with the agent's
+numpy forward pass (the shipped export) and, for comparison, through Stable-Baselines3 (torch); medians and their
+ratio. PyBullet: one fresh process runs an env's first step and splits it into the omega_n calibration of the
+object (ring-downs), the scene build and the probe itself. Writes experiments/results/bench_startup.md (the load
+average is in it: wall times on a shared machine are noisy).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+PPO_CODE = """
+import time, json
+t0 = time.perf_counter()
+import numpy as np
+from plate_env_agents import make_agent
+from plate_env.env import PlateRotationEnv
+from plate_env.protocol import ProbeContext
+t1 = time.perf_counter()
+agent = make_agent("ppo")
+if {force_sb3}:
+    agent._numpy = None
+    agent._sb3 = agent._load_sb3()
+t2 = time.perf_counter()
+env = PlateRotationEnv(physics="atlas")
+obs, _ = env.reset(seed=0)
+t3 = time.perf_counter()
+agent.reset(ProbeContext.from_env(env), np.random.default_rng(0))
+agent.next_probe(env.table(), obs)
+t4 = time.perf_counter()
+print(json.dumps({{"imports": t1 - t0, "make_agent": t2 - t1, "env": t3 - t2, "first_action": t4 - t3,
+                   "agent_total": (t2 - t1) + (t4 - t3), "backend": agent.backend}}))
+"""
+
+PYBULLET_CODE = """
+import time, json, math
+import numpy as np
+from plate_env.env import PlateRotationEnv
+from plate_env.physics.pybullet_sheet import calibrate, scene
+t0 = time.perf_counter()
+env = PlateRotationEnv(physics="pybullet", amplitudes_deg=(3.0,), f_band_hz=(10.0, 26.0), settle_s=0.3,
+                       measure_range_s=(0.4, 1.0))
+env.reset(seed=0, options={"omega_n": 15 * math.pi, "alpha": 0.7})
+t1 = time.perf_counter()
+cal = {"s": 0.0, "n": 0}
+ring = calibrate.ringdown_omega_n
+def timed(*a, **k):
+    t = time.perf_counter()
+    try:
+        return ring(*a, **k)
+    finally:
+        cal["s"] += time.perf_counter() - t
+        cal["n"] += 1
+calibrate.ringdown_omega_n = timed
+build = {"s": 0.0}
+init = scene.SheetScene.__init__
+def timed_init(self, *a, **k):
+    t = time.perf_counter()
+    try:
+        return init(self, *a, **k)
+    finally:
+        build["s"] += time.perf_counter() - t
+scene.SheetScene.__init__ = timed_init
+t2 = time.perf_counter()
+_, _, _, _, info = env.step(env.encode_action(18.0, 3.0, 0.6))
+t3 = time.perf_counter()
+print(json.dumps({"env_and_reset": t1 - t0, "first_step": t3 - t2, "ringdowns": cal["n"],
+                  "calibration": cal["s"] - 0.0, "scene_build": build["s"], "sim_s": info["last_probe"]["sim_s"]}))
+"""
+
+
+def run(code: str) -> dict:
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--no-pybullet", action="store_true")
+    args = ap.parse_args()
+    load = os.getloadavg()[0]
+    rows = {}
+    for label, force in (("numpy (shipped export)", False), ("Stable-Baselines3 (torch)", True)):
+        rs = [run(PPO_CODE.format(force_sb3=force)) for _ in range(args.repeats)]
+        rows[label] = {k: statistics.median(r[k] for r in rs) for k in ("imports", "make_agent", "first_action",
+                                                                         "agent_total")}
+        print(label, rows[label], flush=True)
+    lines = ["# Start-up costs", "", f"Regenerate: `python experiments/bench_startup.py`. Load average {load:.1f} at "
+             f"the start on the shared 2-core machine (wall times scale with it).", "",
+             f"## PPO agent: `make_agent(\"ppo\")` to its first action (median of {args.repeats} fresh processes)", "",
+             "| forward pass | import plate_env + agents, s | make_agent, s | first action, s | agent total, s |",
+             "|---|---|---|---|---|"]
+    for label, r in rows.items():
+        lines.append(f"| {label} | {r['imports']:.2f} | {r['make_agent']:.3f} | {r['first_action']:.4f} | "
+                     f"{r['agent_total']:.3f} |")
+    a, b = (rows[k]["agent_total"] for k in rows)
+    lines += ["", f"Ratio (torch / numpy): {b / a:.0f}x."]
+    if not args.no_pybullet:
+        p = run(PYBULLET_CODE)
+        print(p, flush=True)
+        probe = p["first_step"] - p["calibration"] - p["scene_build"]
+        lines += ["", "## PyBullet: an env's first step (one fresh process, omega_n = 15 pi, 18 Hz, 0.6 s window)", "",
+                  "| env + reset, s | first step, s | of which omega_n calibration (ring-downs) | scene builds | "
+                  "the probe | simulated s |", "|---|---|---|---|---|---|",
+                  f"| {p['env_and_reset']:.2f} | {p['first_step']:.1f} | {p['calibration']:.1f} s "
+                  f"({p['ringdowns']} ring-downs) | {p['scene_build']:.2f} s | {probe:.1f} s | {p['sim_s']:.2f} |",
+                  "", "The calibration of a new object's spring stiffness by ring-downs (cached per process) is what "
+                  "the first step costs beyond the scene build and the probe itself; see the report of issue 14."]
+    out = Path("experiments/results/bench_startup.md")
+    out.write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
