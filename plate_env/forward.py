@@ -204,7 +204,10 @@ def forward_model_names() -> list[str]:
 def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardModel:
     """A shipped forward model conditioned on the lab's known inputs (default: the paper's B_p 3 mm, 13.6 g,
     80 mm). ``name`` is ``"<physics>/<model>"`` (e.g. ``"tilelink/pointmass"``: the model that made the data is
-    known, as in simulation) or ``"lab"`` (data of unknown origin)."""
+    known, as in simulation) or ``"lab"`` (data of unknown origin).
+
+    A member with no atlas for these inputs is left out and named in the model's ``provenance["left_out"]`` (the
+    estimate's member list shows who answered); ValueError, naming what exists, when no member is left."""
     from plate_env.atlas import load_atlas_file
 
     registry = _read_registry()
@@ -212,12 +215,19 @@ def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardMo
         raise ValueError(f"no forward model {name!r}; shipped: {sorted(registry)}")
     entry = registry[name]
     known = known or KnownInputs()
-    members = []
+    members, left_out = [], []
     for m in entry["members"]:
-        atlas = condition([load_atlas_file(f) for f in m["atlases"]], known)
+        try:
+            atlas = condition([load_atlas_file(f) for f in m["atlases"]], known)
+        except ValueError as exc:
+            left_out.append(str(exc))
+            continue
         sigma = m.get("sigma_model")
         if sigma is None:  # the atlas's own held-out measurement
             sigma = atlas.provenance["sigma_model_deg_s"]
         members.append(Member(atlas, float(sigma), float(m.get("weight", 1.0)), float(m.get("blur", 0.0))))
+    if not members:
+        raise ValueError(f"forward model {name!r} has no member for these known inputs: {'; '.join(left_out)}")
     return ForwardModel(name=name, members=tuple(members), sigma_eps=float(entry["sigma_eps"]),
-                        pooling=entry.get("pooling", "evidence"), provenance=entry.get("provenance", {}))
+                        pooling=entry.get("pooling", "evidence"),
+                        provenance={**entry.get("provenance", {}), "left_out": left_out})
