@@ -201,6 +201,11 @@ def forward_model_names() -> list[str]:
     return sorted(_read_registry())
 
 
+def registry_member_atlases(name: str) -> list[list[str]]:
+    """The atlas files of each member of a shipped forward model (none if it is not shipped)."""
+    return [list(m["atlases"]) for m in _read_registry().get(name, {}).get("members", [])]
+
+
 def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardModel:
     """A shipped forward model conditioned on the lab's known inputs (default: the paper's B_p 3 mm, 13.6 g,
     80 mm). ``name`` is ``"<physics>/<model>"`` (e.g. ``"tilelink/pointmass"``: the model that made the data is
