@@ -22,6 +22,8 @@ import numpy as np
 from plate_env.atlas import Atlas
 
 POOLINGS = ("evidence", "fixed")
+#: The posterior grid reaches this many discrepancies (sigma_eps, log omega) beyond the members' omega_n range.
+PAD_SIGMAS = 3.0
 
 
 @dataclass(frozen=True)
@@ -91,13 +93,16 @@ class ForwardModel:
                 min(float(m.atlas.alpha[-1]) for m in self.members))
 
     def grid(self, n_omega: int, n_alpha: int) -> tuple[np.ndarray, np.ndarray]:
-        """The posterior grid: log-spaced omega_n (rad/s) over :attr:`omega_range`, uniform alpha (rad)."""
+        """The posterior grid: log-spaced omega_n (rad/s), ``n_omega`` points over :attr:`omega_range` and, at the
+        same spacing, :data:`PAD_SIGMAS` discrepancies beyond each end (the truth may lie outside the range the
+        models cover by the discrepancy); uniform alpha (rad)."""
         lo, hi = self.omega_range
         a_lo, a_hi = self.alpha_range
-        return np.geomspace(lo, hi, n_omega), np.linspace(a_lo, a_hi, n_alpha)
+        step = math.log(hi / lo) / (n_omega - 1)
+        k = math.ceil(PAD_SIGMAS * self.sigma_eps / step - 1e-9) if self.sigma_eps > 0 else 0
+        return (np.geomspace(lo * math.exp(-k * step), hi * math.exp(k * step), n_omega + 2 * k),
+                np.linspace(a_lo, a_hi, n_alpha))
 
-    def with_sigma_eps(self, sigma_eps: float) -> ForwardModel:
-        return ForwardModel(self.name, self.members, sigma_eps, self.pooling, self.provenance)
 
 
 # ----------------------------------------------------------------------------------------------- known inputs

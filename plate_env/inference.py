@@ -139,7 +139,7 @@ def member_log_likelihood(member: Member, table: ProbeTable, w: np.ndarray, a: n
 # ----------------------------------------------------------------------------------------------- posterior
 def _smooth_log_omega(prob: np.ndarray, sigma_steps: float) -> np.ndarray:
     """Convolve along axis 0 (a uniform log-omega grid) with a normal of ``sigma_steps`` grid steps; mass pushed
-    beyond the grid is lost (the prior ends there)."""
+    beyond the grid is lost (the grid reaches ``PAD_SIGMAS`` discrepancies beyond the models' range)."""
     from scipy.ndimage import gaussian_filter1d
 
     return gaussian_filter1d(prob, sigma_steps, axis=0, mode="constant", cval=0.0, truncate=5.0)
@@ -164,9 +164,11 @@ def pool(fm: ForwardModel, w: np.ndarray, a: np.ndarray, log_likes: Sequence[np.
     compare (default ``log_likes``: every member describes every probe)."""
     step = math.log(w[1] / w[0])
     sigma = max(fm.sigma_eps, STEP_FLOOR * step)
-    parts, log_z = [], []
+    parts, raw, log_z = [], [], []
     for i, (m, ll) in enumerate(zip(fm.members, log_likes, strict=True)):
         inside = member_coverage(m, w, a)
+        own = np.exp(np.where(inside, ll, -np.inf) - np.max(ll, where=inside, initial=-np.inf)).sum(1)
+        raw.append(own / own.sum())
         like, lz = _log_evidence(ll, inside, sigma / step)
         if evidence_likes is not None:
             lz = _log_evidence(evidence_likes[i], inside, sigma / step)[1]
@@ -184,7 +186,8 @@ def pool(fm: ForwardModel, w: np.ndarray, a: np.ndarray, log_likes: Sequence[np.
     return Posterior(omega_n=w, alpha=a, prob=prob, members=tuple(m.label for m in fm.members),
                      member_weights=tuple(float(x) for x in wts),
                      skipped=tuple(skipped) or (0,) * len(fm.members), sigma_conv=sigma,
-                     identifiable_range=fm.identifiable_range)
+                     identifiable_range=fm.identifiable_range,
+                     model_omega=sum(wt * r for wt, r in zip(wts, raw, strict=True)))
 
 
 def posterior(fm: ForwardModel, table: ProbeTable, n_omega: int = N_OMEGA, n_alpha: int = N_ALPHA) -> Posterior:

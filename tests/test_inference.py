@@ -176,6 +176,28 @@ def test_a_truth_outside_the_identifiable_range_is_reported_as_a_bound(toy_atlas
     assert inside.ok and inside.bound is None
 
 
+def test_a_discrepancy_lets_the_posterior_reach_beyond_the_range_without_making_a_bound(toy_atlas):
+    """With sigma_eps the truth may lie outside the models' range by the discrepancy: the grid reaches PAD_SIGMAS
+    of it beyond each end (no mass lost at the edge), and an object well inside the range, near its top, stays an
+    estimate: the edge rule reads the models' own posterior, not the one widened by the discrepancy."""
+    from plate_env.forward import PAD_SIGMAS
+
+    atlas = toy_atlas()  # omega_n 2pi-40pi
+    fm = _fm(atlas, sigma_eps=0.3)
+    w, _ = fm.grid(N_OMEGA, N_ALPHA)
+    assert w[0] <= 2 * math.pi * math.exp(-PAD_SIGMAS * 0.3) * 1.0001
+    assert w[-1] >= 40 * math.pi * math.exp(PAD_SIGMAS * 0.3) * 0.9999
+    steps = np.diff(np.log(w))
+    assert np.ptp(steps) < 1e-9 and steps[0] == pytest.approx(math.log(20) / (N_OMEGA - 1))
+    table = _sweep_from_atlas(atlas, 28 * math.pi, 0.7, np.arange(12.0, 40.0, 1.0), np.random.default_rng(5))
+    est = identify_atlas(table, fm)
+    assert est.ok and est.bound is None, est.reason
+    assert est.omega_n_ci95[1] > 40 * math.pi  # the discrepancy reaches past the top node
+    assert est.omega_n == pytest.approx(28 * math.pi, rel=0.15)
+    # without the padding, mass beyond the range would be cut: the interval would end at the top node
+    assert identify_atlas(table, _fm(atlas)).omega_n_ci95[1] <= 40 * math.pi * 1.0001
+
+
 def test_a_coherent_discrepancy_widens_the_posterior(toy_atlas):
     atlas = toy_atlas()
     table = _sweep_from_atlas(atlas, 10 * math.pi, 0.7, np.arange(14.0, 36.0, 2.0), np.random.default_rng(3))
