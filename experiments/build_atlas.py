@@ -67,9 +67,8 @@ def make_backend(physics_name: str, model: str, nuisance: Nuisance | None = None
     """The backend's description, and the model name its atlas is filed under (tilelink: the model; else the
     physics name). ``nuisance``: tile-link joint and contact values other than the defaults."""
     if physics_name == "tilelink":
-        if nuisance is not None:
-            return BackendSpec.of("tilelink", **nuisance.tilelink_options(model)), model
-        return BackendSpec.of("tilelink", model=model), model
+        options = nuisance.tilelink_options(model) if nuisance is not None else {"model": model}
+        return BackendSpec.of("tilelink", **options, **kw), model
     if physics_name == "pybullet":
         return BackendSpec.of("pybullet", n_workers=1, **kw), physics_name
     return BackendSpec.of(physics_name), physics_name
@@ -128,6 +127,8 @@ def main() -> None:
     add_executor_argument(ap)
     ap.add_argument("--nuisance", default=None, help="tile-link joint/contact values, e.g. "
                     "'zeta_bending=0.05,k_inplane=1000' (plate_env.nuisance.Nuisance fields)")
+    ap.add_argument("--backend-option", action="append", default=[], metavar="KEY=VALUE",
+                    help="a backend option, e.g. n_layer=150 or dt=4e-4 for pybullet (repeatable)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--held-out", type=int, default=None,
@@ -144,17 +145,24 @@ def main() -> None:
             nuisance = Nuisance(**{k.strip(): float(v) for k, v in (kv.split("=") for kv in args.nuisance.split(","))})
         except (TypeError, ValueError) as exc:
             ap.error(f"--nuisance {args.nuisance!r}: {exc}")
-    backend, model = make_backend(args.physics, args.model, nuisance)
+    options = {}
+    for kv in args.backend_option:
+        key, _, value = kv.partition("=")
+        try:
+            options[key.strip()] = int(value) if value.strip().lstrip("-").isdigit() else float(value)
+        except ValueError:
+            ap.error(f"--backend-option {kv!r}: expected KEY=NUMBER")
+    backend, model = make_backend(args.physics, args.model, nuisance, **options)
     physics = backend.build()  # read-only here: its settings for the provenance (the executor runs its own)
     executor = make_executor(args.executor, backend)
     tag = args.name or f"{args.physics}_{model}"
     t0 = time.perf_counter()
-    # object-major order with ascending f_p inside (sweeps) for the pybullet grid: its backend carries the sheet's
-    # state over a sequence of probes of one object; the tile-link order (f_p outermost) is kept as it was.
-    # PyBullet: centred sweeps (one scene per sequence); its placement spread is measured separately
+    # object-major order with ascending f_p inside (sweeps) for PyBullet: its backend carries the sheet's state
+    # over a sequence of probes of one object with one placement (a new placement starts a new scene); the
+    # tile-link order (f_p outermost) is kept as it was. Every probe is placed at random (seeded).
     try:
         res = run_grid(backend, spec_grid, args.repeats, args.seed, f"experiments/cache/atlas_{tag}.jsonl",
-                       executor=executor, chunk=args.chunk, placed=args.physics != "pybullet",
+                       executor=executor, chunk=args.chunk, placed=True,
                        sweeps=args.physics == "pybullet")
         _finish(args, grid, spec_grid, backend, physics, model, tag, res, executor, t0, n_held)
     finally:

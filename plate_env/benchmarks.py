@@ -91,7 +91,8 @@ class EvalSet:
     Objects come from ``prior_objects(n, default_rng(seed))``, placements from ``default_rng(seed + 1)`` (the same
     draws at every amplitude), and, with ``nuisance``, each object's unknown joint and contact values from
     ``plate_env.nuisance.PRIOR`` with ``default_rng(seed + 2)``. ``source`` names the backend for caches and
-    reports (e.g. ``"tilelink_pointmass"``).
+    reports (e.g. ``"tilelink_pointmass"``); ``omega_range_pi`` narrows the prior for a model that cannot make
+    every object (the PyBullet sheet folds below ~5pi).
     """
 
     source: str
@@ -102,9 +103,10 @@ class EvalSet:
     settle_s: float = 0.5
     measure_s: float = 1.0
     nuisance: bool = False
+    omega_range_pi: tuple[float, float] = PRIOR_OMEGA_PI
 
     def objects(self) -> list[ObjectSpec]:
-        return prior_objects(self.n, np.random.default_rng(self.seed))
+        return prior_objects(self.n, np.random.default_rng(self.seed), self.omega_range_pi)
 
     def nuisances(self) -> list | None:
         """Each object's :class:`plate_env.nuisance.Nuisance` (None without ``nuisance``)."""

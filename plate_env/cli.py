@@ -220,7 +220,8 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--forward", default="lab", help="atlas method: the forward model, 'lab' (data of unknown "
                    "origin: every physics and the unknown joint/contact values integrated over) or the simulator "
                    "that made the data, e.g. 'tilelink/pointmass'")
-    f.add_argument("--physics", default="tilelink", help="lorentz method: whose calibration (tilelink, paper, ...)")
+    f.add_argument("--physics", default="lab", help="lorentz method: whose Eq. (10) calibration: lab (every model "
+                   "pooled, default), tilelink (with --model), paper (the paper's coefficients)")
     f.add_argument("--model", default=None, help="lorentz method: tilelink model of the calibration (pointmass)")
     f.add_argument("--plot", default=None, help="write a PNG of data, fitted curve and posterior (after the results)")
     f.add_argument("--json", action="store_true", help="print one JSON document")
@@ -414,7 +415,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     if args.method == "atlas" and args.forward not in forward_model_names():
         raise CliError(f"--forward {args.forward!r}: choose one of {forward_model_names()}")
     table = read_lab_csv(args.csv, a_p_deg=args.amp)
-    model = args.model or "pointmass"
+    model = args.model or ("lab" if args.physics == "lab" else "pointmass")
     est = identify(table, method=args.method, physics=args.physics, model=model, forward=args.forward, known=known)
     if args.json:
         print(json.dumps({"file": str(args.csv), "physics": args.physics, "model": model, **est.to_dict()}),

@@ -62,6 +62,8 @@ class Posterior:
         skipped: per member, probes outside its domain (left out of its likelihood).
         sigma_conv: the log-omega smoothing applied (the coherent discrepancy, at least half a grid step).
         identifiable_range: the omega_n range (rad/s) every member covers.
+        model_omega: the members' pooled marginal over omega_n before the discrepancy smoothing (what the models
+            themselves say; the edge rule reads it), None to use the posterior's own marginal.
     """
 
     omega_n: np.ndarray
@@ -72,6 +74,7 @@ class Posterior:
     skipped: tuple[int, ...] = ()
     sigma_conv: float = 0.0
     identifiable_range: tuple[float, float] = (0.0, math.inf)
+    model_omega: np.ndarray | None = None
 
     def marginal_omega(self) -> np.ndarray:
         return self.prob.sum(1)
@@ -90,12 +93,13 @@ class Posterior:
                         floor=float(self.alpha[1] - self.alpha[0]) if self.alpha.size > 1 else 0.0)
 
     def edge(self) -> str | None:
-        """``"below"`` / ``"above"`` when more than :data:`EDGE_MASS` of the posterior lies beyond the identifiable
-        range or within two smoothing widths of its edge, else None."""
-        p = self.marginal_omega()
+        """``"below"`` / ``"above"`` when more than :data:`EDGE_MASS` of the models' own posterior (before the
+        discrepancy smoothing, which only widens it) lies beyond the identifiable range or within one grid step of
+        its edge, else None: the models would explain the data better outside the range they cover."""
+        p = self.marginal_omega() if self.model_omega is None else self.model_omega
         lw = np.log(self.omega_n)
         lo, hi = self.identifiable_range
-        margin = 2 * self.sigma_conv
+        margin = float(lw[1] - lw[0]) if lw.size > 1 else 0.0
         below = float(p[lw <= math.log(lo) + margin].sum())
         above = float(p[lw >= math.log(hi) - margin].sum()) if math.isfinite(hi) else 0.0
         if below > EDGE_MASS and below >= above:

@@ -174,6 +174,27 @@ def first_hump_mask(f_hz: np.ndarray, omega: np.ndarray, usable: np.ndarray, dro
 MAX_PEAK_RATIO = 10.0
 
 
+def what_would_help(f_hz: np.ndarray, omega: np.ndarray, usable: np.ndarray) -> str:
+    """What probes would let a Lorentzian be fitted, judged from where the stable probes' highest omega_B lies
+    (sign-normalised ``omega``). Pure."""
+    if not usable.any():
+        return "what would help: every probe was unstable; probe lower frequencies or a smaller plate amplitude"
+    fu, wu = f_hz[usable], omega[usable]
+    k = int(np.argmax(wu))
+    lo, hi = float(fu.min()), float(fu.max())
+    if np.unique(fu).size < 2:
+        return f"what would help: probes at several frequencies around {fu[k]:g} Hz"
+    if fu[k] >= hi:
+        return (f"what would help: omega_B still rises at {hi:g} Hz, the highest stable probe, so the hump's top "
+                f"is above it: probe above {hi:g} Hz (or a larger plate amplitude, which moves the hump down)")
+    if fu[k] <= lo:
+        return (f"what would help: omega_B falls from the lowest stable probe at {lo:g} Hz: probe below {lo:g} Hz "
+                "to catch the hump's rising side")
+    step = float(np.median(np.diff(np.unique(fu)))) if np.unique(fu).size > 1 else 1.0
+    return (f"what would help: more stable probes around the hump near {fu[k]:g} Hz (e.g. every {step / 2:g} Hz "
+            f"from {max(lo, fu[k] - 4 * step):g} to {min(hi, fu[k] + 4 * step):g} Hz)")
+
+
 def fit_lorentzian(f_hz, omega_deg_s, stderr_deg_s=None, unstable=None, window: str = "first_hump",
                    drop: float = DEFAULT_DROP, floor: float = DEFAULT_FLOOR) -> LorentzFit:
     """Fit Eq. (9) by Levenberg-Marquardt (``scipy.optimize.least_squares(method="lm")``).
@@ -210,8 +231,8 @@ def fit_lorentzian(f_hz, omega_deg_s, stderr_deg_s=None, unstable=None, window: 
             else usable.copy())
 
     def fail(reason: str) -> LorentzFit:
-        return LorentzFit(ok=False, reason=reason, n_used=int(used.sum()), n_unstable=n_unstable, used=used,
-                          sign=sign)
+        return LorentzFit(ok=False, reason=f"{reason}; {what_would_help(f, wa, usable)}", n_used=int(used.sum()),
+                          n_unstable=n_unstable, used=used, sign=sign)
 
     n = int(used.sum())
     if n < 4:

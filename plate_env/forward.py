@@ -22,6 +22,8 @@ import numpy as np
 from plate_env.atlas import Atlas
 
 POOLINGS = ("evidence", "fixed")
+#: The posterior grid reaches this many discrepancies (sigma_eps, log omega) beyond the members' omega_n range.
+PAD_SIGMAS = 3.0
 
 
 @dataclass(frozen=True)
@@ -91,13 +93,16 @@ class ForwardModel:
                 min(float(m.atlas.alpha[-1]) for m in self.members))
 
     def grid(self, n_omega: int, n_alpha: int) -> tuple[np.ndarray, np.ndarray]:
-        """The posterior grid: log-spaced omega_n (rad/s) over :attr:`omega_range`, uniform alpha (rad)."""
+        """The posterior grid: log-spaced omega_n (rad/s), ``n_omega`` points over :attr:`omega_range` and, at the
+        same spacing, :data:`PAD_SIGMAS` discrepancies beyond each end (the truth may lie outside the range the
+        models cover by the discrepancy); uniform alpha (rad)."""
         lo, hi = self.omega_range
         a_lo, a_hi = self.alpha_range
-        return np.geomspace(lo, hi, n_omega), np.linspace(a_lo, a_hi, n_alpha)
+        step = math.log(hi / lo) / (n_omega - 1)
+        k = math.ceil(PAD_SIGMAS * self.sigma_eps / step - 1e-9) if self.sigma_eps > 0 else 0
+        return (np.geomspace(lo * math.exp(-k * step), hi * math.exp(k * step), n_omega + 2 * k),
+                np.linspace(a_lo, a_hi, n_alpha))
 
-    def with_sigma_eps(self, sigma_eps: float) -> ForwardModel:
-        return ForwardModel(self.name, self.members, sigma_eps, self.pooling, self.provenance)
 
 
 # ----------------------------------------------------------------------------------------------- known inputs
@@ -201,10 +206,18 @@ def forward_model_names() -> list[str]:
     return sorted(_read_registry())
 
 
+def registry_member_atlases(name: str) -> list[list[str]]:
+    """The atlas files of each member of a shipped forward model (none if it is not shipped)."""
+    return [list(m["atlases"]) for m in _read_registry().get(name, {}).get("members", [])]
+
+
 def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardModel:
     """A shipped forward model conditioned on the lab's known inputs (default: the paper's B_p 3 mm, 13.6 g,
     80 mm). ``name`` is ``"<physics>/<model>"`` (e.g. ``"tilelink/pointmass"``: the model that made the data is
-    known, as in simulation) or ``"lab"`` (data of unknown origin)."""
+    known, as in simulation) or ``"lab"`` (data of unknown origin).
+
+    A member with no atlas for these inputs is left out and named in the model's ``provenance["left_out"]`` (the
+    estimate's member list shows who answered); ValueError, naming what exists, when no member is left."""
     from plate_env.atlas import load_atlas_file
 
     registry = _read_registry()
@@ -212,12 +225,19 @@ def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardMo
         raise ValueError(f"no forward model {name!r}; shipped: {sorted(registry)}")
     entry = registry[name]
     known = known or KnownInputs()
-    members = []
+    members, left_out = [], []
     for m in entry["members"]:
-        atlas = condition([load_atlas_file(f) for f in m["atlases"]], known)
+        try:
+            atlas = condition([load_atlas_file(f) for f in m["atlases"]], known)
+        except ValueError as exc:
+            left_out.append(str(exc))
+            continue
         sigma = m.get("sigma_model")
         if sigma is None:  # the atlas's own held-out measurement
             sigma = atlas.provenance["sigma_model_deg_s"]
         members.append(Member(atlas, float(sigma), float(m.get("weight", 1.0)), float(m.get("blur", 0.0))))
+    if not members:
+        raise ValueError(f"forward model {name!r} has no member for these known inputs: {'; '.join(left_out)}")
     return ForwardModel(name=name, members=tuple(members), sigma_eps=float(entry["sigma_eps"]),
-                        pooling=entry.get("pooling", "evidence"), provenance=entry.get("provenance", {}))
+                        pooling=entry.get("pooling", "evidence"),
+                        provenance={**entry.get("provenance", {}), "left_out": left_out})

@@ -115,14 +115,16 @@ def member_coverage(member: Member, w: np.ndarray, a: np.ndarray) -> np.ndarray:
     return member_response(member, float(member.atlas.a_p_deg[0]), w, a)[1]
 
 
-def member_log_likelihood(member: Member, table: ProbeTable, w: np.ndarray, a: np.ndarray
-                          ) -> tuple[np.ndarray, int]:
+def member_log_likelihood(member: Member, table: ProbeTable, w: np.ndarray, a: np.ndarray,
+                          only: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """Sum of the probes' (blurred) log-likelihoods on the grid (n_omega, n_alpha) for one member, and how many
-    probes lay outside its domain (left out)."""
+    probes lay outside its domain (left out); ``only`` (a mask over the probes) restricts the sum."""
     total = np.zeros((len(w), len(a)))
     skipped = 0
     steps = member.blur / math.log(w[1] / w[0])
     for k in range(len(table)):
+        if only is not None and not only[k]:
+            continue
         f, amp = float(table.f_p_hz[k]), float(table.a_p_deg[k])
         if member_domain(member, f, amp) is not None:
             skipped += 1
@@ -137,28 +139,42 @@ def member_log_likelihood(member: Member, table: ProbeTable, w: np.ndarray, a: n
 # ----------------------------------------------------------------------------------------------- posterior
 def _smooth_log_omega(prob: np.ndarray, sigma_steps: float) -> np.ndarray:
     """Convolve along axis 0 (a uniform log-omega grid) with a normal of ``sigma_steps`` grid steps; mass pushed
-    beyond the grid is lost (the prior ends there)."""
+    beyond the grid is lost (the grid reaches ``PAD_SIGMAS`` discrepancies beyond the models' range)."""
     from scipy.ndimage import gaussian_filter1d
 
     return gaussian_filter1d(prob, sigma_steps, axis=0, mode="constant", cval=0.0, truncate=5.0)
 
 
+def _log_evidence(ll: np.ndarray, inside: np.ndarray, sigma_steps: float) -> tuple[np.ndarray, float]:
+    """The smoothed likelihood grid of one member (unnormalised, peak-scaled) and its log evidence under a prior
+    uniform over the grid points it covers."""
+    ll = np.where(inside, ll, -np.inf)
+    top = float(ll.max())
+    like = _smooth_log_omega(np.exp(ll - top), sigma_steps)
+    mass = float(like.sum())
+    return like, top + math.log(max(mass, 1e-300)) - math.log(max(int(inside.sum()), 1))
+
+
 def pool(fm: ForwardModel, w: np.ndarray, a: np.ndarray, log_likes: Sequence[np.ndarray],
-         skipped: Sequence[int] = ()) -> Posterior:
+         skipped: Sequence[int] = (), evidence_likes: Sequence[np.ndarray] | None = None) -> Posterior:
     """Combine the members' log-likelihood grids into the posterior: each member's prior is uniform over the grid
     points its atlas covers, its likelihood is smoothed along log omega by the discrepancy (at least
-    ``STEP_FLOOR`` grid steps), and members are weighted by evidence x prior weight or by prior weight alone."""
+    ``STEP_FLOOR`` grid steps), and members are weighted by evidence x prior weight or by prior weight alone.
+    ``evidence_likes``: the members' log-likelihoods of the probes every member describes, which their evidences
+    compare (default ``log_likes``: every member describes every probe)."""
     step = math.log(w[1] / w[0])
     sigma = max(fm.sigma_eps, STEP_FLOOR * step)
-    parts, log_z = [], []
-    for m, ll in zip(fm.members, log_likes, strict=True):
+    parts, raw, log_z = [], [], []
+    for i, (m, ll) in enumerate(zip(fm.members, log_likes, strict=True)):
         inside = member_coverage(m, w, a)
-        ll = np.where(inside, ll, -np.inf)
-        top = float(ll.max())
-        like = _smooth_log_omega(np.exp(ll - top), sigma / step)
+        own = np.exp(np.where(inside, ll, -np.inf) - np.max(ll, where=inside, initial=-np.inf)).sum(1)
+        raw.append(own / own.sum())
+        like, lz = _log_evidence(ll, inside, sigma / step)
+        if evidence_likes is not None:
+            lz = _log_evidence(evidence_likes[i], inside, sigma / step)[1]
         mass = float(like.sum())
         parts.append(like / mass if mass > 0 else like)
-        log_z.append(top + math.log(max(mass, 1e-300)) - math.log(max(int(inside.sum()), 1)) + math.log(m.weight))
+        log_z.append(lz + math.log(m.weight))
     log_z = np.array(log_z)
     if fm.pooling == "evidence":
         wts = np.exp(log_z - log_z.max())
@@ -170,14 +186,21 @@ def pool(fm: ForwardModel, w: np.ndarray, a: np.ndarray, log_likes: Sequence[np.
     return Posterior(omega_n=w, alpha=a, prob=prob, members=tuple(m.label for m in fm.members),
                      member_weights=tuple(float(x) for x in wts),
                      skipped=tuple(skipped) or (0,) * len(fm.members), sigma_conv=sigma,
-                     identifiable_range=fm.identifiable_range)
+                     identifiable_range=fm.identifiable_range,
+                     model_omega=sum(wt * r for wt, r in zip(wts, raw, strict=True)))
 
 
 def posterior(fm: ForwardModel, table: ProbeTable, n_omega: int = N_OMEGA, n_alpha: int = N_ALPHA) -> Posterior:
-    """The posterior of ``fm`` given the probes (the prior alone when there are none)."""
+    """The posterior of ``fm`` given the probes (the prior alone when there are none). A member's posterior uses
+    every probe it describes; members are compared (their evidences) on the probes all of them describe."""
     w, a = fm.grid(n_omega, n_alpha)
     lls, skipped = zip(*(member_log_likelihood(m, table, w, a) for m in fm.members), strict=True)
-    return pool(fm, w, a, lls, skipped)
+    evidence = None
+    if len(fm.members) > 1 and any(skipped):
+        common = np.array([all(member_domain(m, float(f), float(amp)) is None for m in fm.members)
+                           for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)], dtype=bool)
+        evidence = [member_log_likelihood(m, table, w, a, only=common)[0] for m in fm.members]
+    return pool(fm, w, a, lls, skipped, evidence)
 
 
 def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:

@@ -144,3 +144,17 @@ def paired_difference(errors_a: Sequence[float], errors_b: Sequence[float], rng:
     idx = rng.integers(0, diff.size, size=(n_boot, diff.size))
     boot = np.median(diff[idx], axis=1)
     return Stat(float(np.median(diff)), float(_percentile(boot, 2.5, 0)), float(_percentile(boot, 97.5, 0)))
+
+
+def discrepancies(truth: Sequence[float], estimates: Sequence) -> tuple[np.ndarray, np.ndarray]:
+    """``(log(truth / estimate), the estimate's own log-sd)`` per object with an estimate, the inputs of
+    :func:`plate_env.inference.fit_sigma_eps`; the log-sd is half the 68 % interval's width in log omega_n.
+    ``truth`` may be shorter than ``estimates`` and is then repeated (several data sets of the same objects)."""
+    truth = np.asarray(truth, dtype=float)
+    if len(estimates) % len(truth):
+        raise ValueError(f"{len(estimates)} estimates for {len(truth)} true values")
+    truth = np.tile(truth, len(estimates) // len(truth))
+    pairs = [(w, e) for w, e in zip(truth, estimates, strict=True) if e.ok]
+    eps = np.array([math.log(w / e.omega_n) for w, e in pairs])
+    sd = np.array([math.log(e.omega_n_ci68[1] / e.omega_n_ci68[0]) / 2 for _, e in pairs])
+    return eps, sd

@@ -28,6 +28,19 @@ def probe_point(spec: ProbeSpec) -> dict[str, float]:
             "mass": o.mass, "diameter": o.diameter}
 
 
+def known_input_atlases(source: str, model: str, atlas: Atlas) -> list[Atlas]:
+    """The atlases of ``source``/``model`` along the known inputs: those of the shipped forward model's first member
+    that include ``atlas`` (its mass axis), else ``[atlas]``."""
+    from plate_env.atlas import load_atlas_file
+    from plate_env.forward import registry_member_atlases
+
+    for names in registry_member_atlases(f"{source}/{model}"):
+        family = [load_atlas_file(n) for n in names]
+        if any(a is atlas for a in family):
+            return family
+    return [atlas]
+
+
 class AtlasPhysics:
     """Probes answered from the atlas of ``source``/``model`` (e.g. tilelink/pointmass).
 
@@ -48,6 +61,9 @@ class AtlasPhysics:
         self.source = source
         self.model = model
         self.atlas = atlas if atlas is not None else load_atlas(source, model)
+        # the atlases along the known inputs (e.g. the disc's mass) a probe is answered from, conditioned on its own
+        self._family = [self.atlas] if atlas is not None else known_input_atlases(source, model, self.atlas)
+        self._conditioned: dict = {}
         self.rho = instability_rho
         self.corr_hz = instability_corr_hz
         self._grid = np.arange(0.0, 60.0, 0.25)
@@ -84,12 +100,25 @@ class AtlasPhysics:
         z = float(np.interp(spec.motion.freq_hz, self._grid, self._field(spec)))
         return float(ndtr(self.rho * z + math.sqrt(1 - self.rho ** 2) * rng.normal()))
 
+    def atlas_for(self, spec: ProbeSpec) -> Atlas:
+        """The atlas conditioned on the probe's known inputs (B_p, mass, diameter: interpolated in log mass between
+        the atlases that bracket it), or the plain atlas when none is built for them (then :meth:`check` refuses)."""
+        from plate_env.forward import KnownInputs, condition
+
+        key = (abs(spec.motion.b_p), spec.obj.mass, spec.obj.diameter)
+        if key not in self._conditioned:
+            try:
+                self._conditioned[key] = condition(self._family, KnownInputs(*key))
+            except ValueError:
+                self._conditioned[key] = self.atlas
+        return self._conditioned[key]
+
     def check(self, probes: Sequence[ProbeSpec]) -> None:
         """Refuse (ProbeRefused naming the value and the atlas's range) any probe outside what the atlas describes:
-        f_p, omega_n or alpha outside its grid, an amplitude it does not tabulate, or a B_p, mass or diameter other
-        than it was built at. The atlas would otherwise answer with a clipped or unrelated response."""
+        f_p, omega_n or alpha outside its grid, an amplitude it does not tabulate, or a B_p, mass or diameter no
+        atlas was built at or around. The atlas would otherwise answer with a clipped or unrelated response."""
         for i, spec in enumerate(check_probes(probes)):
-            problems = self.atlas.outside(**probe_point(spec))
+            problems = self.atlas_for(spec).outside(**probe_point(spec))
             if problems:
                 quantity, reason = next(iter(problems.items()))
                 raise ProbeRefused(quantity, f"probe {i}: {'; '.join(problems.values())} (atlas physics answers only "
@@ -103,8 +132,8 @@ class AtlasPhysics:
             t0 = time.perf_counter()
             rng = self._rng(spec)
             a_p_deg = spec.motion.a_p_deg
-            mean, spread, p_un = (float(x) for x in self.atlas.predict(spec.motion.freq_hz, abs(a_p_deg),
-                                                                       spec.obj.omega_n, spec.obj.alpha))
+            mean, spread, p_un = (float(x) for x in self.atlas_for(spec).predict(spec.motion.freq_hz, abs(a_p_deg),
+                                                                                 spec.obj.omega_n, spec.obj.alpha))
             sign = 1.0 if spec.motion.amp_rad * spec.motion.b_p >= 0 else -1.0
             period = 1.0 / spec.motion.freq_hz
             unstable = bool(self._uniform(spec, rng) < p_un)
