@@ -118,9 +118,9 @@ def agent_scores(args, fm: ForwardModel, rng) -> tuple[Scores, dict]:
     """Bayes episodes on live tilelink (resumable: finished episodes are kept in experiments/cache)."""
     import gymnasium as gym
 
-    from agents import make_agent
-    from agents.runner import run_episode
     from plate_env import benchmarks as bm
+    from plate_env_agents import make_agent
+    from plate_env_agents.runner import run_episode
 
     cache = Path(f"experiments/cache/forward_models_bayes_s{args.seed}.jsonl")
     done = {}
