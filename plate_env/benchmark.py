@@ -522,8 +522,8 @@ def leaderboard_markdown(summaries: Sequence[AgentSummary], paired: dict, leader
                          f"{_pct(sc.coverage68, 0)} | {_pct(sc.coverage95, 0)} | {_pct(sc.width95)} | {b.probes:.1f}"
                          f" | {b.sim_s:.1f} |")
     if paired and leader:
-        lines += ["", f"{'###' if detail else '**'} Paired differences against the leader, `{leader}` (same "
-                  f"episodes){'' if detail else '**'}", "",
+        title = f"Paired differences against the leader, `{leader}` (same episodes)"
+        lines += ["", f"### {title}" if detail else f"**{title}**", "",
                   "Median over objects of (agent's error - leader's error), errors capped at 100 %, in percentage "
                   "points with 95 % bootstrap intervals; an interval above 0: the leader is more accurate there.", "",
                   "| agent | " + " | ".join(f"@ {b:g} s" for b in budgets) + " |",
