@@ -538,7 +538,7 @@ def plot_curves(summaries: Sequence[AgentSummary], path: str) -> None:
     """Median (solid) and 90th-percentile (dashed) error against the probing budget, one colour per agent."""
     from plate_env.plotting import new_figure, save_figure
 
-    fig, ax = new_figure(figsize=(7.5, 4.8))
+    fig, ax = new_figure(figsize=(10.5, 4.8))
     for i, s in enumerate(rank(summaries)):
         colour = f"C{i % 10}"
         x = np.asarray(s.curve_s)
@@ -558,7 +558,7 @@ def plot_curves(summaries: Sequence[AgentSummary], path: str) -> None:
     ax.set_ylabel("relative error of omega_n_hat [%] (capped at 100)")
     ax.set_title(f"{summaries[0].suite}: median (solid, 95 % CI at the budgets) and p90 (dashed)")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # outside: the curves fill the axes
     save_figure(fig, path, dpi=110)
 
 
