@@ -93,13 +93,13 @@ def stage_within(args) -> None:
     member = fm.members[0]
     lines = ["# Forward models inside the point-mass model", "",
              f"Forward model `tilelink/pointmass`: the shipped point-mass atlas (model error {member.sigma_model:.2f} "
-             f"deg/s from its held-out probes, blur {member.blur:g} in log omega_n); coherent discrepancy "
+             f"deg/s from its held-out probes); coherent discrepancy "
              f"sigma_eps = {sigma_eps:.3f} (maximum likelihood on the calibration set: {CALIBRATION.n} objects, seed "
              f"{CALIBRATION.seed}, its 3 deg and 3+12 deg sweeps). Test set: {TEST.n} other objects (seed "
              f"{TEST.seed}), sweeps 10-40 Hz (1 Hz) at 3 and 12 deg, random placement. Intervals: 95 % bootstrap "
              "over objects. Goals: p90 <= 10 %, 68 % coverage in [0.60, 0.76], 95 % in [0.90, 0.98].", "",
              "## `plate-env fit` on 10-40 Hz sweeps", "", *HEAD]
-    numbers: dict = {"sigma_eps": sigma_eps, "sigma_model": member.sigma_model, "blur": member.blur, "fit": {}}
+    numbers: dict = {"sigma_eps": sigma_eps, "sigma_model": member.sigma_model, "fit": {}}
     for amps, tables in test.items():
         s = score(truth, estimates(fm, tables), rng)
         lines.append(row(f"A_p = {amps} deg", s))
@@ -107,8 +107,10 @@ def stage_within(args) -> None:
     if args.episodes:
         lines += ["", f"## `plate-env identify --agent bayes` on live tilelink ({args.episodes} objects)", ""]
         s, meta = agent_scores(args, fm, rng)
-        lines += HEAD + [row(f"bayes, {meta['probes']:.1f} probes / {meta['sim_s']:.0f} s simulated on average",
-                             s)]
+        from plate_env_agents.bayes import DESIGN_BLUR
+
+        lines += HEAD + [row(f"bayes (design blur {DESIGN_BLUR:g}), {meta['probes']:.1f} probes / "
+                             f"{meta['sim_s']:.0f} s simulated on average", s)]
         numbers["bayes"] = {**s.to_dict(), **meta}
     numbers["sigma_eps_from"] = {"objects": CALIBRATION.n, "seed": CALIBRATION.seed}
     write("within", lines, numbers)
@@ -176,18 +178,15 @@ FAMILIES = {
     "rigid": ["atlas_tilelink_rigid.npz"],
     "pybullet": ["atlas_pybullet_pybullet.npz"],
 }
-#: A member's blur is this fraction of its atlas's omega_n node spacing in log omega (chosen in the within stage).
-BLUR_FRACTION = 0.22
 
 
 def member(name: str) -> Member:
-    """A shipped atlas as a member: its held-out model error (provenance) and a blur of ``BLUR_FRACTION`` of its
-    node spacing."""
+    """A shipped atlas as a member with its held-out model error (provenance). No blur: full sweeps are calibrated
+    without it (the within stage); the bayes agent adds its own design blur (agents/bayes.py DESIGN_BLUR)."""
     from plate_env.atlas import load_atlas_file
 
     atlas = load_atlas_file(name)
-    spacing = float(np.mean(np.diff(np.log(atlas.omega_n))))
-    return Member(atlas, float(atlas.provenance["sigma_model_deg_s"]), blur=round(BLUR_FRACTION * spacing, 4))
+    return Member(atlas, float(atlas.provenance["sigma_model_deg_s"]))
 
 
 def family_model(families: list[str], sigma_eps: float = 0.0, name: str | None = None) -> ForwardModel:
@@ -405,8 +404,8 @@ MASS_ATLASES = ["atlas_tilelink_pointmass_m5.npz", "atlas_tilelink_pointmass_m8.
                 "atlas_tilelink_pointmass_m23.2.npz", "atlas_tilelink_pointmass_m40.npz"]
 
 
-def _entry(members: list[tuple[list[str], float]], sigma_eps: float, provenance: dict) -> dict:
-    return {"members": [{"atlases": atlases, "blur": blur} for atlases, blur in members], "sigma_eps": sigma_eps,
+def _entry(members: list[list[str]], sigma_eps: float, provenance: dict) -> dict:
+    return {"members": [{"atlases": atlases} for atlases in members], "sigma_eps": sigma_eps,
             "pooling": "evidence", "provenance": provenance}
 
 
@@ -417,25 +416,21 @@ def stage_ship(args) -> None:
     within = json.loads((RESULTS / "forward_models_within.json").read_text())
     lomo = json.loads((RESULTS / "forward_models_lomo.json").read_text())
     masses = [f for f in MASS_ATLASES if (Path("plate_env/data") / f).exists()]
-    blur = {f: member(f).blur for fam in FAMILIES.values() for f in fam}
-    for f in masses:
-        blur.setdefault(f, member(f).blur)
 
     def self_sigma(fam: str) -> float:
         eps, sd = (np.array(lomo["cross"][f"{fam}->{fam}"][k]) for k in ("eps", "sd"))
         return fit_sigma_eps(eps, sd)
 
     cite = "experiments/results/forward_models_{}.md (python experiments/forward_models.py {})"
-    nominal = (masses, blur["atlas_tilelink_pointmass.npz"])
     registry = {
-        "tilelink/pointmass": _entry([nominal], within["sigma_eps"], {"sigma_eps": cite.format("within", "within")}),
-        "tilelink/rigid_limit": _entry([(FAMILIES["rigid"], blur[FAMILIES["rigid"][0]])], self_sigma("rigid"),
+        "tilelink/pointmass": _entry([masses], within["sigma_eps"], {"sigma_eps": cite.format("within", "within")}),
+        "tilelink/rigid_limit": _entry([FAMILIES["rigid"]], self_sigma("rigid"),
                                        {"sigma_eps": "rigid_limit sweeps through the rigid atlas, "
                                                      + cite.format("lomo", "lomo")}),
-        "pybullet/pybullet": _entry([(FAMILIES["pybullet"], blur[FAMILIES["pybullet"][0]])], self_sigma("pybullet"),
+        "pybullet/pybullet": _entry([FAMILIES["pybullet"]], self_sigma("pybullet"),
                                     {"sigma_eps": "held-out PyBullet sweeps through its atlas, "
                                                   + cite.format("lomo", "lomo")}),
-        "lab": _entry([nominal] + [([f], blur[f]) for f in FAMILIES["pointmass"][1:] + FAMILIES["rigid"]
+        "lab": _entry([masses] + [[f] for f in FAMILIES["pointmass"][1:] + FAMILIES["rigid"]
                                    + FAMILIES["pybullet"]],
                       lomo["lab_sigma_eps"], {"sigma_eps": "every model's data through every other model, "
                                                            + cite.format("lomo", "lomo"),

@@ -199,6 +199,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_object(i, true="true ")
     i.add_argument("--seed", type=_arg(checks.integer, *SEED_RANGE), default=0,
                    help="seed of the episode (placement, camera noise)")
+    i.add_argument("--bp", type=_arg(checks.real, B_P_RANGE_M[0] * 1e3, B_P_RANGE_M[1] * 1e3, unit="mm"),
+                   default=3.0, help="plate linear amplitude B_p, mm (known input: the physics runs it, the "
+                   "forward model is conditioned on it)")
     i.add_argument("--max-probes", type=_arg(checks.integer, 1, 500), default=DEFAULT_MAX_PROBES, help="probe budget")
     i.add_argument("--target", type=_arg(checks.real, 0.0, 1.0, open_lo=True, open_hi=True), default=None,
                    help="bayes only: stop at this relative posterior std of omega_n")
@@ -455,7 +458,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     obj = _object(args)
     plot = plot_path(args.plot) if args.plot else None
     agent = make_agent(args.agent, **({} if args.target is None else {"target_rel": args.target}))
-    env_kw = dict(physics=args.physics, physics_options=_physics_options(args), max_probes=args.max_probes)
+    env_kw = dict(physics=args.physics, physics_options=_physics_options(args), max_probes=args.max_probes,
+                  b_p_mm=args.bp)
     if args.physics == "pybullet":
         env_kw["method"] = "lorentz"
     env = gym.make("PlateRotation-v0", **env_kw)

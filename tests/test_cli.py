@@ -44,6 +44,10 @@ def test_sweep_json_and_plot(tmp_path, capsys):
     (["sweep", "--freqs", "40:10:1"], "--freqs"),
     (["probe", "--freq", "nan"], "--freq"),
     (["probe", "--freq", "25", "--object", "pizza"], "unknown object preset"),
+    # B_p is a known input of identify: the atlas physics (built at 3 mm) refuses another one by name
+    (["identify", "--physics", "atlas", "--omega-n", "12pi", "--bp", "2"], "B_p = 2 mm"),
+    (["identify", "--omega-n", "12pi", "--bp", "1e6"], "--bp"),
+    (["identify", "--omega-n", "12pi", "--bp", "1"], "no tilelink/pointmass atlas for B_p = 1 mm"),
 ])
 def test_bad_input_is_one_clear_line(argv, message, capsys):
     try:

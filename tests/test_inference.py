@@ -153,7 +153,9 @@ def test_ten_thousand_probes_do_not_collapse_the_posterior_below_its_grid(toy_at
     fm = _fm(atlas)
     est = identify_atlas(ProbeTable.from_arrays(f, 3.0, y, np.full(f.size, 5.0)), fm)
     assert est.omega_n_ci95[0] <= est.omega_n_ci68[0] <= est.omega_n <= est.omega_n_ci68[1] <= est.omega_n_ci95[1]
-    w, _ = fm.grid(161, 31)
+    from plate_env.inference import N_OMEGA as n_default
+
+    w, _ = fm.grid(n_default, 31)
     step = math.log(w[1] / w[0])
     assert math.log(est.omega_n_ci68[1] / est.omega_n_ci68[0]) >= step * 0.99
     assert est.omega_n_stderr == pytest.approx((est.omega_n_ci68[1] - est.omega_n_ci68[0]) / 2)
