@@ -61,3 +61,8 @@ class Agent(ABC):
     @abstractmethod
     def next_probe(self, history: ProbeTable, obs: np.ndarray | None = None) -> Probe | None:
         """The next probe to run, or None to stop and estimate."""
+
+    def estimate_model(self):
+        """The forward model (:class:`plate_env.forward.ForwardModel`) the episode's estimate must use, or None for
+        the shipped one of the episode's physics: an agent that chose its probes on a model says so here."""
+        return None

@@ -62,7 +62,8 @@ def run_episode(env, agent: Agent, seed: int, options: dict | None = None,
             on_probe(info["probes"], info["last_probe"])
     table = e.table()
     try:
-        est = identify(table, method=agent.method, physics=e.source, model=e.model, known=e.known_inputs())
+        est = identify(table, method=agent.method, physics=e.source, model=e.model, known=e.known_inputs(),
+                       forward=agent.estimate_model())
     except ValueError as exc:
         est = Estimate(ok=False, method=agent.method, reason=str(exc))
     return EpisodeResult(agent=agent.name, omega_n_true=info["omega_n_true"], alpha_true=info["alpha_true"],
