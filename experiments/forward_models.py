@@ -212,7 +212,7 @@ def family_model(families: list[str], sigma_eps: float = 0.0, name: str | None =
 DATA = {
     "pointmass": EvalSet("tilelink_pointmass", 120, 400, (3.0,), nuisance=True),
     "rigid": EvalSet("tilelink_rigid_limit", 20, 100, (3.0,)),
-    "pybullet": EvalSet("pybullet_pybullet", 12, 600, (3.0,), f_hz=tuple(float(f) for f in range(10, 27, 2)),
+    "pybullet": EvalSet("pybullet_pybullet", 8, 600, (3.0,), f_hz=tuple(float(f) for f in range(10, 27, 2)),
                         settle_s=0.3, measure_s=0.6, omega_range_pi=(5.0, 33.0)),
 }
 #: A second point-mass set with nuisance draws, to estimate the family's discrepancy apart from the test set.
