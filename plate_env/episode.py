@@ -45,16 +45,24 @@ class EpisodeResult:
                 "estimate": self.estimate.to_dict(), "probes": self.probes.to_rows()}
 
 
-def estimate_of(env, table: ProbeTable, method: str) -> Estimate:
-    """``method``'s estimate from ``table`` for ``env``'s physics and known inputs (no estimate, with the reason,
-    when the method cannot make one)."""
+def estimate_model_of(agent):
+    """The forward model ``agent``'s estimates use (``agent.estimate_model()``; None, the physics' shipped one,
+    for an agent without that method)."""
+    f = getattr(agent, "estimate_model", None)
+    return f() if callable(f) else None
+
+
+def estimate_of(env, table: ProbeTable, method: str, forward=None) -> Estimate:
+    """``method``'s estimate from ``table`` for ``env``'s physics and known inputs, on ``forward`` (a forward model,
+    or None for the physics' shipped one); no estimate, with the reason, when the method cannot make one."""
     from plate_env.identify import identify
 
     e = env.unwrapped
     if len(table) == 0:
         return Estimate(ok=False, method=method, reason="no probes")
     try:
-        return identify(table, method=method, physics=e.source, model=e.model, known=e.known_inputs())
+        return identify(table, method=method, physics=e.source, model=e.model, known=e.known_inputs(),
+                        forward=forward)
     except ValueError as exc:
         return Estimate(ok=False, method=method, reason=str(exc))
 
@@ -104,6 +112,7 @@ def run_episode(env, agent, seed: int, options: dict | None = None,
                 on_probe(info["probes"], info["last_probe"])
     table = e.table()
     return EpisodeResult(agent=agent.name, omega_n_true=info["omega_n_true"], alpha_true=info["alpha_true"],
-                         estimate=estimate_of(env, table, agent.method), probes=table, n_probes=len(table),
+                         estimate=estimate_of(env, table, agent.method, estimate_model_of(agent)), probes=table,
+                         n_probes=len(table),
                          sim_s=info["sim_s"], wall_s=time.perf_counter() - t0, probe_sim_s=tuple(sims),
                          decision_wall_s=tuple(decisions))

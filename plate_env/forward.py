@@ -22,8 +22,19 @@ import numpy as np
 from plate_env.atlas import Atlas
 
 POOLINGS = ("evidence", "fixed")
-#: The posterior grid reaches this many discrepancies (sigma_eps, log omega) beyond the members' omega_n range.
+#: The posterior grid reaches this many discrepancies (sigma_eps, log omega) beyond the members' omega_n range
+#: (normal discrepancy; a Student-t one reaches its 99.5 % quantile, :func:`pad_sigmas`).
 PAD_SIGMAS = 3.0
+
+
+def pad_sigmas(nu: float) -> float:
+    """How many discrepancy scales the grid reaches beyond the models' range for a discrepancy with ``nu`` degrees
+    of freedom (inf: normal)."""
+    if math.isinf(nu):
+        return PAD_SIGMAS
+    from scipy.stats import t
+
+    return max(PAD_SIGMAS, float(t.ppf(0.995, nu)))
 
 
 @dataclass(frozen=True)
@@ -59,13 +70,16 @@ class Member:
 
 @dataclass(frozen=True)
 class ForwardModel:
-    """Members, a coherent discrepancy ``sigma_eps`` (sd of log omega_n), and how members are pooled."""
+    """Members, a coherent discrepancy (scale ``sigma_eps`` of log omega_n, normal or, with finite ``eps_nu``,
+    Student-t with ``eps_nu`` degrees of freedom: across models the errors are heavy-tailed), and how members are
+    pooled."""
 
     name: str
     members: tuple[Member, ...]
     sigma_eps: float = 0.0
     pooling: str = "evidence"
     provenance: dict = field(default_factory=dict, compare=False)
+    eps_nu: float = math.inf
 
     def __post_init__(self) -> None:
         if not self.members:
@@ -74,6 +88,8 @@ class ForwardModel:
             raise ValueError(f"sigma_eps = {self.sigma_eps!r} must be in [0, 2] (sd of log omega_n)")
         if self.pooling not in POOLINGS:
             raise ValueError(f"pooling {self.pooling!r}: choose one of {POOLINGS}")
+        if not self.eps_nu >= 1.0:
+            raise ValueError(f"eps_nu = {self.eps_nu!r} must be >= 1 (inf: a normal discrepancy)")
 
     @property
     def omega_range(self) -> tuple[float, float]:
@@ -83,9 +99,9 @@ class ForwardModel:
 
     @property
     def identifiable_range(self) -> tuple[float, float]:
-        """The omega_n range every member covers, rad/s: outside it the answer is a bound."""
-        return (max(float(m.atlas.omega_n[0]) for m in self.members),
-                min(float(m.atlas.omega_n[-1]) for m in self.members))
+        """The omega_n range some member covers (the union), rad/s: outside it the answer is a bound. A member says
+        nothing where it does not reach (its prior is uniform over its own range; the evidence weighs it there)."""
+        return self.omega_range
 
     @property
     def alpha_range(self) -> tuple[float, float]:
@@ -94,12 +110,12 @@ class ForwardModel:
 
     def grid(self, n_omega: int, n_alpha: int) -> tuple[np.ndarray, np.ndarray]:
         """The posterior grid: log-spaced omega_n (rad/s), ``n_omega`` points over :attr:`omega_range` and, at the
-        same spacing, :data:`PAD_SIGMAS` discrepancies beyond each end (the truth may lie outside the range the
+        same spacing, :func:`pad_sigmas` discrepancy scales beyond each end (the truth may lie outside the range the
         models cover by the discrepancy); uniform alpha (rad)."""
         lo, hi = self.omega_range
         a_lo, a_hi = self.alpha_range
         step = math.log(hi / lo) / (n_omega - 1)
-        k = math.ceil(PAD_SIGMAS * self.sigma_eps / step - 1e-9) if self.sigma_eps > 0 else 0
+        k = math.ceil(pad_sigmas(self.eps_nu) * self.sigma_eps / step - 1e-9) if self.sigma_eps > 0 else 0
         return (np.geomspace(lo * math.exp(-k * step), hi * math.exp(k * step), n_omega + 2 * k),
                 np.linspace(a_lo, a_hi, n_alpha))
 
@@ -239,5 +255,6 @@ def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardMo
     if not members:
         raise ValueError(f"forward model {name!r} has no member for these known inputs: {'; '.join(left_out)}")
     return ForwardModel(name=name, members=tuple(members), sigma_eps=float(entry["sigma_eps"]),
+                        eps_nu=float(entry.get("eps_nu", math.inf)),
                         pooling=entry.get("pooling", "evidence"),
                         provenance={**entry.get("provenance", {}), "left_out": left_out})

@@ -140,20 +140,28 @@ def member_log_likelihood(member: Member, table: ProbeTable, w: np.ndarray, a: n
 
 
 # ----------------------------------------------------------------------------------------------- posterior
-def _smooth_log_omega(prob: np.ndarray, sigma_steps: float) -> np.ndarray:
-    """Convolve along axis 0 (a uniform log-omega grid) with a normal of ``sigma_steps`` grid steps; mass pushed
-    beyond the grid is lost (the grid reaches ``PAD_SIGMAS`` discrepancies beyond the models' range)."""
-    from scipy.ndimage import gaussian_filter1d
+def _smooth_log_omega(prob: np.ndarray, sigma_steps: float, nu: float = math.inf) -> np.ndarray:
+    """Convolve along axis 0 (a uniform log-omega grid) with a normal of scale ``sigma_steps`` grid steps, or a
+    Student-t with ``nu`` degrees of freedom; mass pushed beyond the grid is lost (the grid reaches
+    ``forward.pad_sigmas`` scales beyond the models' range)."""
+    from scipy.ndimage import convolve1d, gaussian_filter1d
 
-    return gaussian_filter1d(prob, sigma_steps, axis=0, mode="constant", cval=0.0, truncate=5.0)
+    if math.isinf(nu):
+        return gaussian_filter1d(prob, sigma_steps, axis=0, mode="constant", cval=0.0, truncate=5.0)
+    from scipy.stats import t
+
+    half = min(int(math.ceil(sigma_steps * 40)), prob.shape[0])
+    kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
+    return convolve1d(prob, kernel / kernel.sum(), axis=0, mode="constant", cval=0.0)
 
 
-def _log_evidence(ll: np.ndarray, inside: np.ndarray, sigma_steps: float) -> tuple[np.ndarray, float]:
+def _log_evidence(ll: np.ndarray, inside: np.ndarray, sigma_steps: float,
+                  nu: float = math.inf) -> tuple[np.ndarray, float]:
     """The smoothed likelihood grid of one member (unnormalised, peak-scaled) and its log evidence under a prior
     uniform over the grid points it covers."""
     ll = np.where(inside, ll, -np.inf)
     top = float(ll.max())
-    like = _smooth_log_omega(np.exp(ll - top), sigma_steps)
+    like = _smooth_log_omega(np.exp(ll - top), sigma_steps, nu)
     mass = float(like.sum())
     return like, top + math.log(max(mass, 1e-300)) - math.log(max(int(inside.sum()), 1))
 
@@ -167,14 +175,15 @@ def pool(fm: ForwardModel, w: np.ndarray, a: np.ndarray, log_likes: Sequence[np.
     compare (default ``log_likes``: every member describes every probe)."""
     step = math.log(w[1] / w[0])
     sigma = max(fm.sigma_eps, STEP_FLOOR * step)
+    nu = fm.eps_nu if fm.sigma_eps > STEP_FLOOR * step else math.inf
     parts, raw, log_z = [], [], []
     for i, (m, ll) in enumerate(zip(fm.members, log_likes, strict=True)):
         inside = member_coverage(m, w, a)
         own = np.exp(np.where(inside, ll, -np.inf) - np.max(ll, where=inside, initial=-np.inf)).sum(1)
         raw.append(own / own.sum())
-        like, lz = _log_evidence(ll, inside, sigma / step)
+        like, lz = _log_evidence(ll, inside, sigma / step, nu)
         if evidence_likes is not None:
-            lz = _log_evidence(evidence_likes[i], inside, sigma / step)[1]
+            lz = _log_evidence(evidence_likes[i], inside, sigma / step, nu)[1]
         mass = float(like.sum())
         parts.append(like / mass if mass > 0 else like)
         log_z.append(lz + math.log(m.weight))
@@ -251,20 +260,37 @@ def fit_sigma_model(resid: np.ndarray, spread: np.ndarray, stderr: np.ndarray, n
     return float(math.exp(best.x))
 
 
-def fit_sigma_eps(eps: np.ndarray, post_sd: np.ndarray) -> float:
-    """Maximum-likelihood coherent discrepancy (sd of log omega_n) from held-out objects: ``eps = log(truth /
-    estimate)`` is normal with variance ``post_sd^2 + sigma^2``, ``post_sd`` the posterior's own log-sd; 0 when the
-    posteriors already explain the errors."""
+def discrepancy_log_density(eps: np.ndarray, post_sd: np.ndarray, sigma: float, nu: float = math.inf) -> np.ndarray:
+    """Log-density of ``eps = log(truth / estimate)`` when the posterior's own error is normal (sd ``post_sd``) and
+    the discrepancy, independent of it, is normal (``nu`` inf) or Student-t with scale ``sigma``: their sum, the
+    convolution the posterior applies (Gauss-Hermite quadrature over the normal part for finite ``nu``)."""
+    from scipy import stats
+
+    e = np.asarray(eps, float)
+    sd = np.asarray(post_sd, float)
+    if math.isinf(nu) or sigma <= 0.0:
+        return stats.norm.logpdf(e, scale=np.sqrt(sd ** 2 + sigma ** 2))
+    x, w = np.polynomial.hermite.hermgauss(61)
+    d = e[..., None] - math.sqrt(2.0) * sd[..., None] * x  # the discrepancy's share of eps at each node
+    dens = (w * stats.t.pdf(d, nu, scale=sigma)).sum(-1) / math.sqrt(math.pi)
+    wide = sd > 0.2 * sigma  # a normal part wider than the t's core: quadrature is accurate; else the t dominates
+    narrow = stats.t.pdf(e, nu, scale=np.sqrt(sigma ** 2 + sd ** 2))
+    return np.log(np.maximum(np.where(wide, dens, narrow), 1e-300))
+
+
+def fit_sigma_eps(eps: np.ndarray, post_sd: np.ndarray, nu: float = math.inf) -> float:
+    """Maximum-likelihood coherent discrepancy (scale of log omega_n) from held-out objects: ``eps = log(truth /
+    estimate)`` is the posterior's own normal error (sd ``post_sd``) plus the discrepancy, normal or Student-t with
+    ``nu`` degrees of freedom (:func:`discrepancy_log_density`); 0 when the posteriors already explain the errors."""
     from scipy.optimize import minimize_scalar
 
     e = np.asarray(eps, float)
-    s2 = np.asarray(post_sd, float) ** 2
+    sd = np.asarray(post_sd, float)
     if e.size == 0:
         raise ValueError("no held-out objects to estimate a discrepancy from")
 
     def nll(sig: float) -> float:
-        v = s2 + sig ** 2
-        return float(np.sum(0.5 * np.log(v) + 0.5 * e ** 2 / v))
+        return -float(np.sum(discrepancy_log_density(e, sd, sig, nu)))
 
     best = minimize_scalar(nll, bounds=(0.0, 2.0), method="bounded")
     return float(best.x) if nll(best.x) < nll(0.0) else 0.0

@@ -23,7 +23,8 @@ placement            0.2 mm sd per axis,        a careful robot placement (Probe
                      uniform yaw
 ===================  =========================  ==============================================================
 
-The effect of each band on the identification is measured in ``experiments/results/nuisance_sensitivity.md``.
+The effect of each band on the identification is measured in ``experiments/results/forward_models_sensitivity.md``
+(``python experiments/forward_models.py sensitivity``).
 """
 
 from __future__ import annotations

@@ -87,6 +87,11 @@ class Agent(ABC):
     def next_probe(self, history: ProbeTable, obs: np.ndarray | None = None) -> Probe | np.ndarray | None:
         """The next probe to run (a :class:`Probe` or a raw env action), or None to stop and estimate."""
 
+    def estimate_model(self):
+        """The forward model (:class:`plate_env.forward.ForwardModel`) the episode's estimate must use, or None for
+        the shipped one of the episode's physics: an agent that chose its probes on a model says so here."""
+        return None
+
 
 def check_agent(agent: object, where: str = "agent") -> object:
     """``agent`` if it follows the protocol (callable ``reset`` and ``next_probe``, a string ``name``, ``method``

@@ -71,8 +71,20 @@ def _percentile(x: np.ndarray, q: float, axis: int = -1) -> np.ndarray:
     return out
 
 
+def _in95(e, w: float) -> bool:
+    """Whether a 95 % statement holds: the interval of an estimate, or the bound of an answer at the edge of the
+    identifiable range (omega_n above / below its 95 % limit)."""
+    if e.ok:
+        return bool(e.omega_n_ci95[0] <= w <= e.omega_n_ci95[1])
+    bound = getattr(e, "bound", None)
+    if bound is None:
+        return False
+    return bool(w > bound[1]) if bound[0] == "above" else bool(w < bound[1])
+
+
 def per_object(truth: Sequence[float], estimates: Sequence) -> dict[str, np.ndarray]:
-    """Per-object arrays: relative error (inf without estimate), in-68 %, in-95 %, 95 % width / truth, ok.
+    """Per-object arrays: relative error (inf without estimate), in-68 %, in-95 % (an estimate's interval or a
+    bound's 95 % statement), 95 % width / truth, ok.
 
     ``estimates`` are objects with ``ok``, ``omega_n``, ``omega_n_ci68`` and ``omega_n_ci95`` (an
     :class:`~plate_env.estimate.Estimate`)."""
@@ -83,8 +95,7 @@ def per_object(truth: Sequence[float], estimates: Sequence) -> dict[str, np.ndar
     err = np.array([abs(e.omega_n - w) / w if e.ok else math.inf for e, w in zip(estimates, truth, strict=True)])
     in68 = np.array([e.ok and e.omega_n_ci68[0] <= w <= e.omega_n_ci68[1] for e, w in zip(estimates, truth,
                                                                                           strict=True)])
-    in95 = np.array([e.ok and e.omega_n_ci95[0] <= w <= e.omega_n_ci95[1] for e, w in zip(estimates, truth,
-                                                                                          strict=True)])
+    in95 = np.array([_in95(e, w) for e, w in zip(estimates, truth, strict=True)])
     width = np.array([(e.omega_n_ci95[1] - e.omega_n_ci95[0]) / w if e.ok else math.inf
                       for e, w in zip(estimates, truth, strict=True)])
     return {"error": err, "in68": in68.astype(float), "in95": in95.astype(float), "width95": width,

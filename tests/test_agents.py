@@ -96,3 +96,29 @@ def test_bayes_posterior_narrows_and_contains_truth_on_synthetic_lorentzian_data
     assert all(b <= a * 1.05 for a, b in zip(widths[1:], widths[2:], strict=False))  # it keeps narrowing
     lo, hi = agent.posterior().omega().ci95
     assert lo <= truth <= hi
+
+
+def test_bayes_estimate_adds_its_design_discrepancy_and_stops_on_what_the_probes_say():
+    """On a forward model with a coherent discrepancy (a grid padded beyond the atlas), bayes still reaches its
+    target (the stopping rule reads the probes' information, not the discrepancy no probe can reduce), and the
+    episode's estimate comes from its design model: the discrepancy and the design's own added in quadrature."""
+    from plate_env.forward import ForwardModel, Member
+    from plate_env.inference import identify_atlas
+
+    atlas = _lorentz_atlas()
+    env = gym.make("PlateRotation-v0", physics="atlas", physics_options={"atlas": atlas, "source": "toy",
+                                                                        "model": "toy"},
+                   amplitudes_deg=(3.0,), max_probes=12)
+    fm = ForwardModel("toy", (Member(atlas, 5.0),), sigma_eps=0.1)
+    agent = make_agent("bayes", forward=fm, target_rel=0.05)
+    try:
+        res = run_episode(env, agent, seed=4, options={"omega_n": 14 * math.pi, "alpha": math.radians(45)})
+    finally:
+        env.close()
+    assert res.n_probes < 12 and res.estimate.ok  # stopped by its target although sigma_eps = 0.1 > 0.05
+    model = agent.estimate_model()
+    assert model.sigma_eps == pytest.approx(math.hypot(0.1, agent.sigma_design))
+    assert model.members[0].blur == pytest.approx(agent.blur)
+    assert res.estimate.forward == model.name
+    plain = identify_atlas(res.probes, fm)
+    assert res.estimate.omega_n_ci95[1] / res.estimate.omega_n_ci95[0] > plain.omega_n_ci95[1] / plain.omega_n_ci95[0]

@@ -272,3 +272,40 @@ def test_intervals_keep_their_coverage_on_a_model_left_out_once_the_discrepancy_
     c95 = np.mean([e.omega_n_ci95[0] <= w <= e.omega_n_ci95[1] for w, e in ests])
     c68 = np.mean([e.omega_n_ci68[0] <= w <= e.omega_n_ci68[1] for w, e in ests])
     assert naive < 0.8 and c95 >= 0.88 and 0.5 <= c68 <= 0.85, (naive, c68, c95)
+
+
+def test_a_student_t_discrepancy_has_heavier_tails_and_is_fitted_as_such(toy_atlas):
+    """Across models the errors are heavy-tailed: a forward model may carry a Student-t discrepancy. Its 95 %
+    interval reaches further, relative to the 68 % one, than a normal one of the same scale, and fit_sigma_eps with
+    ``nu`` recovers the scale of t-distributed errors (where the normal fit is inflated by the tail)."""
+    atlas = toy_atlas()
+    table = _sweep_from_atlas(atlas, 10 * math.pi, 0.7, np.arange(14.0, 36.0, 2.0), np.random.default_rng(3))
+    normal = identify_atlas(table, _fm(atlas, sigma_eps=0.2))
+    heavy = identify_atlas(table, _fm(atlas, sigma_eps=0.2, eps_nu=3.0))
+
+    def ratio(e):
+        return math.log(e.omega_n_ci95[1] / e.omega_n_ci95[0]) / math.log(e.omega_n_ci68[1] / e.omega_n_ci68[0])
+
+    assert ratio(normal) == pytest.approx(1.96, rel=0.08)
+    assert ratio(heavy) > 1.25 * ratio(normal)  # t3: 3.18 / 1.20 = 2.7 against 1.96
+    rng = np.random.default_rng(7)
+    sd = rng.uniform(0.01, 0.03, 4000)
+    eps = 0.2 * rng.standard_t(3.0, 4000) + rng.normal(0, 1, 4000) * sd
+    assert fit_sigma_eps(eps, sd, nu=3.0) == pytest.approx(0.2, rel=0.08)
+    assert fit_sigma_eps(eps, sd) > 1.3 * 0.2  # the normal fit is pulled up by the tail
+
+
+def test_a_member_that_covers_less_does_not_make_a_bound_where_another_covers(toy_atlas):
+    """The identifiable range is the union of the members' ranges: an object only one member reaches is an
+    estimate from that member, not a bound."""
+    wide = toy_atlas()  # 2pi-40pi
+    narrow = dataclasses.replace(toy_atlas(), model="narrow")
+    keep = (narrow.omega_n >= 5 * math.pi)
+    narrow = dataclasses.replace(narrow, omega_n=narrow.omega_n[keep], mean=narrow.mean[:, :, keep],
+                                 spread=narrow.spread[:, :, keep], p_unstable=narrow.p_unstable[:, :, keep])
+    fm = ForwardModel("two", (Member(wide, SIGMA), Member(narrow, SIGMA)))
+    assert fm.identifiable_range == pytest.approx((2 * math.pi, 40 * math.pi))
+    est = identify_atlas(_sweep_from_atlas(wide, 3 * math.pi, 0.7, np.arange(12.0, 38.0, 1.0),
+                                           np.random.default_rng(8)), fm)
+    assert est.ok and est.bound is None, est.reason
+    assert est.omega_n == pytest.approx(3 * math.pi, rel=0.15)

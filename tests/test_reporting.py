@@ -34,3 +34,17 @@ print(path.stat().st_size > 500, open_figures == [], matplotlib.get_backend() ==
 """
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["True", "True", "True"]
+
+
+def test_a_bound_counts_for_95_percent_coverage_only_when_it_holds():
+    """A bound (an answer at the edge of the identifiable range) is a 95 % statement: it covers the truth when
+    the truth lies on its side; it never counts as an estimate (error inf, no 68 % interval)."""
+    from plate_env.estimate import Estimate
+    from plate_env.scoring import per_object
+
+    above = Estimate(ok=False, method="atlas", reason="edge", bound=("above", 100.0))
+    below = Estimate(ok=False, method="atlas", reason="edge", bound=("below", 10.0))
+    none = Estimate(ok=False, method="atlas", reason="no probes")
+    d = per_object([150.0, 50.0, 5.0, 50.0, 5.0], [above, above, below, below, none])
+    assert d["in95"].tolist() == [1.0, 0.0, 1.0, 0.0, 0.0]
+    assert d["in68"].tolist() == [0.0] * 5 and np.isinf(d["error"]).all() and d["ok"].tolist() == [0.0] * 5
