@@ -48,6 +48,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--logs", nargs=2, type=Path, required=True, help="leaderboard.py's output of run 1 and run 2")
     ap.add_argument("--cli-wall-s", type=float, required=True, help="wall seconds of the plate-env bench run")
+    ap.add_argument("--note", default="", help="a paragraph under the title (e.g. the commit the runs measured)")
     args = ap.parse_args()
     lb = json.loads((R / "leaderboard_tilelink-v0.json").read_text())
     at = {a["label"]: a for a in json.loads((R / "leaderboard_atlas-v0.json").read_text())["agents"]}
@@ -79,9 +80,11 @@ def main() -> None:
     ex = next(a for a in cli["agents"] if a["label"].startswith("examples/"))
     eb = ex["budgets"]
     per_episode = " / ".join("?" if x is None else f"{x / 100:.1f}" for x in walls.get("bayes", [None, None]))
+    note = args.note + "\n\n" if args.note else ""
     md = f"""# Issue 14, closing measurements: the benchmark
 
-Regenerate: `python experiments/benchmark_report.py --logs run1.log run2.log --cli-wall-s S` after the commands in its
+{note}Regenerate: `python experiments/benchmark_report.py --logs run1.log run2.log --cli-wall-s S` after the
+commands in its
 docstring. A 2-core machine shared with other jobs (every job under `nice -n 10`), Python {lb['python']},
 Stable-Baselines3 {rp['versions']['stable_baselines3']}, torch {rp['versions']['torch']} at one thread. Errors in %
 with 95 % percentile-bootstrap intervals over the suite's objects.
