@@ -483,6 +483,11 @@ def stage_lorentz(args) -> None:
              "|---|---|---|---|---|---|"]
     numbers: dict = {"lines": {}, "lomo": {}}
     for fams in [[f] for f in DATA] + [list(DATA)]:
+        n_ok = sum(fit.ok for fam in fams for _, fit in fits[fam])
+        if n_ok < 3:
+            lines.append(f"| {' + '.join(fams)} | {n_ok} of {sum(len(fits[f]) for f in fams)} sweeps fit | no line "
+                         "(no first hump to fit) | | | |")
+            continue
         cal = line(fams, "lab" if len(fams) > 1 else fams[0], "lab" if len(fams) > 1 else fams[0])
         lines.append(f"| {' + '.join(fams)} | {cal.n} | {cal.p1_pi:.2f} +- {cal.p1_se / math.pi:.2f} | "
                      f"{cal.q1_pi:.1f} +- {cal.q1_se / math.pi:.1f} | {cal.r2:.2f} | {cal.resid_std / math.pi:.1f} |")

@@ -181,11 +181,15 @@ def condition(atlases: Sequence[Atlas], known: KnownInputs) -> Atlas:
     ok.sort(key=lambda a: atlas_inputs(a).mass)
     masses = np.array([atlas_inputs(a).mass for a in ok])
     for a, m in zip(ok, masses, strict=True):
-        if math.isclose(m, known.mass, rel_tol=INPUT_RTOL):
-            return a
+        if math.isclose(m, known.mass, rel_tol=INPUT_RTOL):  # within the tolerance: that atlas answers, and says so
+            if m == known.mass:
+                return a
+            return dataclasses.replace(a, provenance=dict(a.provenance or {}, mass_g=known.mass * 1e3,
+                                                          answered_by=f"the {m * 1e3:g} g atlas (within "
+                                                                      f"{INPUT_RTOL:.0%})"))
     if not (masses[0] < known.mass < masses[-1]):
         raise ValueError(f"no {label} atlas covers a mass of {known.mass * 1e3:g} g (built: "
-                         f"{[round(m * 1e3, 2) for m in masses]} g); build one at that mass with "
+                         f"{[float(round(m * 1e3, 2)) for m in masses]} g); build one at that mass with "
                          "experiments/build_atlas.py")
     j = int(np.searchsorted(masses, known.mass))
     lo, hi = ok[j - 1], ok[j]

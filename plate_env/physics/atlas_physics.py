@@ -108,10 +108,15 @@ class AtlasPhysics:
         key = (abs(spec.motion.b_p), spec.obj.mass, spec.obj.diameter)
         if key not in self._conditioned:
             try:
-                self._conditioned[key] = condition(self._family, KnownInputs(*key))
-            except ValueError:
-                self._conditioned[key] = self.atlas
-        return self._conditioned[key]
+                self._conditioned[key] = (condition(self._family, KnownInputs(*key)), None)
+            except ValueError as exc:  # no atlas for these inputs: check() refuses with what is available
+                self._conditioned[key] = (self.atlas, str(exc))
+        return self._conditioned[key][0]
+
+    def _unconditioned(self, spec: ProbeSpec) -> str | None:
+        """Why no atlas answers the probe's known inputs (naming the atlases built), or None."""
+        self.atlas_for(spec)
+        return self._conditioned[(abs(spec.motion.b_p), spec.obj.mass, spec.obj.diameter)][1]
 
     def check(self, probes: Sequence[ProbeSpec]) -> None:
         """Refuse (ProbeRefused naming the value and the atlas's range) any probe outside what the atlas describes:
@@ -119,6 +124,9 @@ class AtlasPhysics:
         atlas was built at or around. The atlas would otherwise answer with a clipped or unrelated response."""
         for i, spec in enumerate(check_probes(probes)):
             problems = self.atlas_for(spec).outside(**probe_point(spec))
+            why = self._unconditioned(spec)
+            if why is not None and "mass" in problems:  # name the masses built, not only the nearest atlas's
+                problems = {**problems, "mass": why}
             if problems:
                 quantity, reason = next(iter(problems.items()))
                 raise ProbeRefused(quantity, f"probe {i}: {'; '.join(problems.values())} (atlas physics answers only "
