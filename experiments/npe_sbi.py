@@ -331,7 +331,8 @@ def main() -> None:
     truth_n, test_n = fmx.data_of("pointmass", None)
     if args.limit:
         test_n, truth_n = test_n[:args.limit], truth_n[:args.limit]
-    bma = ForwardModel(bma_key, tuple(fmx.member(f) for f in names), sigma_eps=sigma_bma)
+    bma = ForwardModel(bma_key, tuple(fmx.member(f) for f in names), sigma_eps=sigma_bma,
+                       eps_nu=float(nu[bma_key].get("eps_nu", math.inf)))
     ests_n = {"bma": atlas_estimates(bma, test_n), "npe_family": npe_estimates(nets["family"], test_n, 3),
               "npe_nominal": npe_estimates(nets["nominal"], test_n, 4)}
     labels_n = {"bma": f"atlas family, evidence-pooled (BMA), 9 members, sigma_eps {sigma_bma:.3f}",
