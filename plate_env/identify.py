@@ -26,6 +26,13 @@ def _table(probes: Sequence[ProbeResult] | ProbeTable) -> ProbeTable:
     return probes if isinstance(probes, ProbeTable) else ProbeTable.from_results(list(probes))
 
 
+def positive_intervals(x: float, se: float) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The 68 % and 95 % intervals of a normal estimate ``x`` +- ``se`` of a positive quantity (omega_n > 0):
+    x -+ se and x -+ 1.96 se, their lower ends cut at 0 (a stiffness is never negative; the cut is the interval's
+    statement, not a clamp of the estimate)."""
+    return (max(x - se, 0.0), x + se), (max(x - 1.96 * se, 0.0), x + 1.96 * se)
+
+
 def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = "pointmass",
                      calibrations: dict[float, Calibration] | None = None) -> Estimate:
     """Fit Eq. (9) per plate amplitude, map each f0 through that amplitude's Eq. (10), combine by inverse variance."""
@@ -65,8 +72,12 @@ def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = 
         aw = np.array([1.0 / s ** 2 for _, s in alphas])
         alpha = float(np.sum(aw * [a for a, _ in alphas]) / aw.sum())
         alpha_se = float(1.0 / math.sqrt(aw.sum()))
-    return Estimate(ok=True, method="lorentz", omega_n=omega, omega_n_stderr=se,
-                    omega_n_ci68=(omega - se, omega + se), omega_n_ci95=(omega - 1.96 * se, omega + 1.96 * se),
+    if omega <= 0.0:
+        return Estimate(ok=False, method="lorentz", reason=f"the calibration line gives omega_n = {omega:.3g} rad/s "
+                        "<= 0 at the fitted f0 (below the line's range): use the atlas method", n_probes=len(table),
+                        n_unstable=n_un, fits=fits)
+    ci68, ci95 = positive_intervals(omega, se)
+    return Estimate(ok=True, method="lorentz", omega_n=omega, omega_n_stderr=se, omega_n_ci68=ci68, omega_n_ci95=ci95,
                     alpha=alpha, alpha_stderr=alpha_se or 0.0, n_probes=len(table), n_unstable=n_un, fits=fits)
 
 

@@ -144,15 +144,17 @@ def _smooth_log_omega(prob: np.ndarray, sigma_steps: float, nu: float = math.inf
     """Convolve along axis 0 (a uniform log-omega grid) with a normal of scale ``sigma_steps`` grid steps, or a
     Student-t with ``nu`` degrees of freedom; mass pushed beyond the grid is lost (the grid reaches
     ``forward.pad_sigmas`` scales beyond the models' range)."""
-    from scipy.ndimage import convolve1d, gaussian_filter1d
+    from scipy.ndimage import gaussian_filter1d
 
     if math.isinf(nu):
         return gaussian_filter1d(prob, sigma_steps, axis=0, mode="constant", cval=0.0, truncate=5.0)
+    from scipy.signal import fftconvolve
     from scipy.stats import t
 
     half = min(int(math.ceil(sigma_steps * 40)), prob.shape[0])
     kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
-    return convolve1d(prob, kernel / kernel.sum(), axis=0, mode="constant", cval=0.0)
+    kernel = (kernel / kernel.sum()).reshape((-1,) + (1,) * (prob.ndim - 1))
+    return np.maximum(fftconvolve(prob, kernel, mode="same", axes=0), 0.0)  # zero beyond the grid, as above
 
 
 def _log_evidence(ll: np.ndarray, inside: np.ndarray, sigma_steps: float,

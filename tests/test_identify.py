@@ -48,3 +48,13 @@ def test_shipped_atlas_loads_and_identifies_one_sided_mixed_data():
     table = ProbeTable.from_arrays(np.r_[f, f[:2]], np.r_[[3.0] * 4, [12.0] * 2], np.r_[mu3, mu12])
     est = identify(table, method="atlas")
     assert est.ok and est.omega_n_ci95[0] <= w_true <= est.omega_n_ci95[1]
+
+
+def test_lorentz_intervals_of_a_positive_quantity_are_cut_at_zero_not_the_estimate():
+    """omega_n > 0: a normal interval reaching below 0 ends at 0 (the estimate and its stderr are untouched)."""
+    from plate_env.identify import positive_intervals
+
+    assert positive_intervals(30.0, 5.0) == ((25.0, 35.0), (pytest.approx(20.2), pytest.approx(39.8)))
+    ci68, ci95 = positive_intervals(34.4, 22.9)
+    assert ci68 == (pytest.approx(11.5), pytest.approx(57.3)) and ci95[0] == 0.0
+    assert ci95[1] == pytest.approx(34.4 + 1.96 * 22.9)
