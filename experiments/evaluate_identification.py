@@ -75,8 +75,7 @@ def main() -> None:
                 t = tables[(i, amps[0])]
                 for a in amps[1:]:
                     u = tables[(i, a)]
-                    t = ProbeTable(*(np.concatenate([getattr(t, k), getattr(u, k)]) for k in
-                                     ("f_p_hz", "a_p_deg", "omega_b_deg_s", "stderr_deg_s", "unstable")))
+                    t = ProbeTable.concat(t, u)
                 est = identify(t, method=method, physics=args.physics, model=args.model)
                 pairs.append((o.omega_n, est, o.alpha))
             s = stats(pairs)

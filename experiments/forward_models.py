@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from plate_env.benchmarks import EvalSet, run_eval_set
+from plate_env.estimate import Estimate
 from plate_env.executor import BackendSpec, add_executor_argument
 from plate_env.forward import ForwardModel, Member, load_forward_model
 from plate_env.inference import fit_sigma_eps, identify_atlas
@@ -42,17 +43,12 @@ CALIBRATION = EvalSet("tilelink_pointmass", 120, 300, (3.0, 12.0))
 TEST = EvalSet("tilelink_pointmass", 120, 200, (3.0, 12.0))
 
 
-def concat(*tables: ProbeTable) -> ProbeTable:
-    return ProbeTable(*(np.concatenate([getattr(t, k) for t in tables])
-                        for k in ("f_p_hz", "a_p_deg", "omega_b_deg_s", "stderr_deg_s", "unstable")))
-
-
 def sets_by_amplitude(data: dict, es: EvalSet) -> dict[str, list[ProbeTable]]:
     """The sweeps per object at each amplitude and at all amplitudes together ("3", "12", "3+12")."""
     out = {f"{a:g}": data[a] for a in es.a_p_deg}
     if len(es.a_p_deg) > 1:
-        out["+".join(f"{a:g}" for a in es.a_p_deg)] = [concat(*ts) for ts in zip(*(data[a] for a in es.a_p_deg),
-                                                                                   strict=True)]
+        out["+".join(f"{a:g}" for a in es.a_p_deg)] = [ProbeTable.concat(*ts)
+                                                       for ts in zip(*(data[a] for a in es.a_p_deg), strict=True)]
     return out
 
 
@@ -115,10 +111,10 @@ def stage_within(args) -> None:
         agent = make_agent("bayes", forward=fm, sigma_design=0.0)
         agent.fm = fm
         design0 = agent.estimate_model()
-        cal_ests = [identify_atlas(_table(d["table"]), design0) for d in cal_rows]
+        cal_ests = [identify_atlas(ProbeTable.from_rows(d["table"]), design0) for d in cal_rows]
         nu_design, sigma_design = fit_discrepancy(*discrepancies([d["omega_n"] for d in cal_rows], cal_ests))
         rows = episodes(args, fm, args.seed + 20)
-        s = score([d["omega_n"] for d in rows], [_from_dict(d["estimate"]) for d in rows], rng)
+        s = score([d["omega_n"] for d in rows], [Estimate.from_dict(d["estimate"]) for d in rows], rng)
         meta = {"probes": float(np.mean([d["probes"] for d in rows])),
                 "sim_s": float(np.mean([d["sim_s"] for d in rows])),
                 "wall_s_per_episode": float(np.median([d["wall_s"] for d in rows]))}
@@ -142,23 +138,17 @@ def episodes(args, fm: ForwardModel, seed: int) -> list[dict]:
     import gymnasium as gym
 
     from plate_env import benchmarks as bm
+    from plate_env.sweeps import open_for_append, read_records
     from plate_env_agents import make_agent
     from plate_env_agents.runner import run_episode
 
     cache = Path(f"experiments/cache/forward_models_bayes_s{seed}.jsonl")
-    done = {}
-    if cache.exists():
-        for line in cache.read_text().splitlines():
-            try:
-                d = json.loads(line)
-                done[d["i"]] = d
-            except (json.JSONDecodeError, KeyError):
-                continue
+    done = {d["i"]: d for d in read_records(cache) if "i" in d}
     objs = bm.prior_objects(args.episodes, np.random.default_rng(seed))
     if all(i in done for i in range(len(objs))):
         return [done[i] for i in range(len(objs))]
     env = gym.make("PlateRotation-v0", physics="tilelink", max_probes=30)
-    with cache.open("a") as fh:
+    with open_for_append(cache) as fh:
         for i, o in enumerate(objs):
             if i in done:
                 continue
@@ -168,26 +158,13 @@ def episodes(args, fm: ForwardModel, seed: int) -> list[dict]:
             d = {"i": i, "omega_n": o.omega_n, "probes": res.n_probes, "sim_s": res.sim_s,
                  "wall_s": time.perf_counter() - t0, "estimate": res.estimate.to_dict(),
                  "table": res.probes.to_rows()}
-            fh.write(json.dumps(d) + "\n")
+            fh.write((json.dumps(d) + "\n").encode())
             fh.flush()
             done[i] = d
             print(f"episode {i}: {o.omega_n / math.pi:.1f}pi -> {d['estimate']['omega_n_pi']:.2f}pi "
                   f"({res.n_probes} probes)", file=sys.stderr, flush=True)
     env.close()
     return [done[i] for i in range(len(objs))]
-
-
-def _table(rows: list[dict]) -> ProbeTable:
-    return ProbeTable(*(np.array([r[k] for r in rows]) for k in ("f_p_hz", "a_p_deg", "omega_b_deg_s",
-                                                                 "stderr_deg_s", "unstable")))
-
-
-def _from_dict(d: dict):
-    from plate_env.estimate import Estimate
-
-    return Estimate(ok=d["ok"], method=d["method"], reason=d["reason"], omega_n=d["omega_n_rad_s"],
-                    omega_n_stderr=d["omega_n_stderr_rad_s"], omega_n_ci68=tuple(d["omega_n_ci68_rad_s"]),
-                    omega_n_ci95=tuple(d["omega_n_ci95_rad_s"]))
 
 
 # --------------------------------------------------------------------------------------------------- families
@@ -245,10 +222,8 @@ def described(fm: ForwardModel, table: ProbeTable) -> ProbeTable:
     10-26 Hz; the others would refuse the estimate)."""
     from plate_env.inference import member_domain
 
-    keep = np.array([any(member_domain(m, float(f), float(a)) is None for m in fm.members)
-                     for f, a in zip(table.f_p_hz, table.a_p_deg, strict=True)], dtype=bool)
-    return ProbeTable(*(getattr(table, k)[keep] for k in ("f_p_hz", "a_p_deg", "omega_b_deg_s", "stderr_deg_s",
-                                                          "unstable")))
+    return table.subset(np.array([any(member_domain(m, float(f), float(a)) is None for m in fm.members)
+                                  for f, a in zip(table.f_p_hz, table.a_p_deg, strict=True)], dtype=bool))
 
 
 #: Data of each family: point-mass objects each with its own draw of the unknown joint/contact values, the
@@ -428,8 +403,8 @@ def stage_paper(args) -> None:
                              chunk=len(bm.SWEEP_F_HZ), progress=False, executor=args.executor)
             m = len(bm.SWEEP_F_HZ)
             tables[amp] = [ProbeTable.from_results(res[i * m:(i + 1) * m]) for i in range(PAPER_REPEATS)]
-        for amps, tabs in (("12", tables[12.0]), ("3+12", [concat(a, b) for a, b in zip(tables[12.0], tables[3.0],
-                                                                                       strict=True)])):
+        both = [ProbeTable.concat(a, b) for a, b in zip(tables[12.0], tables[3.0], strict=True)]
+        for amps, tabs in (("12", tables[12.0]), ("3+12", both)):
             for fm_name in ("tilelink/pointmass", "lab"):
                 try:
                     fm = load_forward_model(fm_name, known)
@@ -454,15 +429,15 @@ def stage_lorentz(args) -> None:
     line (its residual spread includes the models' disagreement) shipped as the ``lab`` calibration, and each
     family left out in turn (line from the other two) to test the Lorentzian intervals."""
     from plate_env.calibration import fit_calibration, load_calibrations, save_calibrations
-    from plate_env.estimate import Estimate
     from plate_env.fitting import fit_lorentzian
+    from plate_env.identify import identify_lorentz
 
     rng = np.random.default_rng(0)
-    fits = {}
+    fits, data = {}, {}
     for fam in DATA:
-        truth, tables = data_of(fam, args.executor)
+        data[fam] = data_of(fam, args.executor)
         fits[fam] = [(w, fit_lorentzian(t.f_p_hz, t.omega_b_deg_s, t.stderr_deg_s, t.unstable))
-                     for w, t in zip(truth, tables, strict=True)]
+                     for w, t in zip(*data[fam], strict=True)]
 
     def line(fams: list[str], physics: str, model: str):
         pts = [(fit.f0, w) for fam in fams for w, fit in fits[fam] if fit.ok]
@@ -470,13 +445,6 @@ def stage_lorentz(args) -> None:
         return fit_calibration(np.array(f0), np.array(w), physics, model, 3.0,
                                provenance={"sweeps": {fam: DATA[fam].source for fam in fams}, "a_p_deg": 3.0,
                                            "window": "first_hump", "script": "experiments/forward_models.py lorentz"})
-
-    def est(cal, w, fit) -> Estimate:
-        if not fit.ok:
-            return Estimate(ok=False, method="lorentz", reason=fit.reason)
-        x, se = cal.omega_n(fit.f0), cal.omega_n_stderr(fit.f0, fit.f0_stderr)
-        return Estimate(ok=True, method="lorentz", omega_n=x, omega_n_stderr=se, omega_n_ci68=(x - se, x + se),
-                        omega_n_ci95=(x - 1.96 * se, x + 1.96 * se))
 
     lines = ["# The paper's Lorentzian method across models (3 deg)", "",
              "| calibration line | points | p1 [pi rad/s per Hz] | q1 [pi rad/s] | R^2 | residual sd [pi rad/s] |",
@@ -496,8 +464,8 @@ def stage_lorentz(args) -> None:
     lines += ["", "## Leave one model out (line from the other two)", "", *HEAD]
     for out in DATA:
         cal = line([f for f in DATA if f != out], "lab", "lab")
-        ests = [est(cal, w, fit) for w, fit in fits[out]]
-        s = score([w for w, _ in fits[out]], ests, rng)
+        truth, tables = data[out]
+        s = score(truth, [identify_lorentz(t, calibrations={3.0: cal}) for t in tables], rng)
         lines.append(row(f"{out} data, line from the others", s))
         numbers["lomo"][out] = s.to_dict()
     cals = load_calibrations()

@@ -257,16 +257,16 @@ class BenchInterrupted(KeyboardInterrupt):
 
 
 def _load_records(path: Path, key: str) -> dict[int, Episode]:
+    from plate_env.sweeps import read_records
+
     out: dict[int, Episode] = {}
-    if not path.exists():
-        return out
-    for line in path.read_text().splitlines():
+    for d in read_records(path):
+        if d.get("key") != key:
+            continue
         try:
-            d = json.loads(line)
-            if d.get("key") == key:
-                out[int(d["index"])] = Episode.from_record(d)
-        except (json.JSONDecodeError, KeyError, TypeError, ValueError):
-            continue  # a torn last line, or a record of another format
+            out[int(d["index"])] = Episode.from_record(d)
+        except (KeyError, TypeError, ValueError):
+            continue  # a record of another format
     return out
 
 

@@ -164,3 +164,16 @@ class Estimate:
             d["members"] = dict(zip(self.posterior.members, self.posterior.member_weights, strict=True))
         d["fits"] = {f"{a:g}": fit.to_dict() for a, fit in self.fits.items()}
         return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Estimate:
+        """The estimate back from :meth:`to_dict` (its posterior grid and per-amplitude fits are not kept)."""
+        bound = d.get("bound")
+        alpha = d.get("alpha_deg")
+        return cls(ok=d["ok"], method=d["method"], reason=d["reason"], forward=d.get("forward"),
+                   omega_n=d["omega_n_rad_s"], omega_n_stderr=d["omega_n_stderr_rad_s"],
+                   omega_n_ci68=tuple(d["omega_n_ci68_rad_s"]), omega_n_ci95=tuple(d["omega_n_ci95_rad_s"]),
+                   alpha=None if alpha is None else math.radians(alpha),
+                   alpha_stderr=math.radians(d.get("alpha_stderr_deg", 0.0)), n_probes=d.get("n_probes", 0),
+                   n_unstable=d.get("n_unstable", 0),
+                   bound=None if bound is None else (bound["side"], bound["omega_n_rad_s"]))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +54,18 @@ class ProbeTable:
         se = np.zeros_like(f) if stderr_deg_s is None else np.atleast_1d(np.asarray(stderr_deg_s, float))
         un = np.zeros(f.shape, bool) if unstable is None else np.atleast_1d(np.asarray(unstable, bool))
         return cls(f, a, w, se, un)
+
+    @classmethod
+    def from_rows(cls, rows: Sequence[dict]) -> ProbeTable:
+        """The inverse of :meth:`to_rows`."""
+        return cls.from_arrays([r["f_p_hz"] for r in rows], [r["a_p_deg"] for r in rows],
+                               [r["omega_b_deg_s"] for r in rows], [r["stderr_deg_s"] for r in rows],
+                               [r["unstable"] for r in rows])
+
+    @classmethod
+    def concat(cls, *tables: ProbeTable) -> ProbeTable:
+        """The probes of several tables, in order."""
+        return cls(*(np.concatenate([getattr(t, f.name) for t in tables]) for f in fields(cls)))
 
     def subset(self, mask: np.ndarray) -> ProbeTable:
         return ProbeTable(self.f_p_hz[mask], self.a_p_deg[mask], self.omega_b_deg_s[mask], self.stderr_deg_s[mask],

@@ -60,18 +60,25 @@ def _from_record(spec: ProbeSpec, d: dict) -> ProbeResult:
                        wall_s=float(d["wall_s"]), periods_measured=int(d["periods_measured"]))
 
 
-def load_cache(path: Path) -> dict[str, dict]:
-    """Read a cache file, skipping a torn last line (an interrupted write)."""
-    out: dict[str, dict] = {}
+def read_records(path: Path) -> list[dict]:
+    """The JSON objects of a JSON-lines file (none if it does not exist), skipping a torn last line (an
+    interrupted write) and lines that are not objects."""
     if not path.exists():
-        return out
+        return []
+    out = []
     for line in path.read_text().splitlines():
         try:
             d = json.loads(line)
-            out[d["key"]] = d
-        except (json.JSONDecodeError, KeyError):
+        except json.JSONDecodeError:
             continue
+        if isinstance(d, dict):
+            out.append(d)
     return out
+
+
+def load_cache(path: Path) -> dict[str, dict]:
+    """A sweep cache file's records by key (torn or foreign lines skipped)."""
+    return {d["key"]: d for d in read_records(path) if "key" in d}
 
 
 class SweepInterrupted(KeyboardInterrupt):

@@ -85,3 +85,12 @@ def test_relative_error_and_report():
     assert none["alpha_deg"] is None and none["reason"] == "no probes" and none["ok"] is False
     bound = Estimate(ok=False, method="atlas", reason="above", bound=("above", 130.0)).to_dict()
     assert bound["bound"] == {"side": "above", "omega_n_rad_s": 130.0}
+
+
+def test_an_estimate_comes_back_from_its_dict():
+    est = Estimate(ok=False, method="atlas", reason="edge", omega_n=40.0, omega_n_stderr=2.0,
+                   omega_n_ci68=(38.0, 42.0), omega_n_ci95=(36.0, 45.0), alpha=0.7, alpha_stderr=0.01,
+                   bound=("above", 36.0), forward="lab", n_probes=12, n_unstable=3)
+    back = Estimate.from_dict(est.to_dict())
+    assert back.to_dict() == est.to_dict()
+    assert back.bound == ("above", 36.0) and back.alpha == pytest.approx(0.7)

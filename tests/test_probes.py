@@ -78,3 +78,14 @@ def test_csv_reader_binary_file(tmp_path):
     path.write_bytes(b"\xff\xfe\x00\x01garbage")
     with pytest.raises(CsvError):
         read_lab_csv(path, a_p_deg=3.0)
+
+
+def test_rows_round_trip_and_concat_keeps_every_column_in_order():
+    from plate_env.probes import ProbeTable
+
+    a = ProbeTable.from_arrays([10.0, 11.0], 3.0, [100.0, 0.0], [1.0, 0.0], [False, True])
+    b = ProbeTable.from_arrays([12.0], 12.0, [50.0], [2.0], [False])
+    back = ProbeTable.from_rows(a.to_rows())
+    assert back.to_rows() == a.to_rows() and back.unstable.dtype == bool
+    both = ProbeTable.concat(a, b)
+    assert both.to_rows() == a.to_rows() + b.to_rows()
