@@ -25,6 +25,10 @@ POOLINGS = ("evidence", "fixed")
 #: The posterior grid reaches this many discrepancies (sigma_eps, log omega) beyond the members' omega_n range
 #: (normal discrepancy; a Student-t one reaches its 99.5 % quantile, :func:`pad_sigmas`).
 PAD_SIGMAS = 3.0
+#: ... but never more than this in log omega (a factor 1000) beyond it: a discrepancy so wide that its 99.5 % quantile
+#: lies further (a Cauchy one across models) loses the mass beyond it, so its 95 % interval may end at the grid's
+#: end: read such an interval as "at least this wide".
+PAD_MAX_LOG = math.log(1000.0)
 
 
 def pad_sigmas(nu: float) -> float:
@@ -110,12 +114,13 @@ class ForwardModel:
 
     def grid(self, n_omega: int, n_alpha: int) -> tuple[np.ndarray, np.ndarray]:
         """The posterior grid: log-spaced omega_n (rad/s), ``n_omega`` points over :attr:`omega_range` and, at the
-        same spacing, :func:`pad_sigmas` discrepancy scales beyond each end (the truth may lie outside the range the
-        models cover by the discrepancy); uniform alpha (rad)."""
+        same spacing, :func:`pad_sigmas` discrepancy scales (at most :data:`PAD_MAX_LOG`) beyond each end (the
+        truth may lie outside the range the models cover by the discrepancy); uniform alpha (rad)."""
         lo, hi = self.omega_range
         a_lo, a_hi = self.alpha_range
         step = math.log(hi / lo) / (n_omega - 1)
-        k = math.ceil(pad_sigmas(self.eps_nu) * self.sigma_eps / step - 1e-9) if self.sigma_eps > 0 else 0
+        pad = min(pad_sigmas(self.eps_nu) * self.sigma_eps, PAD_MAX_LOG)
+        k = math.ceil(pad / step - 1e-9) if self.sigma_eps > 0 else 0
         return (np.geomspace(lo * math.exp(-k * step), hi * math.exp(k * step), n_omega + 2 * k),
                 np.linspace(a_lo, a_hi, n_alpha))
 

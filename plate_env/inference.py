@@ -115,7 +115,17 @@ def member_response(member: Member, a_p_deg: float, w: np.ndarray, a: np.ndarray
 
 def member_coverage(member: Member, w: np.ndarray, a: np.ndarray) -> np.ndarray:
     """The grid points (n_omega, n_alpha) inside a member's atlas ranges."""
-    return member_response(member, float(member.atlas.a_p_deg[0]), w, a)[1]
+    atlas = member.atlas
+    return ((w[:, None] >= atlas.omega_n[0] * (1 - 1e-9)) & (w[:, None] <= atlas.omega_n[-1] * (1 + 1e-9))
+            & (a[None, :] >= atlas.alpha[0] - 1e-9) & (a[None, :] <= atlas.alpha[-1] + 1e-9))
+
+
+def member_rows(member: Member, w: np.ndarray) -> slice:
+    """The rows of the omega grid ``w`` (sorted) inside a member's omega_n range: its likelihood is computed there
+    only (outside, its prior is zero; a grid padded for a wide discrepancy adds no work per probe)."""
+    lo = int(np.searchsorted(w, member.atlas.omega_n[0] * (1 - 1e-9), side="left"))
+    hi = int(np.searchsorted(w, member.atlas.omega_n[-1] * (1 + 1e-9), side="right"))
+    return slice(lo, max(hi, lo))
 
 
 def member_log_likelihood(member: Member, table: ProbeTable, w: np.ndarray, a: np.ndarray,
@@ -125,6 +135,8 @@ def member_log_likelihood(member: Member, table: ProbeTable, w: np.ndarray, a: n
     total = np.zeros((len(w), len(a)))
     skipped = 0
     steps = member.blur / math.log(w[1] / w[0])
+    rows = member_rows(member, w)
+    sub = w[rows]
     for k in range(len(table)):
         if only is not None and not only[k]:
             continue
@@ -132,10 +144,12 @@ def member_log_likelihood(member: Member, table: ProbeTable, w: np.ndarray, a: n
         if member_domain(member, f, amp) is not None:
             skipped += 1
             continue
-        mu, s, p = member_response(member, amp, w, a)[0](f)
-        total += blurred(probe_log_likelihood(mu, s, p, float(table.omega_b_deg_s[k]), float(table.stderr_deg_s[k]),
-                                              bool(table.unstable[k]), member.sigma_model, member.atlas.n_repeats),
-                         steps)
+        if sub.size == 0:
+            continue
+        mu, s, p = member_response(member, amp, sub, a)[0](f)
+        total[rows] += blurred(probe_log_likelihood(mu, s, p, float(table.omega_b_deg_s[k]),
+                                                    float(table.stderr_deg_s[k]), bool(table.unstable[k]),
+                                                    member.sigma_model, member.atlas.n_repeats), steps)
     return total, skipped
 
 
@@ -262,6 +276,19 @@ def fit_sigma_model(resid: np.ndarray, spread: np.ndarray, stderr: np.ndarray, n
     return float(math.exp(best.x))
 
 
+_HERMGAUSS = np.polynomial.hermite.hermgauss(61)
+
+
+def _t_pdf(x: np.ndarray, nu: float, scale) -> np.ndarray:
+    """Student-t density (``scipy.stats.t.pdf(x, nu, scale=scale)``, without its per-call overhead: the fits call it
+    thousands of times)."""
+    from scipy.special import gammaln
+
+    c = gammaln((nu + 1) / 2) - gammaln(nu / 2) - 0.5 * math.log(nu * math.pi)
+    z = np.asarray(x, float) / scale
+    return np.exp(c - 0.5 * (nu + 1) * np.log1p(z * z / nu)) / scale
+
+
 def discrepancy_log_density(eps: np.ndarray, post_sd: np.ndarray, sigma: float, nu: float = math.inf) -> np.ndarray:
     """Log-density of ``eps = log(truth / estimate)`` when the posterior's own error is normal (sd ``post_sd``) and
     the discrepancy, independent of it, is normal (``nu`` inf) or Student-t with scale ``sigma``: their sum, the
@@ -272,11 +299,11 @@ def discrepancy_log_density(eps: np.ndarray, post_sd: np.ndarray, sigma: float, 
     sd = np.asarray(post_sd, float)
     if math.isinf(nu) or sigma <= 0.0:
         return stats.norm.logpdf(e, scale=np.sqrt(sd ** 2 + sigma ** 2))
-    x, w = np.polynomial.hermite.hermgauss(61)
+    x, w = _HERMGAUSS
     d = e[..., None] - math.sqrt(2.0) * sd[..., None] * x  # the discrepancy's share of eps at each node
-    dens = (w * stats.t.pdf(d, nu, scale=sigma)).sum(-1) / math.sqrt(math.pi)
+    dens = (w * _t_pdf(d, nu, sigma)).sum(-1) / math.sqrt(math.pi)
     wide = sd > 0.2 * sigma  # a normal part wider than the t's core: quadrature is accurate; else the t dominates
-    narrow = stats.t.pdf(e, nu, scale=np.sqrt(sigma ** 2 + sd ** 2))
+    narrow = _t_pdf(e, nu, np.sqrt(sigma ** 2 + sd ** 2))
     return np.log(np.maximum(np.where(wide, dens, narrow), 1e-300))
 
 
@@ -296,3 +323,95 @@ def fit_sigma_eps(eps: np.ndarray, post_sd: np.ndarray, nu: float = math.inf) ->
 
     best = minimize_scalar(nll, bounds=(0.0, 2.0), method="bounded")
     return float(best.x) if nll(best.x) < nll(0.0) else 0.0
+
+
+#: Degrees of freedom tried when a discrepancy is fitted (inf: normal); the one of highest likelihood is kept.
+NU_CHOICES = (1.0, 1.5, 2.0, 3.0, 5.0, 10.0, math.inf)
+
+
+def fit_discrepancy(eps: np.ndarray, post_sd: np.ndarray, nus: Sequence[float] = NU_CHOICES) -> tuple[float, float]:
+    """``(nu, sigma)`` of a discrepancy by maximum likelihood with each posterior approximated as normal
+    (:func:`fit_sigma_eps` per nu, then the nu of highest likelihood). :func:`fit_discrepancy_exact` uses the
+    posteriors themselves; this serves where only ``(eps, sd)`` pairs are kept."""
+    eps, sd = np.asarray(eps, float), np.asarray(post_sd, float)
+    best = (-np.inf, math.inf, 0.0)
+    for nu in nus:
+        sigma = fit_sigma_eps(eps, sd, nu)
+        ll = float(np.sum(discrepancy_log_density(eps, sd, sigma, nu)))
+        if ll > best[0] + 1e-9:
+            best = (ll, nu, sigma)
+    return best[1], best[2]
+
+
+def truth_log_density(post: Posterior, omega_true: float, sigma: float, nu: float = math.inf) -> float:
+    """Log-density (per unit of log omega_n) of ``omega_true`` under a posterior whose members' own marginal
+    (``post.model_omega``, before any discrepancy) is smoothed by a discrepancy of scale ``sigma`` (at least
+    ``STEP_FLOOR`` grid steps) and ``nu`` degrees of freedom, as :func:`pool` applies it; the grid is padded as
+    :meth:`ForwardModel.grid` pads it. -690 (1e-300) beyond the padded grid."""
+    from plate_env.forward import PAD_MAX_LOG, pad_sigmas
+
+    lw = np.log(post.omega_n)
+    step = float(lw[1] - lw[0])
+    raw = post.marginal_omega() if post.model_omega is None else post.model_omega
+    sig = max(sigma, STEP_FLOOR * step)
+    nu = nu if sigma > STEP_FLOOR * step else math.inf
+    k = int(math.ceil(min(pad_sigmas(nu) * sig, PAD_MAX_LOG) / step))
+    prob = _smooth_log_omega(np.pad(raw, k), sig / step, nu)
+    dens = prob / (prob.sum() * step)
+    grid = lw[0] + step * np.arange(-k, lw.size + k)
+    x = math.log(omega_true)
+    if not grid[0] <= x <= grid[-1]:
+        return math.log(1e-300)
+    return math.log(max(float(np.interp(x, grid, dens)), 1e-300))
+
+
+def fit_discrepancy_exact(truths: Sequence[float], posts: Sequence[Posterior],
+                          nus: Sequence[float] = NU_CHOICES) -> tuple[float, float]:
+    """``(nu, sigma)`` of the coherent discrepancy by maximum likelihood on held-out objects, exactly: the
+    likelihood of each true omega_n under its posterior smoothed by the discrepancy (:func:`truth_log_density`,
+    the log score of the intervals the forward model will report), not under a normal approximation of the
+    posterior. ``posts`` come from the forward model without its discrepancy. ``(inf, 0)`` when the posteriors
+    already explain the truths."""
+    from scipy.optimize import minimize_scalar
+
+    if len(truths) != len(posts) or not posts:
+        raise ValueError(f"{len(truths)} true values for {len(posts)} posteriors: need one each, at least one")
+
+    def ll(sigma: float, nu: float) -> float:
+        return float(sum(truth_log_density(p, w, sigma, nu) for w, p in zip(truths, posts, strict=True)))
+
+    best = (ll(0.0, math.inf), math.inf, 0.0)
+    for nu in nus:
+        res = minimize_scalar(lambda x, nu=nu: -ll(math.exp(x), nu), bounds=(math.log(1e-3), math.log(2.0)),
+                              method="bounded", options={"xatol": 1e-3})
+        if -res.fun > best[0] + 1e-9:
+            best = (-float(res.fun), nu, float(math.exp(res.x)))
+    return best[1], best[2]
+
+
+def family_discrepancy(pairs: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]) -> tuple[float, float, dict]:
+    """``(nu, sigma, parts)``: the discrepancy between a pool of models and a model none of them is, from each
+    pooled model's data identified by each other one (``pairs[(data, model)] = (eps, sd)``, ``eps = log(truth /
+    estimate)`` per object, ``sd`` its posterior's log-sd).
+
+    Two levels, because objects are not independent evidence about how far models lie apart: each pair's mean
+    ``b`` is one draw of the between-model offset (normal, variance tau^2), the objects scatter around it
+    (:func:`fit_discrepancy` on the centred eps). With K models there are K - 1 independent offsets; with tau^2
+    unknown (a scale-free prior) the offset of a model never seen is Student-t with K - 1 degrees of freedom and
+    scale ``tau_hat = sqrt(mean b^2)`` (the offsets centred on zero: no model is the truth's). The result is that
+    t with scale ``hypot(tau_hat, sigma_within)`` (the within-pair scatter's own tails are lighter). Two models
+    give one degree of freedom: a Cauchy, as wide as one observed disagreement can honestly promise."""
+    if not pairs:
+        raise ValueError("no pairs of models to estimate a discrepancy between models from")
+    models = {m for pair in pairs for m in pair}
+    if len(models) < 2:
+        raise ValueError(f"a discrepancy between models needs at least two models, got {sorted(models)}")
+    biases = {pair: float(np.mean(eps)) for pair, (eps, _) in pairs.items() if len(eps)}
+    tau = math.sqrt(float(np.mean(np.square(list(biases.values())))))
+    centred = np.concatenate([np.asarray(eps, float) - biases[pair] for pair, (eps, _) in pairs.items() if len(eps)])
+    sds = np.concatenate([np.asarray(sd, float) for pair, (eps, sd) in pairs.items() if len(eps)])
+    nu_w, sigma_w = fit_discrepancy(centred, sds)
+    dof = float(len(models) - 1)
+    parts = {"tau": tau, "dof": dof, "sigma_within": sigma_w, "nu_within": nu_w, "models": sorted(models),
+             "pair_bias": {f"{a}->{b}": v for (a, b), v in biases.items()}}
+    return min(dof, nu_w), min(math.hypot(tau, sigma_w), 2.0), parts
