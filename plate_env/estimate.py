@@ -60,7 +60,8 @@ class Posterior:
     Attributes:
         members: the forward model's member labels; member_weights: their posterior weights.
         skipped: per member, probes outside its domain (left out of its likelihood).
-        sigma_conv: the log-omega smoothing applied (the coherent discrepancy, at least half a grid step).
+        sigma_conv: the log-omega smoothing applied (the coherent discrepancy, at least half a grid step, and the
+            offset between models, in quadrature).
         identifiable_range: the omega_n range (rad/s) every member covers.
         model_omega: the members' pooled marginal over omega_n before the discrepancy smoothing (what the models
             themselves say; the edge rule reads it), None to use the posterior's own marginal.

@@ -2,8 +2,9 @@
 
 A :class:`ForwardModel` is one or more *members*, each the response atlas of one physics model conditioned on what
 the lab knows (plate amplitude, B_p, the disc's mass and diameter: :class:`KnownInputs`) with its measured error
-against live probes, and a *coherent discrepancy* ``sigma_eps`` (the sd of log omega_n by which the truth may
-differ from what the members' curves match), estimated by leaving objects or whole models out, never guessed.
+against live probes, and a *coherent discrepancy* ``sigma_eps`` (the scale of log omega_n by which the truth may
+differ from what the members' curves match) with, across models, an *offset* between the data's model and the
+members, estimated by leaving objects or whole models out, never guessed.
 :mod:`plate_env.inference` turns a forward model and probes into a posterior.
 
 Shipped forward models (``plate_env/data/forward_models.json``, written by ``experiments/forward_models.py``):
@@ -76,7 +77,12 @@ class Member:
 class ForwardModel:
     """Members, a coherent discrepancy (scale ``sigma_eps`` of log omega_n, normal or, with finite ``eps_nu``,
     Student-t with ``eps_nu`` degrees of freedom: across models the errors are heavy-tailed), and how members are
-    pooled."""
+    pooled.
+
+    Across models the discrepancy has two levels (:func:`plate_env.inference.family_discrepancy`): an *offset*
+    between the data's model and the members (``offset_sigma``, Student-t with ``offset_nu`` degrees of freedom:
+    the number of models it was estimated from, less one), the same for every object, and the object-level scatter
+    around it (``sigma_eps``, ``eps_nu``); the posterior is smoothed by both in turn (their sum)."""
 
     name: str
     members: tuple[Member, ...]
@@ -84,6 +90,8 @@ class ForwardModel:
     pooling: str = "evidence"
     provenance: dict = field(default_factory=dict, compare=False)
     eps_nu: float = math.inf
+    offset_sigma: float = 0.0
+    offset_nu: float = math.inf
 
     def __post_init__(self) -> None:
         if not self.members:
@@ -94,6 +102,10 @@ class ForwardModel:
             raise ValueError(f"pooling {self.pooling!r}: choose one of {POOLINGS}")
         if not self.eps_nu >= 1.0:
             raise ValueError(f"eps_nu = {self.eps_nu!r} must be >= 1 (inf: a normal discrepancy)")
+        if not (math.isfinite(self.offset_sigma) and 0.0 <= self.offset_sigma <= 2.0):
+            raise ValueError(f"offset_sigma = {self.offset_sigma!r} must be in [0, 2] (scale of log omega_n)")
+        if not self.offset_nu >= 1.0:
+            raise ValueError(f"offset_nu = {self.offset_nu!r} must be >= 1 (inf: a normal offset)")
 
     @property
     def omega_range(self) -> tuple[float, float]:
@@ -114,13 +126,15 @@ class ForwardModel:
 
     def grid(self, n_omega: int, n_alpha: int) -> tuple[np.ndarray, np.ndarray]:
         """The posterior grid: log-spaced omega_n (rad/s), ``n_omega`` points over :attr:`omega_range` and, at the
-        same spacing, :func:`pad_sigmas` discrepancy scales (at most :data:`PAD_MAX_LOG`) beyond each end (the
-        truth may lie outside the range the models cover by the discrepancy); uniform alpha (rad)."""
+        same spacing, :func:`pad_sigmas` scales of the discrepancy and of the offset (together at most
+        :data:`PAD_MAX_LOG`) beyond each end (the truth may lie outside the range the models cover by them);
+        uniform alpha (rad)."""
         lo, hi = self.omega_range
         a_lo, a_hi = self.alpha_range
         step = math.log(hi / lo) / (n_omega - 1)
-        pad = min(pad_sigmas(self.eps_nu) * self.sigma_eps, PAD_MAX_LOG)
-        k = math.ceil(pad / step - 1e-9) if self.sigma_eps > 0 else 0
+        pad = min(pad_sigmas(self.eps_nu) * self.sigma_eps + pad_sigmas(self.offset_nu) * self.offset_sigma,
+                  PAD_MAX_LOG)
+        k = math.ceil(pad / step - 1e-9) if pad > 0 else 0
         return (np.geomspace(lo * math.exp(-k * step), hi * math.exp(k * step), n_omega + 2 * k),
                 np.linspace(a_lo, a_hi, n_alpha))
 
@@ -265,5 +279,7 @@ def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardMo
         raise ValueError(f"forward model {name!r} has no member for these known inputs: {'; '.join(left_out)}")
     return ForwardModel(name=name, members=tuple(members), sigma_eps=float(entry["sigma_eps"]),
                         eps_nu=float(entry.get("eps_nu", math.inf)),
+                        offset_sigma=float(entry.get("offset_sigma", 0.0)),
+                        offset_nu=float(entry.get("offset_nu", math.inf)),
                         pooling=entry.get("pooling", "evidence"),
                         provenance={**entry.get("provenance", {}), "left_out": left_out})

@@ -12,8 +12,9 @@ measured error) and a coherent discrepancy. Given probes:
    ``blur`` (a normal in log omega): the atlas resolves omega_n only to about its node spacing, so a probe on a
    steep flank or an instability boundary between two nodes does not pin omega_n finer than that.
 2. The coherent discrepancy: the true omega_n differs from the omega_eff a member's curves match by a factor
-   exp(eps), eps ~ Normal(0, sigma_eps^2), the same for every probe of one object; so each member's likelihood is
-   convolved along log omega with that normal (never with less than half a grid step).
+   exp(eps), eps normal or Student-t of scale sigma_eps, the same for every probe of one object; so each member's
+   likelihood is convolved along log omega with that kernel (never with less than half a grid step), and then
+   with the offset between models (``offset_sigma``) when the forward model has one.
 3. Priors: log-uniform in omega_n over each member's atlas range, uniform in alpha; members are weighted by their
    evidence times their prior weight (``pooling="evidence"``) or by the prior weight alone (``"fixed"``).
 
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -171,13 +173,16 @@ def _smooth_log_omega(prob: np.ndarray, sigma_steps: float, nu: float = math.inf
     return np.maximum(fftconvolve(prob, kernel, mode="same", axes=0), 0.0)  # zero beyond the grid, as above
 
 
-def _log_evidence(ll: np.ndarray, inside: np.ndarray, sigma_steps: float,
-                  nu: float = math.inf) -> tuple[np.ndarray, float]:
+def _log_evidence(ll: np.ndarray, inside: np.ndarray, sigma_steps: float, nu: float = math.inf,
+                  offset: tuple[float, float] = (0.0, math.inf)) -> tuple[np.ndarray, float]:
     """The smoothed likelihood grid of one member (unnormalised, peak-scaled) and its log evidence under a prior
-    uniform over the grid points it covers."""
+    uniform over the grid points it covers; ``offset`` (scale in grid steps, nu): a second smoothing, the offset
+    between models."""
     ll = np.where(inside, ll, -np.inf)
     top = float(ll.max())
     like = _smooth_log_omega(np.exp(ll - top), sigma_steps, nu)
+    if offset[0] > 0:
+        like = _smooth_log_omega(like, offset[0], offset[1])
     mass = float(like.sum())
     return like, top + math.log(max(mass, 1e-300)) - math.log(max(int(inside.sum()), 1))
 
@@ -192,14 +197,15 @@ def pool(fm: ForwardModel, w: np.ndarray, a: np.ndarray, log_likes: Sequence[np.
     step = math.log(w[1] / w[0])
     sigma = max(fm.sigma_eps, STEP_FLOOR * step)
     nu = fm.eps_nu if fm.sigma_eps > STEP_FLOOR * step else math.inf
+    offset = (fm.offset_sigma / step, fm.offset_nu)
     parts, raw, log_z = [], [], []
     for i, (m, ll) in enumerate(zip(fm.members, log_likes, strict=True)):
         inside = member_coverage(m, w, a)
         own = np.exp(np.where(inside, ll, -np.inf) - np.max(ll, where=inside, initial=-np.inf)).sum(1)
         raw.append(own / own.sum())
-        like, lz = _log_evidence(ll, inside, sigma / step, nu)
+        like, lz = _log_evidence(ll, inside, sigma / step, nu, offset)
         if evidence_likes is not None:
-            lz = _log_evidence(evidence_likes[i], inside, sigma / step, nu)[1]
+            lz = _log_evidence(evidence_likes[i], inside, sigma / step, nu, offset)[1]
         mass = float(like.sum())
         parts.append(like / mass if mass > 0 else like)
         log_z.append(lz + math.log(m.weight))
@@ -213,7 +219,8 @@ def pool(fm: ForwardModel, w: np.ndarray, a: np.ndarray, log_likes: Sequence[np.
     prob = prob / prob.sum()
     return Posterior(omega_n=w, alpha=a, prob=prob, members=tuple(m.label for m in fm.members),
                      member_weights=tuple(float(x) for x in wts),
-                     skipped=tuple(skipped) or (0,) * len(fm.members), sigma_conv=sigma,
+                     skipped=tuple(skipped) or (0,) * len(fm.members),
+                     sigma_conv=math.hypot(sigma, fm.offset_sigma),
                      identifiable_range=fm.identifiable_range,
                      model_omega=sum(wt * r for wt, r in zip(wts, raw, strict=True)))
 
@@ -389,18 +396,43 @@ def fit_discrepancy_exact(truths: Sequence[float], posts: Sequence[Posterior],
     return best[1], best[2]
 
 
-def family_discrepancy(pairs: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]) -> tuple[float, float, dict]:
-    """``(nu, sigma, parts)``: the discrepancy between a pool of models and a model none of them is, from each
-    pooled model's data identified by each other one (``pairs[(data, model)] = (eps, sd)``, ``eps = log(truth /
-    estimate)`` per object, ``sd`` its posterior's log-sd).
+@dataclass(frozen=True)
+class ModelDiscrepancy:
+    """The discrepancy between a pool of models and data from a model none of them is (log omega_n): an offset
+    (Student-t, scale ``offset_sigma``, ``offset_nu`` degrees of freedom), the same for every object of that
+    model, plus the objects' scatter around it (Student-t, ``sigma``, ``nu``). ``pair_bias``: the mean error of
+    each (data model, forward model) pair it was estimated from."""
+
+    offset_sigma: float
+    offset_nu: float
+    sigma: float
+    nu: float
+    models: tuple[str, ...]
+    pair_bias: dict = field(default_factory=dict, compare=False)
+
+    def apply(self, fm: ForwardModel) -> ForwardModel:
+        """``fm`` with this discrepancy (replacing its own)."""
+        import dataclasses
+
+        return dataclasses.replace(fm, sigma_eps=self.sigma, eps_nu=self.nu, offset_sigma=self.offset_sigma,
+                                   offset_nu=self.offset_nu)
+
+    def to_dict(self) -> dict:
+        return {"offset_sigma": self.offset_sigma, "offset_nu": self.offset_nu, "sigma_eps": self.sigma,
+                "eps_nu": self.nu, "models": list(self.models), "pair_bias": self.pair_bias}
+
+
+def family_discrepancy(pairs: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]) -> ModelDiscrepancy:
+    """The discrepancy between a pool of models and a model none of them is, from each pooled model's data
+    identified by each other one (``pairs[(data, model)] = (eps, sd)``, ``eps = log(truth / estimate)`` per
+    object, ``sd`` its posterior's log-sd).
 
     Two levels, because objects are not independent evidence about how far models lie apart: each pair's mean
-    ``b`` is one draw of the between-model offset (normal, variance tau^2), the objects scatter around it
+    ``b`` is one draw of the offset between models (normal, variance tau^2), the objects scatter around it
     (:func:`fit_discrepancy` on the centred eps). With K models there are K - 1 independent offsets; with tau^2
     unknown (a scale-free prior) the offset of a model never seen is Student-t with K - 1 degrees of freedom and
-    scale ``tau_hat = sqrt(mean b^2)`` (the offsets centred on zero: no model is the truth's). The result is that
-    t with scale ``hypot(tau_hat, sigma_within)`` (the within-pair scatter's own tails are lighter). Two models
-    give one degree of freedom: a Cauchy, as wide as one observed disagreement can honestly promise."""
+    scale ``tau_hat = sqrt(mean b^2)`` (the offsets centred on zero: no model is the truth's). Two models give one
+    degree of freedom: a Cauchy, as wide as one observed disagreement can honestly promise."""
     if not pairs:
         raise ValueError("no pairs of models to estimate a discrepancy between models from")
     models = {m for pair in pairs for m in pair}
@@ -411,7 +443,6 @@ def family_discrepancy(pairs: dict[tuple[str, str], tuple[np.ndarray, np.ndarray
     centred = np.concatenate([np.asarray(eps, float) - biases[pair] for pair, (eps, _) in pairs.items() if len(eps)])
     sds = np.concatenate([np.asarray(sd, float) for pair, (eps, sd) in pairs.items() if len(eps)])
     nu_w, sigma_w = fit_discrepancy(centred, sds)
-    dof = float(len(models) - 1)
-    parts = {"tau": tau, "dof": dof, "sigma_within": sigma_w, "nu_within": nu_w, "models": sorted(models),
-             "pair_bias": {f"{a}->{b}": v for (a, b), v in biases.items()}}
-    return min(dof, nu_w), min(math.hypot(tau, sigma_w), 2.0), parts
+    return ModelDiscrepancy(offset_sigma=min(tau, 2.0), offset_nu=float(len(models) - 1), sigma=sigma_w, nu=nu_w,
+                            models=tuple(sorted(models)),
+                            pair_bias={f"{a}->{b}": v for (a, b), v in biases.items()})

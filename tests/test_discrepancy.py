@@ -87,6 +87,13 @@ def _families(rng, k, tau, n_obj=20, scatter=0.05):
     return mu, pairs
 
 
+def _interval(disc, rng, n=4000):
+    """The 68 and 95 % central intervals of offset + scatter, by sampling."""
+    draws = disc.offset_sigma * rng.standard_t(disc.offset_nu, n)
+    draws += disc.sigma * (rng.standard_t(disc.nu, n) if math.isfinite(disc.nu) else rng.standard_normal(n))
+    return np.percentile(draws, [16, 84, 2.5, 97.5])
+
+
 def test_family_discrepancy_holds_its_coverage_on_a_model_left_out_where_the_object_level_fit_does_not():
     """Simulation-based calibration across models: three models drawn with random offsets, one left out, the
     discrepancy estimated from the other two. The left-out model's objects read by one of the pool's models are
@@ -100,10 +107,10 @@ def test_family_discrepancy_holds_its_coverage_on_a_model_left_out_where_the_obj
         mu, pairs = _families(rng, 3, tau=0.3)
         rest = {p: v for p, v in pairs.items() if "2" not in p}
         eps_out = mu[2] - mu[rng.integers(0, 2)] + rng.normal(0, 0.05)
-        nu, sigma, parts = family_discrepancy(rest)
-        assert parts["dof"] == 1.0 and nu == 1.0
-        hits["family"].append((abs(eps_out) <= stats.t.ppf(0.84, nu) * sigma,
-                               abs(eps_out) <= stats.t.ppf(0.975, nu) * sigma))
+        disc = family_discrepancy(rest)
+        assert disc.offset_nu == 1.0
+        lo68, hi68, lo95, hi95 = _interval(disc, rng)
+        hits["family"].append((lo68 <= eps_out <= hi68, lo95 <= eps_out <= hi95))
         nu0, s0 = fit_discrepancy(np.concatenate([v[0] for v in rest.values()]),
                                   np.concatenate([v[1] for v in rest.values()]))
         half95 = (stats.t.ppf(0.975, nu0) if math.isfinite(nu0) else 1.96) * math.hypot(s0, 0.03)
@@ -116,9 +123,10 @@ def test_family_discrepancy_holds_its_coverage_on_a_model_left_out_where_the_obj
 def test_family_discrepancy_uses_k_minus_one_degrees_of_freedom_and_refuses_one_model():
     rng = np.random.default_rng(2)
     _, pairs = _families(rng, 4, tau=0.2)
-    nu, sigma, parts = family_discrepancy(pairs)
-    assert parts["dof"] == 3.0 and nu <= 3.0 and sigma >= parts["tau"]
-    assert parts["tau"] == pytest.approx(math.sqrt(np.mean([np.mean(v[0]) ** 2 for v in pairs.values()])))
+    disc = family_discrepancy(pairs)
+    assert disc.offset_nu == 3.0 and disc.models == ("0", "1", "2", "3")
+    assert disc.offset_sigma == pytest.approx(math.sqrt(np.mean([np.mean(v[0]) ** 2 for v in pairs.values()])))
+    assert disc.sigma == pytest.approx(math.sqrt(0.05 ** 2 - 0.03 ** 2), rel=0.35)  # the objects' own scatter
     with pytest.raises(ValueError, match="no pairs"):
         family_discrepancy({})
 
@@ -137,3 +145,23 @@ def test_a_cauchy_discrepancy_pads_the_grid_at_most_by_its_cap(toy_atlas):
     assert est.omega_n_ci95[0] < est.omega_n < est.omega_n_ci95[1]
     narrow = identify_atlas(table, dataclasses.replace(fm, sigma_eps=0.0))
     assert est.omega_n == pytest.approx(narrow.omega_n, rel=0.05)
+
+
+def test_an_offset_between_models_widens_the_posterior_as_its_sum_with_the_scatter(toy_atlas):
+    """The posterior is smoothed by the offset and the scatter in turn: with two normal parts its log-omega spread
+    is that of one normal of their quadrature sum (and the model without either is narrower than both)."""
+    atlas = toy_atlas()
+    table = _sweep(atlas, 9 * math.pi, 0.8, np.arange(14.0, 36.0, 2.0), np.random.default_rng(1))
+    two = identify_atlas(table, _fm(atlas, sigma_eps=0.12, offset_sigma=0.16))
+    one = identify_atlas(table, _fm(atlas, sigma_eps=0.2))
+    bare = identify_atlas(table, _fm(atlas))
+
+    def width(e):
+        return math.log(e.omega_n_ci95[1] / e.omega_n_ci95[0])
+
+    assert width(two) == pytest.approx(width(one), rel=0.03)
+    assert width(bare) < 0.5 * width(two)
+    with pytest.raises(ValueError, match="offset_sigma"):
+        _fm(atlas, offset_sigma=-0.1)
+    with pytest.raises(ValueError, match="offset_nu"):
+        _fm(atlas, offset_sigma=0.1, offset_nu=0.5)
