@@ -31,7 +31,12 @@ class Calibration:
         physics, model: where the sweeps came from ("paper" for the paper's published coefficients).
         a_p_deg: plate amplitude, degrees.
         p1: (rad/s)/Hz; q1: rad/s; p1_se, q1_se: their standard errors; cov_pq: their covariance.
-        r2: coefficient of determination of omega_n on f0; resid_std: residual std of omega_n, rad/s.
+        r2: coefficient of determination of omega_n on f0; resid_std: residual std of omega_n, rad/s (of a line
+            pooled over models: the scatter about each model's own line).
+        model_lines: a line pooled over several models: each model's own (p1, q1) (rad/s per Hz, rad/s). The
+            offset of a model never seen from the pooled line is Student-t with len - 1 degrees of freedom and the
+            scale of the models' offsets at that f0 (:meth:`offset_scale`), as the atlas route's offset between
+            models (:func:`plate_env.inference.family_discrepancy`).
         alpha_coef: (a0 [rad], a1 [rad per deg/s], a2 [rad/Hz]) of the friction model; alpha_resid_std: rad.
         provenance: how it was made (objects, amplitudes, dt, window, version).
     """
@@ -50,6 +55,28 @@ class Calibration:
     alpha_coef: tuple[float, float, float] | None = None
     alpha_resid_std: float = 0.0
     provenance: dict = field(default_factory=dict, compare=False)
+    model_lines: tuple[tuple[float, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        if len(self.model_lines) == 1:
+            raise ValueError("model_lines: a line pooled over models needs at least two models' lines (none: one "
+                             "model)")
+
+    @property
+    def offset_nu(self) -> float:
+        """Degrees of freedom of the offset between models (inf: no offset, a single model's line)."""
+        return float(len(self.model_lines) - 1) if self.model_lines else math.inf
+
+    def offset_scale(self, f0_hz: float) -> float:
+        """Scale (rad/s) of the offset of a model never seen from the pooled line at ``f0_hz`` (0 for a single
+        model's line): the predictive scale of a new draw from the K models' lines there, ``s sqrt(1 + 1/K)`` with
+        ``s^2`` their squared spread about the pooled line over K - 1."""
+        if not self.model_lines:
+            return 0.0
+        k = len(self.model_lines)
+        w = self.omega_n(f0_hz)
+        s2 = float(np.sum([(p * f0_hz + q - w) ** 2 for p, q in self.model_lines])) / (k - 1)
+        return math.sqrt(s2 * (1.0 + 1.0 / k))
 
     def omega_n(self, f0_hz: float) -> float:
         """omega_n_hat (rad/s) from the Lorentzian f0 (Hz)."""
@@ -79,6 +106,9 @@ class Calibration:
     def to_json(self) -> dict:
         d = asdict(self)
         d["alpha_coef"] = list(self.alpha_coef) if self.alpha_coef is not None else None
+        d["model_lines"] = [list(line) for line in self.model_lines]
+        if not self.model_lines:
+            del d["model_lines"]
         return d
 
     @classmethod
@@ -86,6 +116,7 @@ class Calibration:
         d = dict(d)
         if d.get("alpha_coef") is not None:
             d["alpha_coef"] = tuple(float(x) for x in d["alpha_coef"])
+        d["model_lines"] = tuple((float(p), float(q)) for p, q in d.get("model_lines", ()))
         return cls(**d)
 
 
@@ -119,10 +150,23 @@ def linear_fit(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float
 
 
 def fit_calibration(f0_hz, omega_n_rad_s, physics: str, model: str, a_p_deg: float, omega_max_deg_s=None,
-                    alpha_rad=None, provenance: dict | None = None) -> Calibration:
+                    alpha_rad=None, provenance: dict | None = None, groups=None) -> Calibration:
     """Fit Eq. (10) (omega_n on f0, as the paper regresses it) and, given omega_max and the true alphas, the
-    friction model. Pure."""
+    friction model. ``groups`` (one label per point): the points come from several models; the lines of the
+    models with at least 3 points are kept (``model_lines``, when there are two or more) and the residual scatter is
+    the one about those models' own lines. Pure."""
     p, q, pse, qse, cpq, r2, rs = linear_fit(f0_hz, omega_n_rad_s)
+    lines: tuple[tuple[float, float], ...] = ()
+    if groups is not None:
+        g = np.asarray(groups)
+        x, y = np.asarray(f0_hz, float), np.asarray(omega_n_rad_s, float)
+        # models with a line of their own (>= 3 points at different f0); the others count in the pooled line only
+        lined = [k for k in sorted(set(groups)) if (g == k).sum() >= 3 and np.ptp(x[g == k]) > 0]
+        if len(lined) >= 2:
+            fits = [linear_fit(x[g == k], y[g == k]) for k in lined]
+            lines = tuple((f[0], f[1]) for f in fits)
+            resid = np.concatenate([y[g == k] - (f[0] * x[g == k] + f[1]) for k, f in zip(lined, fits, strict=True)])
+            rs = math.sqrt(float(resid @ resid) / max(len(resid) - 2 * len(fits), 1))
     alpha_coef, alpha_rs = None, 0.0
     if omega_max_deg_s is not None and alpha_rad is not None:
         x = np.column_stack([np.ones(len(f0_hz)), np.asarray(omega_max_deg_s, float), np.asarray(f0_hz, float)])
@@ -133,7 +177,7 @@ def fit_calibration(f0_hz, omega_n_rad_s, physics: str, model: str, a_p_deg: flo
             alpha_rs = float(np.sqrt(np.sum((y - x @ c) ** 2) / (len(y) - 3)))
     return Calibration(physics=physics, model=model, a_p_deg=float(a_p_deg), p1=p, q1=q, p1_se=pse, q1_se=qse,
                        cov_pq=cpq, r2=r2, resid_std=rs, n=len(f0_hz), alpha_coef=alpha_coef,
-                       alpha_resid_std=alpha_rs, provenance=dict(provenance or {}))
+                       alpha_resid_std=alpha_rs, provenance=dict(provenance or {}), model_lines=lines)
 
 
 def _key(physics: str, model: str, a_p_deg: float) -> str:

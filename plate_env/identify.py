@@ -33,6 +33,28 @@ def positive_intervals(x: float, se: float) -> tuple[tuple[float, float], tuple[
     return (max(x - se, 0.0), x + se), (max(x - 1.96 * se, 0.0), x + 1.96 * se)
 
 
+def offset_intervals(x: float, se: float, scale: float, nu: float) -> tuple[tuple[float, float],
+                                                                              tuple[float, float], float]:
+    """The 68 % and 95 % intervals of ``x`` whose error is normal (sd ``se``) plus a Student-t offset between
+    models (``scale``, ``nu`` degrees of freedom), lower ends cut at 0, and the standard error they imply (half the
+    68 % width): quantiles of the sum, whose distribution function is the t's averaged over the normal
+    (Gauss-Hermite), solved for each probability."""
+    if scale <= 0.0 or math.isinf(nu):
+        ci68, ci95 = positive_intervals(x, math.hypot(se, scale))
+        return ci68, ci95, math.hypot(se, scale)
+    from scipy import optimize, stats
+
+    nodes, weights = np.polynomial.hermite.hermgauss(61)
+
+    def cdf(d: float) -> float:
+        return float(np.sum(weights * stats.t.cdf((d - math.sqrt(2.0) * se * nodes) / scale, nu)) / math.sqrt(math.pi))
+
+    hi = stats.t.ppf(0.99, nu) * scale + 6.0 * se
+    q68 = optimize.brentq(lambda d: cdf(d) - 0.84, 0.0, hi)
+    q95 = optimize.brentq(lambda d: cdf(d) - 0.975, 0.0, hi)
+    return (max(x - q68, 0.0), x + q68), (max(x - q95, 0.0), x + q95), q68
+
+
 def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = "pointmass",
                      calibrations: dict[float, Calibration] | None = None) -> Estimate:
     """Fit Eq. (9) per plate amplitude, map each f0 through that amplitude's Eq. (10), combine by inverse variance."""
@@ -46,6 +68,7 @@ def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = 
             return Estimate(ok=False, method="lorentz", reason=reason, n_probes=len(table), n_unstable=n_un)
     fits: dict[float, LorentzFit] = {}
     parts: list[tuple[float, float, float | None, float]] = []
+    offsets: list[tuple[float, float]] = []
     reasons = []
     for amp in table.amplitudes():
         sub = table.subset(np.isclose(table.a_p_deg, amp))
@@ -60,6 +83,7 @@ def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = 
         se = cal.omega_n_stderr(fit.f0, fit.f0_stderr)
         alpha = cal.alpha(fit.omega_max, fit.f0)
         parts.append((w, se, alpha, cal.alpha_resid_std))
+        offsets.append((cal.offset_scale(fit.f0), cal.offset_nu))
     if not parts:
         return Estimate(ok=False, method="lorentz", reason="; ".join(reasons) or "no probes", n_probes=len(table),
                         n_unstable=n_un, fits=fits)
@@ -76,7 +100,10 @@ def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = 
         return Estimate(ok=False, method="lorentz", reason=f"the calibration line gives omega_n = {omega:.3g} rad/s "
                         "<= 0 at the fitted f0 (below the line's range): use the atlas method", n_probes=len(table),
                         n_unstable=n_un, fits=fits)
-    ci68, ci95 = positive_intervals(omega, se)
+    # the offset between models is one for the object: the amplitudes' offsets averaged with the same weights, the
+    # heavier tails kept
+    scale = float(np.sum(wts * [o[0] for o in offsets]) / wts.sum())
+    ci68, ci95, se = offset_intervals(omega, se, scale, min(o[1] for o in offsets))
     return Estimate(ok=True, method="lorentz", omega_n=omega, omega_n_stderr=se, omega_n_ci68=ci68, omega_n_ci95=ci95,
                     alpha=alpha, alpha_stderr=alpha_se or 0.0, n_probes=len(table), n_unstable=n_un, fits=fits)
 
