@@ -84,6 +84,10 @@ def stage_within(args) -> None:
     on a test set (sweeps, for ``fit``), and on live episodes of the bayes agent (for ``identify``)."""
     rng = np.random.default_rng(0)
     base = load_forward_model("tilelink/pointmass")
+    stage = "within"
+    if args.candidate:  # a candidate nominal atlas, scored on the sweeps only (not shipped)
+        base = ForwardModel(f"candidate {args.candidate}", (member(args.candidate),))
+        stage, args.episodes = f"within_{Path(args.candidate).stem}", 0
     cal = sets_by_amplitude(run_eval_set(CALIBRATION, lambda _: POINTMASS, args.executor), CALIBRATION)
     truth_cal = [o.omega_n for o in CALIBRATION.objects()]
     zero = dataclasses.replace(base, sigma_eps=0.0)
@@ -94,9 +98,10 @@ def stage_within(args) -> None:
     fm = dataclasses.replace(base, sigma_eps=sigma_eps, eps_nu=eps_nu)
     test = sets_by_amplitude(run_eval_set(TEST, lambda _: POINTMASS, args.executor), TEST)
     truth = [o.omega_n for o in TEST.objects()]
-    member = fm.members[0]
+    nominal = fm.members[0]
     lines = ["# Forward models inside the point-mass model", "",
-             f"Forward model `tilelink/pointmass`: the shipped point-mass atlas (model error {member.sigma_model:.2f} "
+             f"Forward model `{base.name}`: {'the candidate' if args.candidate else 'the shipped'} point-mass atlas "
+             f"(model error {nominal.sigma_model:.2f} "
              f"deg/s from its held-out probes); coherent discrepancy "
              f"scale {sigma_eps:.4f}, nu {eps_nu:g} (maximum likelihood on the calibration set: {CALIBRATION.n} "
              "objects, seed "
@@ -107,7 +112,7 @@ def stage_within(args) -> None:
              f"{TEST.seed}), sweeps 10-40 Hz (1 Hz) at 3 and 12 deg, random placement. Intervals: 95 % bootstrap "
              "over objects. Goals: p90 <= 10 %, 68 % coverage in [0.60, 0.76], 95 % in [0.90, 0.98].", "",
              "## `plate-env fit` on 10-40 Hz sweeps", "", *HEAD]
-    numbers: dict = {"sigma_eps": sigma_eps, "eps_nu": eps_nu, "sigma_model": member.sigma_model, "fit": {},
+    numbers: dict = {"sigma_eps": sigma_eps, "eps_nu": eps_nu, "sigma_model": nominal.sigma_model, "fit": {},
                      "approx_normal_fit": {"sigma_eps": approx[1], "eps_nu": approx[0]}}
     for amps, tables in test.items():
         s = score(truth, estimates(fm, tables), rng)
@@ -150,8 +155,17 @@ def stage_within(args) -> None:
         numbers["bayes"] = {**s.to_dict(), **meta, "sigma_design_fit": sigma_design, "nu_design_fit": nu_design,
                             "sigma_design": SIGMA_DESIGN, "design_nu": DESIGN_NU, "design_blur": DESIGN_BLUR,
                             "calibration_seed": args.seed + 10, "test_seed": args.seed + 20}
+    if args.candidate:
+        zero_rows = []
+        for amps, tables in test.items():
+            s = score(truth, estimates(dataclasses.replace(fm, sigma_eps=0.0), tables), rng)
+            zero_rows.append(row(f"A_p = {amps} deg, no discrepancy", s))
+        lines += ["", "## Without the discrepancy", "", *HEAD, *zero_rows, "",
+                  f"The candidate atlas is not shipped: `python experiments/build_atlas.py --name "
+                  f"{Path(args.candidate).stem.removeprefix('atlas_')} ...` writes it to plate_env/data (its grid and "
+                  f"command: `experiments/results/{Path(args.candidate).stem}.md`)."]
     numbers["sigma_eps_from"] = {"objects": CALIBRATION.n, "seed": CALIBRATION.seed}
-    write("within", lines, numbers)
+    write(stage, lines, numbers)
 
 
 def episodes(args, fm: ForwardModel, seed: int) -> list[dict]:
@@ -560,6 +574,8 @@ def main() -> None:
     ap.add_argument("stage", choices=("within", "sensitivity", "nuisance", "lomo", "paper", "lorentz", "ship"))
     ap.add_argument("--episodes", type=int, default=100, help="within: live bayes episodes (0: none)")
     ap.add_argument("--seed", type=int, default=500, help="within: the episodes' objects' seed")
+    ap.add_argument("--candidate", default=None, help="within: score this atlas file (plate_env/data or a path) as "
+                    "the nominal point-mass member instead, on the sweeps only; writes forward_models_within_<stem>")
     add_executor_argument(ap)
     args = ap.parse_args()
     {"within": stage_within, "sensitivity": stage_sensitivity, "nuisance": stage_nuisance, "lomo": stage_lomo,
