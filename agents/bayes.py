@@ -138,7 +138,7 @@ class BayesAgent(Agent):
     def posterior(self):
         """What the probes say: the forward model's posterior on the agent's grid, without the discrepancies no
         probe can reduce (a :class:`plate_env.estimate.Posterior`); the stopping rule reads it."""
-        return pool(dataclasses.replace(self.fm, sigma_eps=0.0), self.omega, self.alpha, self.lls)
+        return pool(dataclasses.replace(self.fm, sigma_eps=0.0, offset_sigma=0.0), self.omega, self.alpha, self.lls)
 
     def estimate_model(self) -> ForwardModel:
         """The forward model the episode's estimate is computed with: the agent's blur added to every member's and

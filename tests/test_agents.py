@@ -99,8 +99,9 @@ def test_bayes_posterior_narrows_and_contains_truth_on_synthetic_lorentzian_data
 
 
 def test_bayes_estimate_adds_its_design_discrepancy_and_stops_on_what_the_probes_say():
-    """On a forward model with a coherent discrepancy (a grid padded beyond the atlas), bayes still reaches its
-    target (the stopping rule reads the probes' information, not the discrepancy no probe can reduce), and the
+    """On a forward model with a coherent discrepancy and an offset between models (a grid padded beyond the
+    atlas), bayes still reaches its target (the stopping rule reads the probes' information, not the discrepancy
+    no probe can reduce), and the
     episode's estimate comes from its design model: the discrepancy and the design's own added in quadrature."""
     from plate_env.forward import ForwardModel, Member
     from plate_env.inference import identify_atlas
@@ -109,15 +110,16 @@ def test_bayes_estimate_adds_its_design_discrepancy_and_stops_on_what_the_probes
     env = gym.make("PlateRotation-v0", physics="atlas", physics_options={"atlas": atlas, "source": "toy",
                                                                         "model": "toy"},
                    amplitudes_deg=(3.0,), max_probes=12)
-    fm = ForwardModel("toy", (Member(atlas, 5.0),), sigma_eps=0.1)
+    fm = ForwardModel("toy", (Member(atlas, 5.0),), sigma_eps=0.1, offset_sigma=0.1, offset_nu=2.0)
     agent = make_agent("bayes", forward=fm, target_rel=0.05)
     try:
         res = run_episode(env, agent, seed=4, options={"omega_n": 14 * math.pi, "alpha": math.radians(45)})
     finally:
         env.close()
-    assert res.n_probes < 12 and res.estimate.ok  # stopped by its target although sigma_eps = 0.1 > 0.05
+    assert res.n_probes < 12 and res.estimate.ok  # stopped by its target although sigma_eps, offset 0.1 > 0.05
     model = agent.estimate_model()
     assert model.sigma_eps == pytest.approx(math.hypot(0.1, agent.sigma_design))
+    assert (model.offset_sigma, model.offset_nu) == (0.1, 2.0)  # the offset between models is kept as it is
     assert model.members[0].blur == pytest.approx(agent.blur)
     assert res.estimate.forward == model.name
     plain = identify_atlas(res.probes, fm)
