@@ -92,8 +92,7 @@ def stage_within(args) -> None:
     truth_cal = [o.omega_n for o in CALIBRATION.objects()]
     zero = dataclasses.replace(base, sigma_eps=0.0)
     cal_ests = estimates(zero, cal["3+12"]) + estimates(zero, cal["3"])
-    ok = [(w, e.posterior) for w, e in zip(truth_cal * 2, cal_ests, strict=True) if e.ok]
-    eps_nu, sigma_eps = fit_discrepancy_exact(*zip(*ok, strict=True))
+    eps_nu, sigma_eps = exact_fit(truth_cal, cal_ests)
     approx = fit_discrepancy(*discrepancies(truth_cal, cal_ests))
     fm = dataclasses.replace(base, sigma_eps=sigma_eps, eps_nu=eps_nu)
     test = sets_by_amplitude(run_eval_set(TEST, lambda _: POINTMASS, args.executor), TEST)
@@ -130,9 +129,8 @@ def stage_within(args) -> None:
         cal_ests = [identify_atlas(ProbeTable.from_rows(d["table"]), design0) for d in cal_rows]
         # the agent adds its design discrepancy to the model's in quadrature, with the heavier tails of the two
         # (BayesAgent.estimate_model): fit that total exactly, the model's own part fixed
-        ok = [(d["omega_n"], e.posterior) for d, e in zip(cal_rows, cal_ests, strict=True) if e.ok]
-        nu_design, total = fit_discrepancy_exact(*zip(*ok, strict=True),
-                                                 nus=[nu for nu in NU_CHOICES if nu <= fm.eps_nu])
+        nu_design, total = exact_fit([d["omega_n"] for d in cal_rows], cal_ests,
+                                     nus=[nu for nu in NU_CHOICES if nu <= fm.eps_nu])
         sigma_design = math.sqrt(max(total ** 2 - fm.sigma_eps ** 2, 0.0))
         rows = episodes(args, fm, args.seed + 20)
         # the probes an episode chose do not depend on the forward model's discrepancy (the agent designs and stops
@@ -166,6 +164,14 @@ def stage_within(args) -> None:
                   f"command: `experiments/results/{Path(args.candidate).stem}.md`)."]
     numbers["sigma_eps_from"] = {"objects": CALIBRATION.n, "seed": CALIBRATION.seed}
     write(stage, lines, numbers)
+
+
+def exact_fit(truth, ests, **kw) -> tuple[float, float]:
+    """``(nu, sigma)`` by :func:`plate_env.inference.fit_discrepancy_exact` from the estimates with a posterior
+    (``truth`` repeated when there are several data sets of the same objects, as in ``discrepancies``)."""
+    truth = list(truth) * (len(ests) // len(truth))
+    ok = [(w, e.posterior) for w, e in zip(truth, ests, strict=True) if e.ok]
+    return fit_discrepancy_exact(*zip(*ok, strict=True), **kw)
 
 
 def episodes(args, fm: ForwardModel, seed: int) -> list[dict]:
@@ -289,9 +295,7 @@ def stage_nuisance(args) -> None:
     for label, members in (("nominal point mass only", FAMILIES["pointmass"][:1]),
                            ("nuisance family (9 members, evidence)", FAMILIES["pointmass"])):
         fm0 = ForwardModel(label, tuple(member(f) for f in members))
-        ests = estimates(fm0, cal)
-        ok = [(w, e.posterior) for w, e in zip(truth_cal, ests, strict=True) if e.ok]
-        nu, sigma = fit_discrepancy_exact(*zip(*ok, strict=True))
+        nu, sigma = exact_fit(truth_cal, estimates(fm0, cal))
         s = score(truth, estimates(dataclasses.replace(fm0, sigma_eps=sigma, eps_nu=nu), test), rng)
         lines.append(row(f"{label}, sigma_eps {sigma:.3f} (nu {nu:g})", s))
         numbers[label] = {"sigma_eps": sigma, "eps_nu": nu, **s.to_dict()}

@@ -42,6 +42,12 @@ def pad_sigmas(nu: float) -> float:
     return max(PAD_SIGMAS, float(t.ppf(0.995, nu)))
 
 
+def pad_log(sigma: float, nu: float = math.inf, offset_sigma: float = 0.0, offset_nu: float = math.inf) -> float:
+    """How far (in log omega_n) the posterior grid reaches beyond the models' range for a discrepancy (``sigma``,
+    ``nu``) and an offset between models: :func:`pad_sigmas` scales of each, at most :data:`PAD_MAX_LOG`."""
+    return min(pad_sigmas(nu) * sigma + pad_sigmas(offset_nu) * offset_sigma, PAD_MAX_LOG)
+
+
 @dataclass(frozen=True)
 class Member:
     """One physics model's atlas in a forward model.
@@ -132,8 +138,7 @@ class ForwardModel:
         lo, hi = self.omega_range
         a_lo, a_hi = self.alpha_range
         step = math.log(hi / lo) / (n_omega - 1)
-        pad = min(pad_sigmas(self.eps_nu) * self.sigma_eps + pad_sigmas(self.offset_nu) * self.offset_sigma,
-                  PAD_MAX_LOG)
+        pad = pad_log(self.sigma_eps, self.eps_nu, self.offset_sigma, self.offset_nu)
         k = math.ceil(pad / step - 1e-9) if pad > 0 else 0
         return (np.geomspace(lo * math.exp(-k * step), hi * math.exp(k * step), n_omega + 2 * k),
                 np.linspace(a_lo, a_hi, n_alpha))

@@ -15,7 +15,7 @@ from plate_env.calibration import Calibration, get_calibration
 from plate_env.estimate import Estimate
 from plate_env.fitting import LorentzFit, fit_lorentzian
 from plate_env.forward import ForwardModel, KnownInputs, load_forward_model
-from plate_env.inference import identify_atlas
+from plate_env.inference import GAUSS_HERMITE, identify_atlas
 from plate_env.physics.base import ProbeResult
 from plate_env.probes import ProbeTable
 
@@ -44,7 +44,7 @@ def offset_intervals(x: float, se: float, scale: float, nu: float) -> tuple[tupl
         return ci68, ci95, math.hypot(se, scale)
     from scipy import optimize, stats
 
-    nodes, weights = np.polynomial.hermite.hermgauss(61)
+    nodes, weights = GAUSS_HERMITE
 
     def cdf(d: float) -> float:
         return float(np.sum(weights * stats.t.cdf((d - math.sqrt(2.0) * se * nodes) / scale, nu)) / math.sqrt(math.pi))

@@ -97,8 +97,7 @@ def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     ff, ww, aa = np.meshgrid(atlas.f_hz, w, a, indexing="ij")
     mean, spread, pu = atlas.predict(ff, a_p_deg, ww, aa)
     interps = [CubicSpline(atlas.f_hz, arr, axis=0) for arr in (mean, spread, pu)]
-    inside = ((w[:, None] >= atlas.omega_n[0] * (1 - 1e-9)) & (w[:, None] <= atlas.omega_n[-1] * (1 + 1e-9))
-              & (a[None, :] >= atlas.alpha[0] - 1e-9) & (a[None, :] <= atlas.alpha[-1] + 1e-9))
+    inside = _covered(atlas, w, a)
 
     def at(f_hz: float):
         m, s, p = (it(float(f_hz)) for it in interps)
@@ -115,11 +114,14 @@ def member_response(member: Member, a_p_deg: float, w: np.ndarray, a: np.ndarray
     return member.atlas.cached(key, lambda: _response(member.atlas, abs(float(a_p_deg)), w, a))
 
 
-def member_coverage(member: Member, w: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """The grid points (n_omega, n_alpha) inside a member's atlas ranges."""
-    atlas = member.atlas
+def _covered(atlas: Atlas, w: np.ndarray, a: np.ndarray) -> np.ndarray:
     return ((w[:, None] >= atlas.omega_n[0] * (1 - 1e-9)) & (w[:, None] <= atlas.omega_n[-1] * (1 + 1e-9))
             & (a[None, :] >= atlas.alpha[0] - 1e-9) & (a[None, :] <= atlas.alpha[-1] + 1e-9))
+
+
+def member_coverage(member: Member, w: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """The grid points (n_omega, n_alpha) inside a member's atlas ranges."""
+    return _covered(member.atlas, w, a)
 
 
 def member_rows(member: Member, w: np.ndarray) -> slice:
@@ -283,7 +285,8 @@ def fit_sigma_model(resid: np.ndarray, spread: np.ndarray, stderr: np.ndarray, n
     return float(math.exp(best.x))
 
 
-_HERMGAUSS = np.polynomial.hermite.hermgauss(61)
+#: Gauss-Hermite nodes and weights (61) for averaging over a normal error: x = sqrt(2) sd node, weight / sqrt(pi).
+GAUSS_HERMITE = np.polynomial.hermite.hermgauss(61)
 
 
 def _t_pdf(x: np.ndarray, nu: float, scale) -> np.ndarray:
@@ -306,7 +309,7 @@ def discrepancy_log_density(eps: np.ndarray, post_sd: np.ndarray, sigma: float, 
     sd = np.asarray(post_sd, float)
     if math.isinf(nu) or sigma <= 0.0:
         return stats.norm.logpdf(e, scale=np.sqrt(sd ** 2 + sigma ** 2))
-    x, w = _HERMGAUSS
+    x, w = GAUSS_HERMITE
     d = e[..., None] - math.sqrt(2.0) * sd[..., None] * x  # the discrepancy's share of eps at each node
     dens = (w * _t_pdf(d, nu, sigma)).sum(-1) / math.sqrt(math.pi)
     wide = sd > 0.2 * sigma  # a normal part wider than the t's core: quadrature is accurate; else the t dominates
@@ -355,14 +358,14 @@ def truth_log_density(post: Posterior, omega_true: float, sigma: float, nu: floa
     (``post.model_omega``, before any discrepancy) is smoothed by a discrepancy of scale ``sigma`` (at least
     ``STEP_FLOOR`` grid steps) and ``nu`` degrees of freedom, as :func:`pool` applies it; the grid is padded as
     :meth:`ForwardModel.grid` pads it. -690 (1e-300) beyond the padded grid."""
-    from plate_env.forward import PAD_MAX_LOG, pad_sigmas
+    from plate_env.forward import pad_log
 
     lw = np.log(post.omega_n)
     step = float(lw[1] - lw[0])
     raw = post.marginal_omega() if post.model_omega is None else post.model_omega
     sig = max(sigma, STEP_FLOOR * step)
     nu = nu if sigma > STEP_FLOOR * step else math.inf
-    k = int(math.ceil(min(pad_sigmas(nu) * sig, PAD_MAX_LOG) / step))
+    k = int(math.ceil(pad_log(sig, nu) / step))
     prob = _smooth_log_omega(np.pad(raw, k), sig / step, nu)
     dens = prob / (prob.sum() * step)
     grid = lw[0] + step * np.arange(-k, lw.size + k)
