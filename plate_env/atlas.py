@@ -137,6 +137,26 @@ class Atlas:
         pu = np.clip(self._interpolator("p_unstable", amp)(flat), 0.0, 1.0).reshape(f.shape)
         return mean, spread, pu
 
+    def resampled(self, omega_n: np.ndarray) -> Atlas:
+        """This atlas on other omega_n nodes (rad/s, increasing, within its range): mean, spread and instability
+        share read from its own spline at every (f_p, A_p, alpha) node (exact at the nodes it already has).
+        ValueError for nodes outside its omega_n range (no extrapolation)."""
+        import dataclasses
+
+        w = np.asarray(omega_n, float)
+        lo, hi = float(self.omega_n[0]), float(self.omega_n[-1])
+        if w.ndim != 1 or w.size < 2 or np.any(np.diff(w) <= 0) or w[0] < lo * (1 - 1e-9) or w[-1] > hi * (1 + 1e-9):
+            raise ValueError(f"resampled: omega_n nodes must increase within {lo:g}-{hi:g} rad/s, got "
+                             f"{w.min():g}-{w.max():g} rad/s ({w.size} nodes)")
+        f, ww, a = np.meshgrid(self.f_hz, w, self.alpha, indexing="ij")
+        out = {k: np.empty((self.f_hz.size, self.a_p_deg.size, w.size, self.alpha.size)) for k in
+               ("mean", "spread", "p_unstable")}
+        for j, amp in enumerate(self.a_p_deg):
+            for k, v in zip(out, self.predict(f, float(amp), ww, a), strict=True):
+                out[k][:, j] = v
+        prov = dict(self.provenance or {}, resampled=f"{self.omega_n.size} -> {w.size} omega_n nodes by its spline")
+        return dataclasses.replace(self, omega_n=w.copy(), provenance=prov, **out)
+
     # -------------------------------------------------------------- files
     def save(self, path: str | Path) -> None:
         np.savez_compressed(path, f_hz=self.f_hz, a_p_deg=self.a_p_deg, omega_n=self.omega_n, alpha=self.alpha,

@@ -217,10 +217,18 @@ def condition(atlases: Sequence[Atlas], known: KnownInputs) -> Atlas:
                          "experiments/build_atlas.py")
     j = int(np.searchsorted(masses, known.mass))
     lo, hi = ok[j - 1], ok[j]
-    for name in ("f_hz", "a_p_deg", "omega_n", "alpha"):
-        if not np.allclose(getattr(lo, name), getattr(hi, name)):
+    for name in ("f_hz", "a_p_deg", "alpha"):
+        if getattr(lo, name).shape != getattr(hi, name).shape or not np.allclose(getattr(lo, name), getattr(hi, name)):
             raise ValueError(f"{label} atlases at {masses[j - 1] * 1e3:g} g and {masses[j] * 1e3:g} g have different "
                              f"{name} grids: cannot interpolate between them")
+    if lo.omega_n.shape != hi.omega_n.shape or not np.allclose(lo.omega_n, hi.omega_n):
+        # omega_n nodes may differ (one atlas refined where the response is steep): both on the union of their
+        # nodes, each read from its own spline, over the range both cover
+        if not (np.isclose(lo.omega_n[0], hi.omega_n[0]) and np.isclose(lo.omega_n[-1], hi.omega_n[-1])):
+            raise ValueError(f"{label} atlases at {masses[j - 1] * 1e3:g} g and {masses[j] * 1e3:g} g cover different "
+                             "omega_n ranges: cannot interpolate between them")
+        union = np.unique(np.round(np.concatenate([lo.omega_n, hi.omega_n]), 9))
+        lo, hi = lo.resampled(union), hi.resampled(union)
     t = math.log(known.mass / masses[j - 1]) / math.log(masses[j] / masses[j - 1])
     prov = dict(lo.provenance or {}, mass_g=known.mass * 1e3,
                 interpolated=f"log-mass {1 - t:.3f} x {masses[j - 1] * 1e3:g} g + {t:.3f} x {masses[j] * 1e3:g} g")

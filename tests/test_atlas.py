@@ -48,3 +48,44 @@ def test_atlas_interpolation_exact_at_grid_points_and_round_trip(toy_atlas, tmp_
     assert back.provenance == {"toy": True}
     with pytest.raises(ValueError, match="not in this atlas"):
         atlas.predict(20.0, 12.0, 30.0, 0.7)
+
+
+def test_resampled_atlas_is_exact_at_its_own_nodes_and_follows_its_spline_between(toy_atlas):
+    atlas = toy_atlas()
+    mid = np.sqrt(atlas.omega_n[2] * atlas.omega_n[3])
+    nodes = np.sort(np.append(atlas.omega_n, mid))
+    fine = atlas.resampled(nodes)
+    np.testing.assert_allclose(fine.mean[:, :, np.isin(nodes, atlas.omega_n)], atlas.mean, atol=1e-6)
+    f, a = atlas.f_hz[4], atlas.alpha[1]
+    k = int(np.flatnonzero(nodes == mid)[0])
+    assert fine.mean[4, 0, k, 1] == pytest.approx(float(atlas.predict(f, 3.0, mid, a)[0]), abs=1e-9)
+    assert "resampled" in fine.provenance
+    with pytest.raises(ValueError, match="omega_n nodes must increase within"):
+        atlas.resampled(np.append(atlas.omega_n, atlas.omega_n[-1] * 1.5))
+
+
+def test_mass_interpolation_between_atlases_on_different_omega_nodes(toy_atlas):
+    """A refined atlas at one mass and a coarse one at another: conditioning between them reads both on the union
+    of their omega_n nodes, each from its own spline, and interpolates in log mass there."""
+    import dataclasses
+    import math
+
+    from plate_env.forward import KnownInputs, condition
+
+    coarse = dataclasses.replace(toy_atlas(1.0), provenance={"mass_g": 8.0})
+    base = toy_atlas(2.0)
+    mid = np.sqrt(base.omega_n[2] * base.omega_n[3])
+    fine = dataclasses.replace(base.resampled(np.sort(np.append(base.omega_n, mid))), provenance={"mass_g": 16.0})
+    out = condition([fine, coarse], KnownInputs(mass=0.0113))
+    assert out.omega_n.size == coarse.omega_n.size + 1
+    t = math.log(11.3 / 8.0) / math.log(16.0 / 8.0)
+    want = (1 - t) * coarse.resampled(fine.omega_n).mean + t * fine.mean
+    np.testing.assert_allclose(out.mean, want, rtol=1e-9)
+    # the refined node carries the coarse atlas's spline there, not a copy of a neighbour
+    k = int(np.flatnonzero(np.isclose(out.omega_n, mid))[0])
+    assert out.mean[4, 0, k, 1] == pytest.approx((1 - t) * float(coarse.predict(coarse.f_hz[4], 3.0, mid,
+                                                                               coarse.alpha[1])[0])
+                                                 + t * fine.mean[4, 0, k, 1], rel=1e-9)
+    short = dataclasses.replace(coarse.resampled(coarse.omega_n[:-1]), provenance={"mass_g": 8.0})
+    with pytest.raises(ValueError, match="different omega_n ranges"):
+        condition([fine, short], KnownInputs(mass=0.0113))
