@@ -48,17 +48,14 @@ from plate_env_agents.base import Agent, Probe
 #: interpolation between omega_n nodes errs most (without it the 68 % intervals held the truth in 0.57 of 40 live
 #: episodes, with it 0.68).
 DESIGN_BLUR = 0.04
-#: The design discrepancy (scale of log omega_n, a Student-t with DESIGN_NU degrees of freedom) the agent's
-#: estimate adds to the forward model's own: what probes chosen adaptively on the model, many of them close in
-#: frequency and sharing its error, leave unexplained. Fitted exactly (experiments/forward_models.py within:
-#: each truth's likelihood under its posterior, the model's own part fixed) on 100 calibration episodes (live
-#: tilelink, prior objects, seed 510) and tested on 100 others (seed 520): with the point-mass model's Cauchy
-#: discrepancy (plate_env/data/forward_models.json) nothing is left for it, so 0; with the normal-approximation
-#: fit before it was 0.0086 and, with blur alone, the intervals held the truth in 0.48 / 0.82 of episodes
-#: (experiments/results/forward_models_within.md).
-SIGMA_DESIGN = 0.0
-#: Degrees of freedom of the design discrepancy, when there is one: most episodes end close to the truth, a few far.
-DESIGN_NU = 1.5
+#: The coherent discrepancy of the agent's estimates (scale of log omega_n, Student-t degrees of freedom), per
+#: forward model it was calibrated on: it replaces that model's own discrepancy (fitted on full sweeps) in the
+#: episode's estimate, because probes chosen adaptively on the model, many close in frequency and sharing its
+#: error, and read through the agent's blur, err differently from a sweep. Fitted exactly
+#: (experiments/forward_models.py within: each truth's likelihood under its blurred posterior smoothed by the
+#: discrepancy) on 100 calibration episodes (live tilelink, prior objects, seed 510) and tested on 100 others (seed
+#: 520), experiments/results/forward_models_within.md. Another forward model keeps its own discrepancy.
+DESIGN_DISCREPANCY: dict[str, tuple[float, float]] = {"tilelink/pointmass": (0.0091, 2.0)}
 #: Typical standard error of a probe's omega_B over a 1 s window, deg/s (tile-link probes: 0.5-2 deg/s).
 SE_1S = 2.0
 
@@ -72,10 +69,13 @@ class BayesAgent(Agent):
     def __init__(self, target_rel: float = 0.03, windows_s: tuple[float, ...] = (1.0, 2.0),
                  f_step_hz: float = 0.5, n_samples: int = 12, n_omega: int = 81, n_alpha: int = 16,
                  min_probes: int = 3, forward: ForwardModel | None = None, blur: float = DESIGN_BLUR,
-                 sigma_design: float = SIGMA_DESIGN) -> None:
+                 design_discrepancy: tuple[float, float] | None = None) -> None:
         self.target_rel = checks.real("target_rel", target_rel, 0.0, 1.0, open_hi=True)
         self.blur = checks.real("blur", blur, 0.0, 1.0)
-        self.sigma_design = checks.real("sigma_design", sigma_design, 0.0, 1.0)
+        if design_discrepancy is not None:
+            design_discrepancy = (checks.real("design_discrepancy scale", design_discrepancy[0], 0.0, 1.0),
+                                  checks.real("design_discrepancy nu", design_discrepancy[1], 0.5, math.inf))
+        self.design_discrepancy = design_discrepancy
         self.windows_s = windows_s
         self.f_step_hz = f_step_hz
         self.n_samples = n_samples
@@ -140,15 +140,21 @@ class BayesAgent(Agent):
         probe can reduce (a :class:`plate_env.estimate.Posterior`); the stopping rule reads it."""
         return pool(dataclasses.replace(self.fm, sigma_eps=0.0, offset_sigma=0.0), self.omega, self.alpha, self.lls)
 
-    def estimate_model(self) -> ForwardModel:
-        """The forward model the episode's estimate is computed with: the agent's blur added to every member's and
-        its design discrepancy to the coherent one (both in quadrature)."""
+    def design_eps(self) -> tuple[float, float]:
+        """(scale, nu) of the estimate's coherent discrepancy: ``design_discrepancy`` if given, else
+        :data:`DESIGN_DISCREPANCY` for this forward model, else the forward model's own."""
         fm = self.fm
+        return self.design_discrepancy or DESIGN_DISCREPANCY.get(fm.name, (fm.sigma_eps, fm.eps_nu))
+
+    def estimate_model(self) -> ForwardModel:
+        """The forward model the episode's estimate is computed with: the agent's blur added to every member's (in
+        quadrature) and the coherent discrepancy of :meth:`design_eps`; an offset between models is kept."""
+        fm = self.fm
+        sigma, nu = self.design_eps()
         return dataclasses.replace(
             fm, name=f"{fm.name} (adaptive design)",
             members=tuple(dataclasses.replace(m, blur=math.hypot(m.blur, self.blur)) for m in fm.members),
-            sigma_eps=math.hypot(fm.sigma_eps, self.sigma_design),
-            eps_nu=min(fm.eps_nu, DESIGN_NU) if self.sigma_design > 0 else fm.eps_nu)
+            sigma_eps=sigma, eps_nu=nu)
 
     def relative_std(self) -> float:
         """Half the 68 % interval of omega_n over its median, from the probes' information alone."""

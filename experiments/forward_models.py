@@ -31,7 +31,6 @@ from plate_env.benchmarks import EvalSet, run_eval_set
 from plate_env.executor import BackendSpec, add_executor_argument
 from plate_env.forward import ForwardModel, Member, load_forward_model
 from plate_env.inference import (
-    NU_CHOICES,
     family_discrepancy,
     fit_discrepancy,
     fit_discrepancy_exact,
@@ -119,39 +118,35 @@ def stage_within(args) -> None:
         numbers["fit"][amps] = s.to_dict()
     if args.episodes:
         from plate_env_agents import make_agent
-        from plate_env_agents.bayes import DESIGN_BLUR, DESIGN_NU, SIGMA_DESIGN
+        from plate_env_agents.bayes import DESIGN_BLUR
 
-        # calibration episodes: their probes, re-estimated by the agent's design model without its discrepancy
+        # calibration episodes: their probes re-estimated by the agent's estimate model (its blur); the estimate's
+        # coherent discrepancy fitted exactly on them (the fit reads each posterior before any discrepancy)
         cal_rows = episodes(args, fm, args.seed + 10)
-        agent = make_agent("bayes", forward=fm, sigma_design=0.0)
+        agent = make_agent("bayes", forward=fm)
         agent.fm = fm
-        design0 = agent.estimate_model()
-        cal_ests = [identify_atlas(ProbeTable.from_rows(d["table"]), design0) for d in cal_rows]
-        # the agent adds its design discrepancy to the model's in quadrature, with the heavier tails of the two
-        # (BayesAgent.estimate_model): fit that total exactly, the model's own part fixed
-        nu_design, total = exact_fit([d["omega_n"] for d in cal_rows], cal_ests,
-                                     nus=[nu for nu in NU_CHOICES if nu <= fm.eps_nu])
-        sigma_design = math.sqrt(max(total ** 2 - fm.sigma_eps ** 2, 0.0))
+        final = agent.estimate_model()  # the shipped agent's: its blur, DESIGN_DISCREPANCY
+        cal_ests = [identify_atlas(ProbeTable.from_rows(d["table"]), final) for d in cal_rows]
+        nu_design, sigma_design = exact_fit([d["omega_n"] for d in cal_rows], cal_ests)
+        shipped_eps = agent.design_eps()
         rows = episodes(args, fm, args.seed + 20)
-        # the probes an episode chose do not depend on the forward model's discrepancy (the agent designs and stops
-        # on its posterior without it): the stored probes are re-estimated by the shipped agent's estimate model
-        shipped = make_agent("bayes", forward=fm)
-        shipped.fm = fm
-        final = shipped.estimate_model()
+        # the probes an episode chose do not depend on any discrepancy (the agent designs and stops on its
+        # posterior without it): the stored probes are re-estimated by the shipped agent's estimate model
         s = score([d["omega_n"] for d in rows], [identify_atlas(ProbeTable.from_rows(d["table"]), final)
                                                  for d in rows], rng)
         meta = {"probes": float(np.mean([d["probes"] for d in rows])),
                 "sim_s": float(np.mean([d["sim_s"] for d in rows])),
                 "wall_s_per_episode": float(np.median([d["wall_s"] for d in rows]))}
         lines += ["", f"## `plate-env identify --agent bayes` on live tilelink ({args.episodes} objects)", "",
-                  f"The agent designs with a blur of {DESIGN_BLUR:g} in log omega_n and its estimate adds a design "
-                  f"discrepancy: maximum likelihood on {len(cal_rows)} calibration episodes (objects seed "
-                  f"{args.seed + 10}, their probes re-estimated without it) gives scale {sigma_design:.4f}, nu "
-                  f"{nu_design:g}; shipped SIGMA_DESIGN = {SIGMA_DESIGN:g}, DESIGN_NU = {DESIGN_NU:g} "
+                  f"The agent designs with a blur of {DESIGN_BLUR:g} in log omega_n; its estimate reads the "
+                  f"probes with that blur and its own coherent discrepancy in place of the sweeps': maximum "
+                  f"likelihood on {len(cal_rows)} calibration episodes (objects seed {args.seed + 10}) gives scale "
+                  f"{sigma_design:.4f}, nu {nu_design:g}; shipped DESIGN_DISCREPANCY[{fm.name!r}] = scale "
+                  f"{shipped_eps[0]:g}, nu {shipped_eps[1]:g} "
                   f"(agents/bayes.py). Test episodes: {len(rows)} other objects (seed {args.seed + 20}).", "", *HEAD,
                   row(f"bayes, {meta['probes']:.1f} probes / {meta['sim_s']:.0f} s simulated on average", s)]
         numbers["bayes"] = {**s.to_dict(), **meta, "sigma_design_fit": sigma_design, "nu_design_fit": nu_design,
-                            "sigma_design": SIGMA_DESIGN, "design_nu": DESIGN_NU, "design_blur": DESIGN_BLUR,
+                            "sigma_design": shipped_eps[0], "design_nu": shipped_eps[1], "design_blur": DESIGN_BLUR,
                             "calibration_seed": args.seed + 10, "test_seed": args.seed + 20}
     if args.candidate:
         zero_rows = []

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import gymnasium as gym
@@ -98,29 +99,40 @@ def test_bayes_posterior_narrows_and_contains_truth_on_synthetic_lorentzian_data
     assert lo <= truth <= hi
 
 
-def test_bayes_estimate_adds_its_design_discrepancy_and_stops_on_what_the_probes_say():
+def test_bayes_estimate_uses_its_design_discrepancy_and_stops_on_what_the_probes_say():
     """On a forward model with a coherent discrepancy and an offset between models (a grid padded beyond the
     atlas), bayes still reaches its target (the stopping rule reads the probes' information, not the discrepancy
-    no probe can reduce), and the
-    episode's estimate comes from its design model: the discrepancy and the design's own added in quadrature."""
+    no probe can reduce), and the episode's estimate comes from its design model: its blur, the discrepancy
+    calibrated for this forward model (DESIGN_DISCREPANCY, or one given) in place of the model's own, the offset
+    between models kept."""
     from plate_env.forward import ForwardModel, Member
     from plate_env.inference import identify_atlas
+    from plate_env_agents.bayes import DESIGN_DISCREPANCY
 
     atlas = _lorentz_atlas()
     env = gym.make("PlateRotation-v0", physics="atlas", physics_options={"atlas": atlas, "source": "toy",
                                                                         "model": "toy"},
                    amplitudes_deg=(3.0,), max_probes=12)
     fm = ForwardModel("toy", (Member(atlas, 5.0),), sigma_eps=0.1, offset_sigma=0.1, offset_nu=2.0)
-    agent = make_agent("bayes", forward=fm, target_rel=0.05)
+    agent = make_agent("bayes", forward=fm, target_rel=0.05, design_discrepancy=(0.2, 3.0))
     try:
         res = run_episode(env, agent, seed=4, options={"omega_n": 14 * math.pi, "alpha": math.radians(45)})
     finally:
         env.close()
     assert res.n_probes < 12 and res.estimate.ok  # stopped by its target although sigma_eps, offset 0.1 > 0.05
     model = agent.estimate_model()
-    assert model.sigma_eps == pytest.approx(math.hypot(0.1, agent.sigma_design))
+    assert (model.sigma_eps, model.eps_nu) == (0.2, 3.0)  # the given design discrepancy replaces the model's
     assert (model.offset_sigma, model.offset_nu) == (0.1, 2.0)  # the offset between models is kept as it is
     assert model.members[0].blur == pytest.approx(agent.blur)
     assert res.estimate.forward == model.name
+    # without one given: the calibrated one for a forward model named in DESIGN_DISCREPANCY, else the model's own
+    own = make_agent("bayes", forward=fm)
+    own.fm = fm
+    assert own.design_eps() == (0.1, math.inf)
+    named = dataclasses.replace(fm, name="tilelink/pointmass")
+    own.fm = named
+    assert own.design_eps() == DESIGN_DISCREPANCY["tilelink/pointmass"] != (named.sigma_eps, named.eps_nu)
+    with pytest.raises(ValueError, match="design_discrepancy nu"):
+        make_agent("bayes", design_discrepancy=(0.01, 0.1))
     plain = identify_atlas(res.probes, fm)
     assert res.estimate.omega_n_ci95[1] / res.estimate.omega_n_ci95[0] > plain.omega_n_ci95[1] / plain.omega_n_ci95[0]
