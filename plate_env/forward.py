@@ -14,6 +14,7 @@ physics, the nuisances the paper does not give integrated over, the cross-model 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -228,7 +229,7 @@ def condition(atlases: Sequence[Atlas], known: KnownInputs) -> Atlas:
             raise ValueError(f"{label} atlases at {masses[j - 1] * 1e3:g} g and {masses[j] * 1e3:g} g cover different "
                              "omega_n ranges: cannot interpolate between them")
         union = np.unique(np.round(np.concatenate([lo.omega_n, hi.omega_n]), 9))
-        lo, hi = lo.resampled(union), hi.resampled(union)
+        lo, hi = (a if a.omega_n.size == union.size else a.resampled(union) for a in (lo, hi))
     t = math.log(known.mass / masses[j - 1]) / math.log(masses[j] / masses[j - 1])
     prov = dict(lo.provenance or {}, mass_g=known.mass * 1e3,
                 interpolated=f"log-mass {1 - t:.3f} x {masses[j - 1] * 1e3:g} g + {t:.3f} x {masses[j] * 1e3:g} g")
@@ -263,6 +264,15 @@ def registry_member_atlases(name: str) -> list[list[str]]:
     return [list(m["atlases"]) for m in _read_registry().get(name, {}).get("members", [])]
 
 
+@functools.lru_cache(maxsize=64)
+def _conditioned(files: tuple[str, ...], known: KnownInputs) -> Atlas:
+    """:func:`condition` of shipped atlas files, once per process and inputs: an interpolated atlas is a new
+    instance, and its interpolators (cached on it) would be rebuilt at every load (~1 s)."""
+    from plate_env.atlas import load_atlas_file
+
+    return condition([load_atlas_file(f) for f in files], known)
+
+
 def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardModel:
     """A shipped forward model conditioned on the lab's known inputs (default: the paper's B_p 3 mm, 13.6 g,
     80 mm). ``name`` is ``"<physics>/<model>"`` (e.g. ``"tilelink/pointmass"``: the model that made the data is
@@ -270,8 +280,6 @@ def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardMo
 
     A member with no atlas for these inputs is left out and named in the model's ``provenance["left_out"]`` (the
     estimate's member list shows who answered); ValueError, naming what exists, when no member is left."""
-    from plate_env.atlas import load_atlas_file
-
     registry = _read_registry()
     if name not in registry:
         raise ValueError(f"no forward model {name!r}; shipped: {sorted(registry)}")
@@ -280,7 +288,7 @@ def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardMo
     members, left_out = [], []
     for m in entry["members"]:
         try:
-            atlas = condition([load_atlas_file(f) for f in m["atlases"]], known)
+            atlas = _conditioned(tuple(m["atlases"]), known)
         except ValueError as exc:
             left_out.append(str(exc))
             continue

@@ -89,3 +89,18 @@ def test_mass_interpolation_between_atlases_on_different_omega_nodes(toy_atlas):
     short = dataclasses.replace(coarse.resampled(coarse.omega_n[:-1]), provenance={"mass_g": 8.0})
     with pytest.raises(ValueError, match="different omega_n ranges"):
         condition([fine, short], KnownInputs(mass=0.0113))
+
+
+def test_a_shipped_forward_model_between_masses_is_conditioned_once_per_inputs():
+    """An interpolated atlas is a new instance (its interpolators are built on it): loading the same forward model
+    at the same known inputs again reuses it, and other inputs get their own."""
+    from plate_env.atlas import load_atlas_file
+    from plate_env.forward import KnownInputs, load_forward_model
+
+    a = load_forward_model("tilelink/pointmass", KnownInputs(mass=0.011)).members[0].atlas
+    b = load_forward_model("tilelink/pointmass", KnownInputs(mass=0.011)).members[0].atlas
+    c = load_forward_model("tilelink/pointmass", KnownInputs(mass=0.012)).members[0].atlas
+    assert a is b and c is not a
+    assert "interpolated" in a.provenance and a.provenance["mass_g"] == pytest.approx(11.0)
+    nominal = load_atlas_file("atlas_tilelink_pointmass.npz")
+    assert a.omega_n.size == nominal.omega_n.size  # the 8.2 g atlas read on the nominal atlas's refined nodes
