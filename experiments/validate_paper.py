@@ -113,6 +113,13 @@ class Sweep:
         return [sp for sp in every if sp.motion.freq_hz in keep]
 
 
+def centred_12deg_specs(model: str) -> list[ProbeSpec]:
+    """The 12 deg sweeps of Table 1 and Section 5 (alpha 36.9 deg) with the disc centred (the paper's start; the
+    seeded placements put it 0.2 mm off, and at 12 deg most tile-link probes then slip): item 3's evidence."""
+    return [sp for w in (*rp.FIG8_OMEGAS_PI[12.0], *SEC5_STIFF_PI)
+            for sp in bm.sweep_specs(pe.ObjectSpec.from_paper(w, CHEESE), freqs(model, 12.0), 12.0, **windows(model))]
+
+
 def plan(model: str) -> list[Sweep]:
     """Every sweep the table needs, in stage order: 1 Fig. 7 and the Fig. 3 object; 2 the rest of Table 1 and
     Section 5 at alpha 36.9 deg; 3 the other friction angles of Figs. 8-10 (Eq. 10, Figs. 9-10). PyBullet's stage 1
@@ -147,6 +154,37 @@ def simulate(model: str, cache_dir: Path, max_stage: int, executor: str = "local
                 print(f"[{_now()}] {model} stage {stage} placement {p}: {len(specs)} probes", flush=True)
                 run_cached(physics, specs, cache_path(cache_dir, model), chunk=16 if model == "pybullet" else 64,
                            progress=False, executor=executor)
+
+
+def simulate_centred_12deg(model: str, cache_dir: Path, executor: str = "local") -> None:
+    specs = centred_12deg_specs(model)
+    print(f"[{_now()}] {model} centred 12 deg: {len(specs)} probes", flush=True)
+    run_cached(backend(model), specs, cache_path(cache_dir, model), chunk=64, progress=False, executor=executor)
+
+
+def centred_12deg_rows(model: str, cache_dir: Path) -> dict | None:
+    """Per 12 deg object (alpha 36.9 deg, centred): the first-hump fit and the unstable probes by reason."""
+    from collections import Counter
+
+    tag = backend_tag(backend(model))
+    done = load_cache(cache_path(cache_dir, model))
+    specs = centred_12deg_specs(model)
+    recs = [done.get(spec_key(tag, s)) for s in specs]
+    if not all(recs):
+        return None
+    res = [_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
+    n = len(freqs(model, 12.0))
+    out = {}
+    for i, w in enumerate((*rp.FIG8_OMEGAS_PI[12.0], *SEC5_STIFF_PI)):
+        part = res[i * n:(i + 1) * n]
+        fit = fit_sweep(part)
+        stable = [r for r in part if not r.unstable]
+        out[f"{w:g}"] = {"fit_ok": fit.ok, "reason": fit.reason, "f0_hz": fit.f0 if fit.ok else None,
+                         "b_hz": fit.b if fit.ok else None, "omega_max_deg_s": fit.omega_max if fit.ok else None,
+                         "unstable_by_reason": dict(Counter(r.reason for r in part if r.unstable)),
+                         "highest_stable_hz": max((r.spec.motion.freq_hz for r in stable), default=None),
+                         "peak_stable_deg_s": max((abs(r.omega_b_deg_s) for r in stable), default=None)}
+    return out
 
 
 def _now() -> str:
@@ -303,6 +341,9 @@ def model_rows(model: str, cache_dir: Path) -> dict:
                             "unstable_probes": unst, "probes_per_sweep": len(got[(sw, have[0])])}
     if usable:
         rows["sec5_12deg_usable"] = {"objects": usable, "not_run": missing}
+    c12 = centred_12deg_rows(model, cache_dir)
+    if c12 is not None:
+        rows["centred_12deg"] = c12
     return {"placements": n_pl, "sweeps_complete": len(got), "sweeps_planned": len(plan(model)) * n_pl,
             "backend_tag": backend_tag(backend(model)), "rows": rows}
 
@@ -446,7 +487,9 @@ def build(cache_dir: Path) -> dict:
             "placements": PLACEMENTS, "freqs_hz": {m: {f"{a:g}": list(freqs(m, a)) for a in (3.0, 12.0)}
                                                    for m in MODELS},
             "models": {m: {k: v for k, v in models[m].items() if k != "rows"} for m in MODELS},
-            "table": table, "ranges_and_sec5": extra, "atlas_crosscheck": {m: atlas_rows(m) for m in MODELS}}
+            "table": table, "ranges_and_sec5": extra,
+            "centred_12deg": {m: models[m]["rows"].get("centred_12deg") for m in MODELS},
+            "atlas_crosscheck": {m: atlas_rows(m) for m in MODELS}}
 
 
 def _cell(c: dict, digits: int) -> str:
@@ -503,6 +546,23 @@ def markdown(res: dict) -> str:
             cells.append(s["verdict"] + (" (not run: " + ", ".join(f"{w:g}" for w in s["detail"]["not_run"])
                                          + " pi)" if "detail" in s else ""))
     md.append("| Section 5: objects usable at 12 deg | omega_n < 12pi only | " + " | ".join(cells) + " |")
+    md += ["", "## 12 deg with the disc centred (the paper's start)", "",
+           "Sweeps of the Table 1 and Section 5 objects at alpha 36.9 deg, disc centred (`--centred-12`). Cells: "
+           "first-hump f0 [Hz] / omega_Brmax [deg/s], or why no fit; then the unstable probes by reason and the "
+           "highest stable f_p. The paper: f0 11-14 Hz, omega_Brmax 278-382 deg/s, objects above 12pi lost.", "",
+           "| omega_n [pi rad/s] | " + " | ".join(MODELS) + " |", "|---|" + "---|" * len(MODELS)]
+    c12 = {m: res["centred_12deg"].get(m) for m in MODELS}
+    for w in (*rp.FIG8_OMEGAS_PI[12.0], *SEC5_STIFF_PI):
+        cells = []
+        for m in MODELS:
+            d = (c12[m] or {}).get(f"{w:g}")
+            if d is None:
+                cells.append("not run")
+                continue
+            head = f"{d['f0_hz']:.1f} / {d['omega_max_deg_s']:.0f}" if d["fit_ok"] else f"no fit ({d['reason']})"[:50]
+            un = ", ".join(f"{k} {v}" for k, v in d["unstable_by_reason"].items()) or "none"
+            cells.append(f"{head}; unstable: {un}; stable up to {d['highest_stable_hz']} Hz")
+        md.append(f"| {w:g} | " + " | ".join(cells) + " |")
     md += ["", "## Cross-check on the shipped atlases", "",
            "Eq. (10) and Figs. 9-10 regressions on each model's shipped atlas (its own grid objects and friction "
            "angles, node curves averaged over repeats; ± is a delete-one-object jackknife, not a placement spread; "
@@ -544,6 +604,7 @@ def main() -> None:
     sim = ap.add_mutually_exclusive_group()
     sim.add_argument("--no-simulate", action="store_true", help="only read the caches")
     sim.add_argument("--simulate-only", action="store_true", help="fill the caches, write no table")
+    ap.add_argument("--centred-12", action="store_true", help="also simulate the centred 12 deg sweeps (item 3)")
     ap.add_argument("--executor", default="local", help="executor for the probes (default local)")
     ap.add_argument("--out-dir", default="experiments/results")
     ap.add_argument("--cache-dir", default="experiments/cache")
@@ -560,6 +621,8 @@ def main() -> None:
         for m in models:
             try:
                 simulate(m, cache_dir, args.stage, args.executor)
+                if args.centred_12:
+                    simulate_centred_12deg(m, cache_dir, args.executor)
             except KeyboardInterrupt:
                 print(f"interrupted during {m}: finished probes are in the cache; writing the table", flush=True)
                 break
