@@ -475,6 +475,12 @@ def build(cache_dir: Path) -> dict:
                 row["models"][m] = {"verdict": "not run"}
             else:
                 row["models"][m] = {**st, "verdict": verdict(st, pr["paper"])}
+                vals = [v for v in st.get("over_alpha", {}).values() if v is not None]
+                if len(vals) == len(ALPHAS) and st.get("u") is not None:
+                    lo, hi = min(vals), max(vals)
+                    row["models"][m]["alpha_range"] = [lo, hi]
+                    row["models"][m]["verdict_alpha_range"] = (
+                        "agrees" if lo - K * st["u"] <= pr["paper"] <= hi + K * st["u"] else "disagrees")
         table.append(row)
     extra = {m: {"fig10_range_3deg": range_verdict(models[m]["rows"], 3.0),
                  "fig10_range_12deg": range_verdict(models[m]["rows"], 12.0),
@@ -504,6 +510,9 @@ def _cell(c: dict, digits: int) -> str:
     if c["n"] < c["of"]:
         txt += f" ({c['n']}/{c['of']})"
     mark = {"agrees": "✓", "disagrees": "✗", "no estimate": "?"}[c["verdict"]]
+    if "alpha_range" in c:
+        lo, hi = c["alpha_range"]
+        mark += f" [alpha range {lo:.0f}-{hi:.0f} {'✓' if c['verdict_alpha_range'] == 'agrees' else '✗'}]"
     return f"{txt} {mark}"
 
 
@@ -516,8 +525,9 @@ def markdown(res: dict) -> str:
           "10-40 Hz at 3 deg, 8-30 Hz at 12 deg, 1 Hz steps (rigid_limit 16-36 Hz / 8-18 Hz; pybullet 12-34 Hz / "
           "8-20 Hz in 2 Hz steps, 0.3 s + 0.6 s windows). Fits: the project's first-hump Lorentzian "
           "(`plate_env.fitting.fit_results`). Table 1 is compared at alpha 36.9 deg (the paper does not say "
-          "which alpha its Table 1 uses: its 10pi value 614.9 is not Fig. 7's 598.7 at 36.9 deg); the JSON keeps "
-          "each model's value at every alpha.", "",
+          "which alpha its Table 1 uses: its 10pi value 614.9 is not Fig. 7's 598.7 at 36.9 deg); where all four "
+          "alphas (30, 36.9, 45, 56.3 deg) were run, [alpha range lo-hi ✓/✗] says whether the paper's value lies "
+          "within the model's range over them widened by 2 sqrt(2) u.", "",
           "| quantity | paper | " + " | ".join(MODELS) + " |", "|---|---|" + "---|" * len(MODELS)]
     for row in res["table"]:
         d = 2 if ("R^2" in row["label"] or "p1" in row["label"]) else 1
