@@ -229,13 +229,16 @@ def main() -> None:
                     cells.append("-" if m["ratio"] is None else
                                  f"{m['ratio']:.2f} ({m['n_stable_in_window']})" + (" ✓" if m["meets_bar"] else ""))
                 md.append(f"| {w:g}pi, {al:g} deg | {'centred' if p == 0 else p} | " + " | ".join(cells) + " |")
-        md += ["", f"omega_B curves (deg/s, `u` = unstable under the default rule), {model}:", "",
-               "| object | placement | " + " | ".join(f"{f:g}" for f in FREQS) + " |",
-               "|---|---|" + "---|" * len(FREQS)]
+        md += ["", f"omega_B curves (deg/s; `u`: unstable under that reading), {model}:", "",
+               "| object | placement | reading | " + " | ".join(f"{f:g}" for f in FREQS) + " |",
+               "|---|---|---|" + "---|" * len(FREQS)]
         for (w, _al) in OBJECTS:
             for p in range(args.placements):
-                c = res_m[f"{w:g}pi_p{p}_default"]["curve"]
-                md.append(f"| {w:g}pi | {p} | " + " | ".join(f"{y:.0f}" + ("" if o else "u") for _, y, o in c) + " |")
+                for name in names:
+                    c = res_m[f"{w:g}pi_p{p}_{name}"]["curve"]
+                    md.append(f"| {w:g}pi | {p} | {name} | "
+                              + " | ".join(("-" if not math.isfinite(y) else f"{y:.0f}") + ("" if o else "u")
+                                           for _, y, o in c) + " |")
         md.append("")
         out["models"][model] = res_m
     od = Path(args.out_dir)
