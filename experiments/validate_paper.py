@@ -123,9 +123,10 @@ def centred_12deg_specs(model: str) -> list[ProbeSpec]:
 def plan(model: str) -> list[Sweep]:
     """Every sweep the table needs, in stage order: 1 Fig. 7 and the Fig. 3 object; 2 the rest of Table 1 and
     Section 5 at alpha 36.9 deg; 3 the other friction angles of Figs. 8-10 (Eq. 10, Figs. 9-10). PyBullet's stage 1
-    leaves Fig. 7(c) (10pi, 56.3 deg) to stage 2 (its probes cost ~16 s)."""
-    s: list[Sweep] = [Sweep(10.0, CHEESE, 12.0, 1), Sweep(10.0, CHEESE, 3.0, 1), Sweep(33.0, CHEESE, 3.0, 1),
-                      Sweep(10.0, 56.3, 3.0, 2 if model == "pybullet" else 1)]
+    leaves Fig. 7(b) and (c) (33pi; 10pi at 56.3 deg) to stage 2 (its probes cost ~16 s)."""
+    late = 2 if model == "pybullet" else 1
+    s: list[Sweep] = [Sweep(10.0, CHEESE, 12.0, 1), Sweep(10.0, CHEESE, 3.0, 1), Sweep(33.0, CHEESE, 3.0, late),
+                      Sweep(10.0, 56.3, 3.0, late)]
     for a in (3.0, 12.0):
         for w in rp.FIG8_OMEGAS_PI[a]:
             if not any(x.omega_pi == w and x.alpha_deg == CHEESE and x.a_p_deg == a for x in s):
