@@ -222,12 +222,16 @@ def _stats(values: list[float], stderrs: list[float] | None = None) -> dict:
 
 
 def observed(fit, f_hz) -> bool:
-    """A fit the table uses: ok, and f0 inside the frequencies of the probes it used (a Lorentzian whose top lies
-    outside them extrapolates the hump it never saw; such fits count as no estimate)."""
+    """A fit the table uses: ok, and f0 inside the frequencies of the probes it used, widened by half their
+    spacing (a Lorentzian whose top lies further out extrapolates a hump it never saw; such fits count as no
+    estimate)."""
     if not fit.ok:
         return False
-    f = np.asarray(f_hz, float)[fit.used]
-    return bool(f.size and f.min() <= fit.f0 <= f.max())
+    f = np.unique(np.asarray(f_hz, float)[fit.used])
+    if not f.size:
+        return False
+    half = 0.5 * float(np.min(np.diff(f))) if f.size > 1 else 0.0
+    return bool(f.min() - half <= fit.f0 <= f.max() + half)
 
 
 def fit_sweep(results: list[ProbeResult]):
