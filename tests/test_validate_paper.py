@@ -61,3 +61,13 @@ def test_falling_side_bar_on_planted_curves():
     # the fall only among unstable probes does not count
     ok = f <= 26.0
     assert fs.bar_metric(f, falls, ok, 25.1, 5.1)["ratio"] > 0.6
+
+
+def test_observed_allows_half_a_probe_spacing_beyond_the_fitted_probes():
+    from plate_env.fitting import LorentzFit
+
+    f = np.arange(20.0, 30.0)
+    used = f <= 25.0
+    assert vp.observed(LorentzFit(ok=True, reason=None, f0=25.4, used=used), f)
+    assert not vp.observed(LorentzFit(ok=True, reason=None, f0=25.6, used=used), f)
+    assert not vp.observed(LorentzFit(ok=False, reason="x", f0=22.0, used=used), f)
