@@ -144,13 +144,29 @@ def cache_path(cache_dir: Path, model: str) -> Path:
     return cache_dir / f"validate_paper_{model}.jsonl"
 
 
-def simulate(model: str, cache_dir: Path, max_stage: int, executor: str = "local") -> None:
-    """Run every missing probe of ``model`` up to ``max_stage``, stage by stage, placement-major within a stage
-    (so a stage's first placement of every sweep finishes before any second placement)."""
+def parse_only(text: str | None) -> set[tuple[float, float, float]] | None:
+    """``--only`` "omega_pi:alpha_deg:a_p_deg,..." -> a set of sweep keys (None: every sweep)."""
+    if not text:
+        return None
+    out = set()
+    for item in text.split(","):
+        parts = item.strip().split(":")
+        if len(parts) != 3:
+            raise ValueError(f"--only item {item!r} must be omega_pi:alpha_deg:a_p_deg, e.g. 33:36.9:3")
+        out.add(tuple(float(x) for x in parts))
+    return out
+
+
+def simulate(model: str, cache_dir: Path, max_stage: int, executor: str = "local",
+             only: set[tuple[float, float, float]] | None = None) -> None:
+    """Run every missing probe of ``model`` up to ``max_stage`` (only the sweeps in ``only`` if given), stage by
+    stage, placement-major within a stage (a stage's first placement of every sweep finishes before any second)."""
     physics = backend(model)
     for stage in range(1, max_stage + 1):
         for p in range(PLACEMENTS[model]):
-            specs = [sp for sw in plan(model) if sw.stage == stage for sp in sw.specs(model, p)]
+            specs = [sp for sw in plan(model) if sw.stage == stage
+                     and (only is None or (sw.omega_pi, sw.alpha_deg, sw.a_p_deg) in only)
+                     for sp in sw.specs(model, p)]
             if specs:
                 print(f"[{_now()}] {model} stage {stage} placement {p}: {len(specs)} probes", flush=True)
                 run_cached(physics, specs, cache_path(cache_dir, model), chunk=16 if model == "pybullet" else 64,
@@ -619,6 +635,7 @@ def main() -> None:
     sim = ap.add_mutually_exclusive_group()
     sim.add_argument("--no-simulate", action="store_true", help="only read the caches")
     sim.add_argument("--simulate-only", action="store_true", help="fill the caches, write no table")
+    ap.add_argument("--only", default=None, help="simulate only these sweeps: omega_pi:alpha_deg:a_p_deg,...")
     ap.add_argument("--centred-12", action="store_true", help="also simulate the centred 12 deg sweeps (item 3)")
     ap.add_argument("--executor", default="local", help="executor for the probes (default local)")
     ap.add_argument("--out-dir", default="experiments/results")
@@ -630,12 +647,16 @@ def main() -> None:
         ap.error(f"unknown model(s) {bad}; choose from {MODELS}")
     if not 1 <= args.stage <= 3:
         ap.error(f"--stage {args.stage} must be 1, 2 or 3")
+    try:
+        only = parse_only(args.only)
+    except ValueError as e:
+        ap.error(str(e))
     cache_dir, out_dir = Path(args.cache_dir), Path(args.out_dir)
     cache_dir.mkdir(parents=True, exist_ok=True)
     if not args.no_simulate:
         for m in models:
             try:
-                simulate(m, cache_dir, args.stage, args.executor)
+                simulate(m, cache_dir, args.stage, args.executor, only)
                 if args.centred_12:
                     simulate_centred_12deg(m, cache_dir, args.executor)
             except KeyboardInterrupt:
