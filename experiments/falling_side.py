@@ -1,6 +1,6 @@
 """What would make omega_B fall above the hump (issue 27, item 2)? Candidate readings of the paper, with numbers.
 
-    python experiments/falling_side.py [--models pointmass,rigid,rigid_limit] [--placements 2] [--measure-s 4]
+    python experiments/falling_side.py [--models pointmass:2,rigid:2,rigid_limit:1] [--measure-s 3]
 
 The bar (issue 27): a model whose *stable* probes fall to <= 0.6 of the peak within 1.5 b above f0, at 10pi and
 33pi (alpha 36.9 deg, A_p 3 deg). The window is the paper's own (f0, f0 + 1.5 b] of Fig. 7: 25.1-32.75 Hz for 10pi,
@@ -187,19 +187,22 @@ def from_table_sweeps(cache_dir: Path) -> tuple[dict, list[str]]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--models", default="pointmass,rigid,rigid_limit")
-    ap.add_argument("--placements", type=int, default=2, help="placement 0 centred, the others seeded (>= 1)")
+    ap.add_argument("--models", default="pointmass:2,rigid:2,rigid_limit:1",
+                    help="model:placements items (placement 0 centred, the others seeded)")
     ap.add_argument("--measure-s", type=float, default=4.0, help="measurement window of the long probes, s")
     ap.add_argument("--cache-dir", default="experiments/cache")
     ap.add_argument("--out-dir", default="experiments/results")
     args = ap.parse_args()
-    if args.placements < 1:
-        ap.error("--placements must be >= 1")
+    runs = []
+    for item in (x.strip() for x in args.models.split(",") if x.strip()):
+        name, _, n = item.partition(":")
+        if name not in ("pointmass", "rigid", "rigid_limit") or not (n or "2").isdigit() or int(n or 2) < 1:
+            ap.error(f"--models item {item!r}: expected pointmass|rigid|rigid_limit[:placements >= 1]")
+        runs.append((name, int(n or 2)))
     if not 1.0 <= args.measure_s <= 30.0:
         ap.error(f"--measure-s {args.measure_s} must lie in [1, 30] s")
     table_res, table_md = from_table_sweeps(Path(args.cache_dir))
-    specs = probes(args.placements, args.measure_s)
-    out = {"command": f"python {SCRIPT} --models {args.models} --placements {args.placements} "
+    out = {"command": f"python {SCRIPT} --models {args.models} "
                       f"--measure-s {args.measure_s:g}", "bar": BAR, "freqs_hz": list(FREQS), "models": {}}
     md = ["# The falling side above the hump: candidate readings", "", f"Regenerate: `{out['command']}`. "
           f"Bar: the lowest stable omega_B in (f0, f0 + 1.5 b] (the paper's Fig. 7 f0, b) <= {BAR} of the hump's "
@@ -208,8 +211,9 @@ def main() -> None:
           "there.", ""]
     md += table_md
     out["table_sweeps"] = table_res
-    for model in [m.strip() for m in args.models.split(",") if m.strip() and args.placements]:
-        cache = Path(args.cache_dir) / f"falling_side_{model}_{args.placements}_{args.measure_s:g}.npz"
+    for model, n_pl in runs:
+        specs = probes(n_pl, args.measure_s)
+        cache = Path(args.cache_dir) / f"falling_side_{model}_{n_pl}_{args.measure_s:g}.npz"
         recs = run(model, specs, cache)
         rng = np.random.default_rng(0)
         reads = [readings(s, r, rng) for s, r in zip(specs, recs, strict=True)]
@@ -218,9 +222,9 @@ def main() -> None:
         md += [f"## {model}", "", "| object | placement | " + " | ".join(names) + " |",
                "|---|---|" + "---|" * len(names)]
         for (w, al), (f0, b) in OBJECTS.items():
-            for p in range(args.placements):
+            for p in range(n_pl):
                 idx = [i for i, s in enumerate(specs) if math.isclose(s.obj.omega_n, w * math.pi)
-                       and i // len(FREQS) % args.placements == p]
+                       and i // len(FREQS) % n_pl == p]
                 f = np.array([specs[i].motion.freq_hz for i in idx])
                 cells = []
                 for name in names:
@@ -236,7 +240,7 @@ def main() -> None:
                "| object | placement | reading | " + " | ".join(f"{f:g}" for f in FREQS) + " |",
                "|---|---|---|" + "---|" * len(FREQS)]
         for (w, _al) in OBJECTS:
-            for p in range(args.placements):
+            for p in range(n_pl):
                 for name in names:
                     c = res_m[f"{w:g}pi_p{p}_{name}"]["curve"]
                     md.append(f"| {w:g}pi | {p} | {name} | "
