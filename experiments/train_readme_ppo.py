@@ -30,7 +30,7 @@ def main() -> None:
     # --- the README's snippet ---
     from stable_baselines3 import PPO
 
-    from plate_env.sb3 import make_sb3_vec_env
+    from plate_env.env.sb3 import make_sb3_vec_env
 
     model = PPO("MlpPolicy", make_sb3_vec_env(n_envs=8, physics="atlas", seed=0), seed=0, device="cpu")
     model.learn(args.timesteps)

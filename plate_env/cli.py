@@ -15,14 +15,15 @@ from pathlib import Path
 
 import numpy as np
 
-from plate_env import checks
-from plate_env.env import DEFAULT_MAX_PROBES
-from plate_env.executor import BackendSpec, add_executor_argument, make_executor
-from plate_env.motion import AMP_RANGE_RAD, B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
-from plate_env.objects import ObjectSpec, preset
+from plate_env.core import checks
+from plate_env.core.motion import AMP_RANGE_RAD, B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
+from plate_env.core.objects import ObjectSpec, preset
+from plate_env.core.probe import MIN_PROBE_FREQ_HZ, WINDOW_RANGE_S
+from plate_env.core.units import format_omega_pi, parse_omega_n
+from plate_env.env.rotation import DEFAULT_MAX_PROBES
 from plate_env.physics import PHYSICS_NAMES, ProbeSpec, make_physics
-from plate_env.physics.base import MIN_PROBE_FREQ_HZ, WINDOW_RANGE_S, refuse_early
-from plate_env.units import format_omega_pi, parse_omega_n
+from plate_env.physics.interface import refuse_early
+from plate_env.run.executor import BackendSpec, add_executor_argument, make_executor
 
 #: Most probes one sweep may ask for.
 MAX_SWEEP_PROBES = 2000
@@ -269,9 +270,9 @@ def _parse_budgets(text: str | None) -> list[float] | None:
 def _cmd_bench(args: argparse.Namespace) -> int:
     import functools
 
-    from plate_env import benchmark
-    from plate_env.executor import check_executor_name, default_local
-    from plate_env.suites import load_suite
+    from plate_env.bench import runner as benchmark
+    from plate_env.bench.suites import load_suite
+    from plate_env.run.executor import check_executor_name, default_local
 
     # the seam: the CLI is the application layer, the only module of plate_env that imports the agents
     from plate_env_agents import load_agent
@@ -308,7 +309,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.markdown:
         Path(args.markdown).write_text(text)
     if plot is not None:
-        benchmark.plot_curves(b["summaries"], str(plot))
+        from plate_env.plotting import plot_curves
+
+        plot_curves(b["summaries"], str(plot))
         _say_plot(args, plot)
     return 0
 
@@ -348,7 +351,7 @@ def _print_sweep(args: argparse.Namespace, obj: ObjectSpec, results: list, inter
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from plate_env.sweeps import SweepInterrupted, run_cached
+    from plate_env.run.sweeps import SweepInterrupted, run_cached
 
     obj = _object(args)
     freqs = parse_freqs(args.freqs)
@@ -409,9 +412,10 @@ def _fit_report(est, table) -> list[str]:
 
 
 def _cmd_fit(args: argparse.Namespace) -> int:
-    from plate_env.forward import KnownInputs, forward_model_names
+    from plate_env.core.probe_table import read_lab_csv
     from plate_env.identify import identify
-    from plate_env.probes import read_lab_csv
+    from plate_env.surrogate.catalog import forward_model_names
+    from plate_env.surrogate.conditioning import KnownInputs
 
     plot = plot_path(args.plot) if args.plot else None
     known = KnownInputs(b_p=args.bp * 1e-3, mass=args.mass_g * 1e-3, diameter=args.diameter_mm * 1e-3)
@@ -448,10 +452,11 @@ def _cmd_fit(args: argparse.Namespace) -> int:
 def _cmd_identify(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
+    from plate_env.env.episode import run_episode
+
     # the seam: the CLI is the application layer, the only module of plate_env that imports the agents
     # (tests/test_code_health.py keeps it so); the library core below it does not
     from plate_env_agents import make_agent
-    from plate_env_agents.runner import run_episode
 
     if args.target is not None and args.agent != "bayes":
         raise CliError(f"--target applies to --agent bayes only (its stopping rule), not to --agent {args.agent}")
