@@ -251,11 +251,26 @@ def _add_bench(sub) -> None:
                    f"{BENCH_CACHE_DIR}/<suite>.jsonl)")
     b.add_argument("--no-cache", action="store_true", help="keep no episodes on disk")
     b.add_argument("--chunk", type=_arg(checks.integer, 1, 1000), default=2, help="episodes per task")
-    b.add_argument("--markdown", default=None, help="also write the leaderboard to this markdown file")
+    b.add_argument("--markdown", default=None, help="also write the leaderboard, under a title and the suite's "
+                   "description, to this markdown file (what experiments/leaderboard.py wrote)")
     b.add_argument("--plot", default=None, help="write the error curves (after the results are printed)")
     b.add_argument("--no-progress", action="store_true", help="no progress bar")
     b.add_argument("--json", action="store_true", help="print one JSON document")
     add_executor_argument(b)
+
+
+def _bench_note(args: argparse.Namespace, suite: str) -> str:
+    """How to regenerate a leaderboard (the command, the cache it resumes from) and the machine's load."""
+    import shlex
+
+    cmd = ["plate-env", "bench", "--suite", suite, "--agent", *args.agent]
+    cmd += ["--limit", str(args.limit)] * (args.limit is not None) + ["--budgets", args.budgets] * bool(args.budgets)
+    try:
+        load = Path("/proc/loadavg").read_text().split()[0]
+    except OSError:
+        load = "?"
+    return (f"Regenerate: `{shlex.join(cmd)}` (finished episodes are kept in the cache, a rerun resumes). Wall "
+            f"seconds per decision were measured at load {load}, noisy.")
 
 
 def _parse_budgets(text: str | None) -> list[float] | None:
@@ -300,7 +315,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                   file=sys.stderr)
             return 130
     b = benchmark.board(runs, budgets)
-    text = benchmark.leaderboard_markdown(b["summaries"], b["paired"], b["leader"])
+    text = benchmark.leaderboard_markdown(b["summaries"], b["paired"], b["leader"], note=_bench_note(args, suite.name))
+    if args.markdown:
+        text = f"# Leaderboard: {suite.name}\n\n{suite.description}\n\n{text}"
     if args.json:
         print(json.dumps({"suite": suite.name, "suite_sha256": suite.sha256, "budgets_s": list(budgets),
                           **benchmark.board_to_dict(b)}), flush=True)
