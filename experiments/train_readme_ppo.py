@@ -3,7 +3,7 @@
     python experiments/train_readme_ppo.py [--timesteps 100000] [--out experiments/results/models/readme_ppo.zip]
 
 Writes the model and, beside it, a JSON with the steps, wall seconds, load average and versions. The leaderboard
-(experiments/leaderboard.py) evaluates it beside the shipped agents as ``sb3:<model>``.
+(``plate-env bench --agent ... sb3:<model>``) evaluates it beside the shipped agents.
 """
 
 from __future__ import annotations
