@@ -33,9 +33,9 @@ from pathlib import Path
 import numpy as np
 
 import plate_env as pe
-from plate_env.camera import camera_omega_b
-from plate_env.motion import PlateMotion
-from plate_env.physics.base import ProbeResult, ProbeSpec, YawTrace
+from plate_env.core.motion import PlateMotion
+from plate_env.core.probe import ProbeResult, ProbeSpec, YawTrace
+from plate_env.physics.camera import camera_omega_b
 from plate_env.physics.tilelink.backend import TileLinkPhysics
 
 SCRIPT = "experiments/falling_side.py"

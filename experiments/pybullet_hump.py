@@ -27,9 +27,9 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from plate_env.executor import BackendSpec
 from plate_env.physics.pybullet_sheet.scene import SheetConfig
-from plate_env.sweeps import run_cached
+from plate_env.run.executor import BackendSpec
+from plate_env.run.sweeps import run_cached
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import validate_paper as vp  # noqa: E402
@@ -81,7 +81,7 @@ def main() -> None:
                 a2 = math.atan(k * math.tan(math.radians(vp.CHEESE)))
                 specs = [replace(s, obj=replace(s.obj, alpha=a2)) for s in specs]
             if args.no_simulate:
-                from plate_env.sweeps import _from_record, backend_tag, load_cache, spec_key
+                from plate_env.run.sweeps import _from_record, backend_tag, load_cache, spec_key
                 done = load_cache(cache)
                 tag = backend_tag(physics)
                 recs = [done.get(spec_key(tag, s)) for s in specs]

@@ -38,11 +38,11 @@ from pathlib import Path
 import numpy as np
 
 import plate_env as pe
-from plate_env import benchmarks as bm
-from plate_env.executor import BackendSpec
-from plate_env.fitting import fit_results
-from plate_env.physics.base import ProbeResult, ProbeSpec
-from plate_env.sweeps import _from_record, backend_tag, load_cache, run_cached, spec_key
+from plate_env.build import eval_sets as bm
+from plate_env.core.probe import ProbeResult, ProbeSpec
+from plate_env.identify.fitting import fit_results
+from plate_env.run.executor import BackendSpec
+from plate_env.run.sweeps import _from_record, backend_tag, load_cache, run_cached, spec_key
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import reproduce_paper as rp  # noqa: E402  (the paper's numbers, encoded once)
@@ -389,8 +389,8 @@ def atlas_rows(model: str) -> dict:
     """Eq. (10), Figs. 9-10 regressions on the shipped atlas's grid objects (a cross-check, not the table's rows):
     one first-hump fit per (omega_n node, alpha node) of the node curves (points whose repeats all slipped are
     unstable; the spread weights the fit). Uncertainty: delete-one-object jackknife."""
-    from plate_env.atlas import load_atlas_file
-    from plate_env.fitting import fit_lorentzian
+    from plate_env.identify.fitting import fit_lorentzian
+    from plate_env.surrogate.atlas import load_atlas_file
 
     at = load_atlas_file(ATLASES[model])
     out: dict = {"file": f"plate_env/data/{ATLASES[model]}", "f_hz": [float(at.f_hz[0]), float(at.f_hz[-1]),

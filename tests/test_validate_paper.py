@@ -14,7 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
 import falling_side as fs  # noqa: E402
 import validate_paper as vp  # noqa: E402
 
-from plate_env.fitting import fit_lorentzian, lorentzian  # noqa: E402
+from plate_env.identify.fitting import fit_lorentzian, lorentzian  # noqa: E402
 
 
 def test_stats_median_spread_and_uncertainty():
@@ -64,7 +64,7 @@ def test_falling_side_bar_on_planted_curves():
 
 
 def test_observed_allows_half_a_probe_spacing_beyond_the_fitted_probes():
-    from plate_env.fitting import LorentzFit
+    from plate_env.identify.fitting import LorentzFit
 
     f = np.arange(20.0, 30.0)
     used = f <= 25.0
