@@ -10,6 +10,8 @@ cached sweep). Variants:
   nodes feel mu_k = 0.53 mu_s. The sheet is run with alpha' = atan(0.53 tan alpha) (21.7 deg for 36.9 deg):
   the whole contact at the kinetic level;
 * ``marginX``: soft-body collision margin X mm (default 0.5 mm);
+* ``thickX``: sheet thickness X mm (default 2 mm); ``meshN``: N points per layer (default 91). The stiffness
+  calibration belongs to the default mesh, so these change omega_n too: a screening for the hump's existence only;
 * ``static``: the same alpha as the baseline (a second run of the baseline's probes would be bit-identical;
   only listed to show the baseline).
 
@@ -49,7 +51,15 @@ def variant(name: str) -> tuple[BackendSpec, float]:
         if not 0.0 < mm <= 10.0:
             raise ValueError(f"margin {mm} mm must lie in (0, 10]")
         return BackendSpec.of("pybullet", n_workers=1, config=SheetConfig(margin=mm * 1e-3)), 1.0
-    raise ValueError(f"unknown variant {name!r}: static, kinetic or margin<mm>")
+    if name.startswith("thick"):
+        mm = float(name[len("thick"):])
+        if not 0.0 < mm <= 20.0:
+            raise ValueError(f"thickness {mm} mm must lie in (0, 20]")
+        return BackendSpec.of("pybullet", n_workers=1, thickness=mm * 1e-3), 1.0
+    if name.startswith("mesh"):
+        n = int(name[len("mesh"):])
+        return BackendSpec.of("pybullet", n_workers=1, n_layer=n), 1.0
+    raise ValueError(f"unknown variant {name!r}: static, kinetic, margin<mm>, thick<mm> or mesh<points per layer>")
 
 
 def main() -> None:
