@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from plate_env.atlas import Atlas
-from plate_env.estimate import Estimate, Posterior
+from plate_env.estimate import Estimate, Posterior, PredictiveCheck
 from plate_env.forward import ForwardModel, Member
 from plate_env.probes import ProbeTable
 
@@ -240,10 +240,69 @@ def posterior(fm: ForwardModel, table: ProbeTable, n_omega: int = N_OMEGA, n_alp
     return pool(fm, w, a, lls, skipped, evidence)
 
 
+# ----------------------------------------------------------------------------------------------- predictive check
+#: Replicated sweeps drawn for the check's p-value (from a fixed seed: the check is a pure function of its input).
+CHECK_DRAWS = 4000
+CHECK_SEED = 20261202
+
+
+def _surprise(z2: np.ndarray, stable: np.ndarray, p: np.ndarray, nu: float = NU) -> np.ndarray:
+    """The check's statistic per probe (last axis summed): Student-t surprise of stable residuals, flag surprise."""
+    flag = -np.log(np.where(stable, 1.0 - p, p))
+    return (np.where(stable, 0.5 * (nu + 1.0) * np.log1p(z2 / nu), 0.0) + flag).sum(-1)
+
+
+def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> PredictiveCheck:
+    """A posterior predictive check of the probes under ``fm`` (see :class:`PredictiveCheck`). Pure: replicates
+    come from a fixed seed.
+
+    The object checked is the one of the member of highest posterior weight that explains the probes best (least
+    surprise over its whole grid); replicated sweeps are drawn from that object. Checking at a fitted point makes
+    the test conservative for honest data (a fit explains its own data better than the truth does), so a failure
+    is data the model cannot produce, not bad luck."""
+    i = int(np.argmax(post.member_weights)) if post.member_weights else 0
+    m = fm.members[i]
+    w, a = post.omega_n, post.alpha
+    sub = w[member_rows(m, w)]
+    idx = np.array([k for k, (f, amp) in enumerate(zip(table.f_p_hz, table.a_p_deg, strict=True))
+                    if member_domain(m, float(f), float(amp)) is None], dtype=int)
+    n = idx.size
+    if n == 0 or sub.size == 0:
+        return PredictiveCheck(statistic=0.0, p_value=1.0, n_probes=0, member=m.label, worst=None)
+
+    def terms(k: int):
+        amp = float(table.a_p_deg[k])
+        mk, sk, pk = member_response(m, amp, sub, a)[0](float(table.f_p_hz[k]))
+        sd = np.sqrt(sk ** 2 + float(table.stderr_deg_s[k]) ** 2 + m.sigma_model ** 2)
+        return (float(table.omega_b_deg_s[k]) - mk) / sd, smoothed_p(pk, m.atlas.n_repeats)
+
+    total = np.zeros((sub.size, a.size))
+    for k in idx:  # the surprise of every grid object, probe by probe (memory stays one grid)
+        z, pu = terms(k)
+        total += _surprise((z ** 2)[..., None], np.array([not table.unstable[k]]), pu[..., None])
+    total = np.where(member_coverage(m, sub, a), total, np.inf)
+    c = np.unravel_index(int(np.argmin(total)), total.shape)
+    z, p_c = (np.array(v) for v in zip(*((zz[c], pp[c]) for zz, pp in map(terms, idx)), strict=True))
+    stable = ~table.unstable[idx]
+    t_obs = float(_surprise(z ** 2, stable, p_c))
+    rng = np.random.default_rng(CHECK_SEED)
+    stable_rep = rng.random((CHECK_DRAWS, n)) >= p_c
+    z2_rep = rng.standard_t(NU, (CHECK_DRAWS, n)) ** 2
+    t_rep = _surprise(z2_rep, stable_rep, np.broadcast_to(p_c, (CHECK_DRAWS, n)))
+    p_value = float((1 + np.count_nonzero(t_rep >= t_obs)) / (CHECK_DRAWS + 1))
+    worst = None
+    if np.any(stable):
+        j = int(np.argmax(np.where(stable, np.abs(z), -1.0)))
+        worst = (float(table.f_p_hz[idx[j]]), float(table.a_p_deg[idx[j]]), float(z[j]))
+    return PredictiveCheck(statistic=t_obs, p_value=p_value, n_probes=n, member=m.label, worst=worst)
+
+
 def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:
     """omega_n and alpha as posterior medians of ``fm``, with equal-tailed 68 % / 95 % intervals; a bound (``ok``
     False) when the posterior piles against the edge of the identifiable range; no estimate when a probe lies
-    outside every member's atlas (it is named, not dropped)."""
+    outside every member's atlas (it is named, not dropped), when the probes fail the predictive check
+    (:func:`predictive_check`: data the model cannot explain) or when alpha piles against the edge of the
+    friction angles the model covers (:meth:`Posterior.alpha_edge`). The estimate carries its check."""
     n_un = int(table.unstable.sum())
     base = {"method": "atlas", "n_probes": len(table), "n_unstable": n_un, "forward": fm.name}
     if len(table) == 0:
@@ -255,15 +314,26 @@ def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:
                         f"that describes them (not {fm.name!r})", **base)
     post = posterior(fm, table)
     om, al = post.omega(), post.alpha_marginal()
+    check = predictive_check(fm, table, post)
     fields = dict(omega_n=om.value, omega_n_stderr=om.stderr, omega_n_ci68=om.ci68, omega_n_ci95=om.ci95,
-                  alpha=al.value, alpha_stderr=al.stderr, posterior=post, **base)
+                  alpha=al.value, alpha_stderr=al.stderr, posterior=post, check=check, **base)
     side = post.edge()
+    if not check.passed:  # data no object of the model could make: no number and no bound, the check says why
+        edge = "" if side is None else f" (its best fit piles at the {side} edge of the range it can identify)"
+        return Estimate(ok=False, reason=check.reason() + edge, **fields)
     if side is not None:
         lo, hi = post.identifiable_range
         bound = ("above", om.ci95[0]) if side == "above" else ("below", om.ci95[1])
         return Estimate(ok=False, bound=bound, reason=(
             f"omega_n is {side} the range {fm.name!r} can identify ({lo / math.pi:.3g}-{hi / math.pi:.3g} pi rad/s): "
             f"omega_n {'>' if side == 'above' else '<'} {bound[1]:.4g} rad/s at 95 %"), **fields)
+    alpha_side = post.alpha_edge()
+    if alpha_side is not None:
+        a_lo, a_hi = fm.alpha_range
+        return Estimate(ok=False, reason=(
+            f"alpha is {alpha_side} the friction angles {fm.name!r} covers ({math.degrees(a_lo):.0f}-"
+            f"{math.degrees(a_hi):.0f} deg): the posterior piles at that edge, so its omega_n cannot be trusted"),
+            **fields)
     return Estimate(ok=True, **fields)
 
 
