@@ -27,7 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from forward_models import POINTMASS, TEST, sets_by_amplitude  # noqa: E402
+from forward_models import POINTMASS, TEST, episodes, sets_by_amplitude  # noqa: E402
 
 from plate_env.benchmarks import run_eval_set  # noqa: E402
 from plate_env.estimate import CHECK_P_MIN  # noqa: E402
@@ -47,6 +47,8 @@ def covered(est, truth: float, level: str) -> bool:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--objects", type=int, default=TEST.n)
+    ap.add_argument("--episodes", type=int, default=0, help="also this many live bayes episodes (seed 520, "
+                    "experiments/forward_models.py's test episodes, resumable cache)")
     add_executor_argument(ap)
     args = ap.parse_args()
     es = dataclasses.replace(TEST, n=args.objects)
@@ -86,6 +88,16 @@ def main() -> None:
                      f"{edge.mean():.3f} ({int(edge.sum())}) | {p.min():.2g} | {cov['68'][0]:.2f} / {cov['68'][1]:.2f} "
                      f"| {cov['95'][0]:.2f} / {cov['95'][1]:.2f} | "
                      + " | ".join(f"{bad[k][0]:.2f} ({bad[k][1]:.2f})" for k in ("zero", "negative", "x100")) + " |")
+    if args.episodes:
+        eps = episodes(args, fm, 520)
+        checks = [e["estimate"]["check"] for e in eps]
+        p = np.array([c["p_value"] for c in checks if c is not None])
+        rej = int(np.sum(p < CHECK_P_MIN))
+        numbers["bayes_episodes"] = {"n": len(eps), "n_rejected": rej, "p_values": p.tolist(),
+                                     "no_estimate": int(sum(not e["estimate"]["ok"] for e in eps))}
+        lines += ["", f"Live bayes episodes (tilelink, prior objects, seed 520, the agent's own estimate model): "
+                  f"{rej} of {len(eps)} rejected by the check (smallest p {p.min():.2g}); "
+                  f"{numbers['bayes_episodes']['no_estimate']} without an estimate for any reason."]
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / "predictive_check.md").write_text("\n".join(lines) + "\n")
     (RESULTS / "predictive_check.json").write_text(json.dumps(numbers, indent=1) + "\n")

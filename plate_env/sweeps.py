@@ -13,13 +13,16 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from plate_env.executor import BackendSpec, Executor, InProcessExecutor, check_executor_name, make_executor
-from plate_env.physics.base import Physics, ProbeResult, ProbeSpec
+from plate_env.physics.base import SLIP_LIMIT_M, Physics, ProbeResult, ProbeSpec
 
 #: Backend settings that change results and so enter the cache key (each where the backend has it).
-TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact", "record_interval_s")
+TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact", "record_interval_s",
+                "slip_limit", "k_elastic", "stderr_tol_deg_s", "rho", "corr_hz")
 #: Settings named in the key only when they differ from this default: they became options after caches of the
-#: default existed, which stay valid.
-TAG_DEFAULTS = {"record_interval_s": 1e-3}
+#: default existed, which stay valid (tilelink ``slip_limit``, pybullet ``k_elastic`` and ``stderr_tol_deg_s``, the
+#: atlas's ``instability_rho`` and ``instability_corr_hz``, kept as ``rho`` and ``corr_hz``).
+TAG_DEFAULTS = {"record_interval_s": 1e-3, "slip_limit": SLIP_LIMIT_M, "k_elastic": None, "stderr_tol_deg_s": None,
+                "rho": 0.0, "corr_hz": 2.0}
 
 
 def backend_tag(physics: Physics | BackendSpec) -> str:

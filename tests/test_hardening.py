@@ -119,3 +119,26 @@ def test_item3_the_check_is_deterministic_and_its_p_value_calibrated_on_its_own_
     b = predictive_check(fm, t, a.posterior)
     assert isinstance(b, PredictiveCheck) and b == a.check  # a pure function: the same probes, the same check
     assert 0.0 < b.p_value <= 1.0 and b.n_probes == len(t)
+
+
+# ------------------------------------------------------------------------------------------- 4-6
+@pytest.mark.parametrize("name, options", [("tilelink", {"slip_limit": 0.005}),
+                                           ("pybullet", {"k_elastic": 50.0}),
+                                           ("pybullet", {"stderr_tol_deg_s": 0.5}),
+                                           ("atlas", {"instability_rho": 0.9}),
+                                           ("atlas", {"instability_rho": 0.9, "instability_corr_hz": 5.0})])
+def test_item4_every_option_that_changes_results_is_in_the_sweep_cache_key(name, options):
+    from plate_env.executor import BackendSpec
+    from plate_env.sweeps import backend_tag
+
+    base = {"atlas": {"instability_rho": 0.9}}.get(name, {}) if "instability_corr_hz" in options else {}
+    assert backend_tag(BackendSpec.of(name, **options)) != backend_tag(BackendSpec.of(name, **base))
+
+
+def test_item4_caches_of_the_default_settings_keep_their_keys():
+    from plate_env.executor import BackendSpec
+    from plate_env.sweeps import backend_tag
+
+    for name in ("tilelink", "pybullet", "atlas"):
+        tag = backend_tag(BackendSpec.of(name))
+        assert not any(f",{k}=" in tag for k in ("slip_limit", "k_elastic", "stderr_tol_deg_s", "rho", "corr_hz")), tag
