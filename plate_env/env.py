@@ -269,7 +269,21 @@ class PlateRotationEnv(gym.Env):
         return self._obs(), self._info()
 
     def decode_action(self, action) -> tuple[bool, ProbeSpec | None]:
-        """Check an action and turn it into (stop, probe). Raises ValueError naming a bad value."""
+        """Check an action and turn it into (stop, probe). Raises ValueError naming a bad value (before any random
+        draw: the placement of the probe is drawn only for a valid action)."""
+        a = self.check_action(action)
+        if a[3] > 0 and self._rows:
+            return True, None
+        f = self.f_band_hz[0] + (a[0] + 1) / 2 * (self.f_band_hz[1] - self.f_band_hz[0])
+        k = min(int((a[1] + 1) / 2 * len(self.amplitudes_deg)), len(self.amplitudes_deg) - 1)
+        window = self.measure_range_s[0] + (a[2] + 1) / 2 * (self.measure_range_s[1] - self.measure_range_s[0])
+        motion = PlateMotion.from_paper(float(f), self.amplitudes_deg[k], self.b_p_mm)
+        spec = ProbeSpec(self._obj, motion, settle_s=self.settle_s, measure_s=float(window), record_trace=True)
+        return False, spec.perturbed(self.np_random)
+
+    def check_action(self, action) -> np.ndarray:
+        """The action as 4 floats in [-1, 1], or ValueError naming the bad value. Pure: no state changes, no random
+        draw (a vector env checks every sub-env's action with it before any sub-env draws)."""
         try:
             a = np.asarray(action)
             if a.dtype.kind not in "fiu":  # bool, complex, strings, objects: not actions, even if castable
@@ -283,15 +297,7 @@ class PlateRotationEnv(gym.Env):
             raise ValueError(f"action {a.tolist()} contains NaN or inf; allowed: finite values in [-1, 1]")
         if np.any(np.abs(a) > 1.0 + 1e-6):
             raise ValueError(f"action {a.tolist()} is outside the allowed range [-1, 1]")
-        a = np.clip(a, -1.0, 1.0)
-        if a[3] > 0 and self._rows:
-            return True, None
-        f = self.f_band_hz[0] + (a[0] + 1) / 2 * (self.f_band_hz[1] - self.f_band_hz[0])
-        k = min(int((a[1] + 1) / 2 * len(self.amplitudes_deg)), len(self.amplitudes_deg) - 1)
-        window = self.measure_range_s[0] + (a[2] + 1) / 2 * (self.measure_range_s[1] - self.measure_range_s[0])
-        motion = PlateMotion.from_paper(float(f), self.amplitudes_deg[k], self.b_p_mm)
-        spec = ProbeSpec(self._obj, motion, settle_s=self.settle_s, measure_s=float(window), record_trace=True)
-        return False, spec.perturbed(self.np_random)
+        return np.clip(a, -1.0, 1.0)
 
     def encode_action(self, f_p_hz: float | None = None, a_p_deg: float | None = None,
                       measure_s: float | None = None, stop: bool = False) -> np.ndarray:
@@ -319,10 +325,15 @@ class PlateRotationEnv(gym.Env):
 
     def prepare(self, action) -> tuple[bool, ProbeSpec | None]:
         """First half of a step: validate the action, decide stop or the probe to run (for batched vector envs)."""
+        self.check_step(action)
+        return self.decode_action(action)
+
+    def check_step(self, action) -> None:
+        """Refuse a step before anything happens: a closed env, an episode not reset or over, a bad action."""
         self._check_open()
         if self._obj is None or self._done:
             raise RuntimeError("call reset() before step() (the episode is over)")
-        return self.decode_action(action)
+        self.check_action(action)
 
     def finish(self, result: ProbeResult | None):
         """Second half of a step: record the probe (or stop), compute reward, termination and info."""

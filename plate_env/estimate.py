@@ -231,7 +231,10 @@ class Estimate:
              "n_unstable": self.n_unstable,
              "bound": None if self.bound is None else {"side": self.bound[0], "omega_n_rad_s": self.bound[1]}}
         if self.posterior is not None and self.posterior.members:
-            d["members"] = dict(zip(self.posterior.members, self.posterior.member_weights, strict=True))
+            members: dict[str, float] = {}  # members sharing a label (one physics, other joint values) summed
+            for label, weight in zip(self.posterior.members, self.posterior.member_weights, strict=True):
+                members[label] = members.get(label, 0.0) + weight
+            d["members"] = members
         d["fits"] = {f"{a:g}": fit.to_dict() for a, fit in self.fits.items()}
         d["check"] = None if self.check is None else self.check.to_dict()
         return d

@@ -142,3 +142,49 @@ def test_item4_caches_of_the_default_settings_keep_their_keys():
     for name in ("tilelink", "pybullet", "atlas"):
         tag = backend_tag(BackendSpec.of(name))
         assert not any(f",{k}=" in tag for k in ("slip_limit", "k_elastic", "stderr_tol_deg_s", "rho", "corr_hz")), tag
+
+
+def test_item6_member_weights_of_members_sharing_a_label_are_summed():
+    w, a = np.geomspace(10, 100, 5), np.linspace(0.5, 1.1, 7)
+    post = Posterior(w, a, np.ones((5, 7)) / 35, members=("tilelink/pointmass",) * 3 + ("pybullet/pybullet",),
+                     member_weights=(0.3, 0.2, 1e-15, 0.5))
+    est = Estimate(ok=True, method="atlas", omega_n=30.0, omega_n_ci68=(25.0, 35.0), omega_n_ci95=(20.0, 40.0),
+                   posterior=post)
+    members = est.to_dict()["members"]
+    assert members == pytest.approx({"tilelink/pointmass": 0.5, "pybullet/pybullet": 0.5})
+    assert sum(members.values()) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("kind", ["make_vec", "sb3"])
+def test_item5_a_vector_step_refused_for_one_sub_env_draws_nothing(kind):
+    """Sub-env 1's NaN action is refused before sub-env 0 draws its probe's placement: the next step equals that
+    of a clean run."""
+    import gymnasium as gym
+
+    kwargs = dict(physics="atlas", max_probes=5)
+
+    def make():
+        if kind == "make_vec":
+            return gym.make_vec("PlateRotation-v0", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+        from plate_env.sb3 import PlateRotationSB3VecEnv
+
+        return PlateRotationSB3VecEnv(2, **kwargs)
+
+    good = np.array([[0.1, -0.5, 0.0, -1.0], [0.3, -0.5, 0.0, -1.0]], dtype=np.float32)
+    bad = good.copy()
+    bad[1, 0] = np.nan
+    outs = []
+    for refuse_first in (False, True):
+        env = make()
+        if kind == "make_vec":
+            env.reset(seed=4)
+        else:
+            env.seed(4)
+            env.reset()
+        if refuse_first:
+            with pytest.raises(ValueError, match="NaN"):
+                env.step(bad)
+        out = env.step(good)
+        outs.append(out[0])
+        env.close()
+    assert np.array_equal(outs[0], outs[1])
