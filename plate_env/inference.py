@@ -244,6 +244,8 @@ def posterior(fm: ForwardModel, table: ProbeTable, n_omega: int = N_OMEGA, n_alp
 #: Replicated sweeps drawn for the check's p-value (from a fixed seed: the check is a pure function of its input).
 CHECK_DRAWS = 4000
 CHECK_SEED = 20261202
+#: How many of a member's blur scales (sd of log omega_n) each probe may move along omega_n in the check.
+CHECK_BLURS = 1.0
 
 
 def _surprise(z2: np.ndarray, stable: np.ndarray, p: np.ndarray, nu: float = NU) -> np.ndarray:
@@ -276,14 +278,30 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> Pr
         sd = np.sqrt(sk ** 2 + float(table.stderr_deg_s[k]) ** 2 + m.sigma_model ** 2)
         return (float(table.omega_b_deg_s[k]) - mk) / sd, smoothed_p(pk, m.atlas.n_repeats)
 
+    # a member with a blur trusts no probe to pin omega_n finer than it: each probe's surprise is its least within
+    # CHECK_BLURS blur scales along log omega_n (none for a member without blur)
+    reach = int(round(CHECK_BLURS * m.blur / math.log(w[1] / w[0]))) if len(w) > 1 else 0
     total = np.zeros((sub.size, a.size))
     for k in idx:  # the surprise of every grid object, probe by probe (memory stays one grid)
         z, pu = terms(k)
-        total += _surprise((z ** 2)[..., None], np.array([not table.unstable[k]]), pu[..., None])
+        one = _surprise((z ** 2)[..., None], np.array([not table.unstable[k]]), pu[..., None])
+        if reach > 0:
+            from scipy.ndimage import minimum_filter1d
+
+            one = minimum_filter1d(one, 2 * reach + 1, axis=0, mode="nearest")
+        total += one
     total = np.where(member_coverage(m, sub, a), total, np.inf)
     c = np.unravel_index(int(np.argmin(total)), total.shape)
-    z, p_c = (np.array(v) for v in zip(*((zz[c], pp[c]) for zz, pp in map(terms, idx)), strict=True))
     stable = ~table.unstable[idx]
+    rows_c = slice(max(c[0] - reach, 0), c[0] + reach + 1)
+    z, p_c = [], []
+    for k, st in zip(idx, stable, strict=True):  # each probe at its best omega_n within the reach of the object
+        zz, pp = terms(k)
+        zz, pp = zz[rows_c, c[1]], pp[rows_c, c[1]]
+        j = int(np.argmin(_surprise((zz ** 2)[:, None], np.array([st]), pp[:, None])))
+        z.append(zz[j])
+        p_c.append(pp[j])
+    z, p_c = np.array(z), np.array(p_c)
     t_obs = float(_surprise(z ** 2, stable, p_c))
     rng = np.random.default_rng(CHECK_SEED)
     stable_rep = rng.random((CHECK_DRAWS, n)) >= p_c
