@@ -188,3 +188,78 @@ def test_item5_a_vector_step_refused_for_one_sub_env_draws_nothing(kind):
         outs.append(out[0])
         env.close()
     assert np.array_equal(outs[0], outs[1])
+
+
+# ------------------------------------------------------------------------------------------- 7-12: lost or hung work
+def _atlas_specs(freqs=(15.0, 20.0, 25.0)):
+    import plate_env
+
+    obj = plate_env.ObjectSpec.from_paper(10.0, 36.9)
+    return [plate_env.ProbeSpec(obj, plate_env.PlateMotion.from_paper(f, 3.0)) for f in freqs]
+
+
+def test_item7_a_full_disk_during_a_sweep_keeps_the_probes_and_names_the_cache(tmp_path, monkeypatch):
+    from plate_env import sweeps
+    from plate_env.executor import BackendSpec
+
+    class Full:
+        def write(self, data):
+            raise OSError(28, "No space left on device")
+
+        def flush(self):
+            pass
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(sweeps, "open_for_append", lambda path: Full())
+    cache = tmp_path / "sweep.jsonl"
+    with pytest.warns(UserWarning, match=r"cannot write the cache .*sweep\.jsonl.*No space left"):
+        res = sweeps.run_cached(BackendSpec.of("atlas"), _atlas_specs(), cache, chunk=1, progress=False)
+    assert len(res) == 3 and all(math.isfinite(r.omega_b_deg_s) for r in res)
+
+
+@pytest.mark.parametrize("command", ["sweep", "bench"])
+@pytest.mark.parametrize("kind", ["device", "fifo", "directory"])
+def test_item8_a_cache_that_is_not_a_regular_file_is_refused_before_work(tmp_path, capsys, command, kind):
+    import os
+
+    from plate_env.cli import main
+
+    path = {"device": "/dev/zero", "fifo": str(tmp_path / "fifo"), "directory": str(tmp_path)}[kind]
+    if kind == "fifo":
+        os.mkfifo(path)
+    argv = (["sweep", "--physics", "atlas", "--freqs", "20", "--no-progress", "--cache", path] if command == "sweep"
+            else ["bench", "--suite", "atlas-v0", "--agent", "grid", "--limit", "1", "--no-progress", "--cache", path])
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "not a regular file" in err and path in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("field, value", [("omega_b_deg_s", float("nan")), ("omega_b_deg_s", None),
+                                          ("omega_b_deg_s", 1e400), ("stderr_deg_s", float("inf")),
+                                          ("stderr_deg_s", -5.0), ("unstable", "yes"), ("omega_b_deg_s", "missing")])
+def test_item13_a_cache_line_with_a_bad_field_is_skipped_naming_file_and_line(tmp_path, field, value):
+    import json as js
+
+    from plate_env import sweeps
+    from plate_env.executor import BackendSpec
+
+    backend = BackendSpec.of("atlas")
+    specs = _atlas_specs()
+    cache = tmp_path / "c.jsonl"
+    good = sweeps.run_cached(backend, specs, cache, chunk=1, progress=False)
+    lines = cache.read_text().splitlines()
+    d = js.loads(lines[1])
+    if value == "missing":
+        del d[field]
+    else:
+        d[field] = value
+    lines[1] = js.dumps(d).replace("1e+400", "1e400")
+    cache.write_text("\n".join(lines) + "\n")
+    with pytest.warns(UserWarning, match=rf"c\.jsonl: line 2: {field}"):
+        again = sweeps.run_cached(backend, specs, cache, chunk=1, progress=False)
+    def outcome(rs):
+        return [(r.omega_b_deg_s, r.stderr_deg_s, r.unstable, r.reason) for r in rs]
+
+    assert outcome(again) == outcome(good)  # the bad record was not loaded: its probe ran again
