@@ -89,12 +89,18 @@ def main() -> None:
                      f"| {cov['95'][0]:.2f} / {cov['95'][1]:.2f} | "
                      + " | ".join(f"{bad[k][0]:.2f} ({bad[k][1]:.2f})" for k in ("zero", "negative", "x100")) + " |")
     if args.episodes:
+        from plate_env_agents.bayes import BayesAgent
+
         eps = episodes(args, fm, 520)
-        checks = [e["estimate"]["check"] for e in eps]
-        p = np.array([c["p_value"] for c in checks if c is not None])
+        agent = BayesAgent()
+        agent.fm = fm
+        # each episode's probes identified again with the agent's estimate model (the cache may hold estimates of
+        # an older check)
+        ests = [identify_atlas(ProbeTable.from_rows(e["table"]), agent.estimate_model()) for e in eps]
+        p = np.array([e.check.p_value for e in ests])
         rej = int(np.sum(p < CHECK_P_MIN))
         numbers["bayes_episodes"] = {"n": len(eps), "n_rejected": rej, "p_values": p.tolist(),
-                                     "no_estimate": int(sum(not e["estimate"]["ok"] for e in eps))}
+                                     "no_estimate": int(sum(not e.ok for e in ests))}
         lines += ["", f"Live bayes episodes (tilelink, prior objects, seed 520, the agent's own estimate model): "
                   f"{rej} of {len(eps)} rejected by the check (smallest p {p.min():.2g}); "
                   f"{numbers['bayes_episodes']['no_estimate']} without an estimate for any reason."]

@@ -300,10 +300,26 @@ def check_executor_name(name: str | None) -> None:
         return
     if name.startswith("pool:"):
         n = name.split(":", 1)[1]
-        if n.isdigit() and int(n) >= 1:
+        if n.isascii() and n.isdigit() and int(n) >= 1:  # ASCII digits only: "²".isdigit() is True
             return
         raise ValueError(f"executor {name!r}: pool:N needs a positive number of workers N")
     raise ValueError(f"unknown executor {name!r}; choose local, inprocess, pool, pool:N, ray or ray://HOST:PORT")
+
+
+def pool_workers(name: str) -> int | None:
+    """The workers of ``pool:N``: N, at most the CPU count (more only queue for the same cores and cost a process
+    each; a warning says so); None for ``pool`` (one per core)."""
+    if ":" not in name:
+        return None
+    n = int(name.split(":", 1)[1])
+    cores = os.cpu_count() or 1
+    if n > cores:
+        import warnings
+
+        warnings.warn(f"executor {name!r}: {n} workers on {cores} CPU cores; using {cores} (more would only wait for "
+                      "the same cores)", stacklevel=3)
+        return cores
+    return n
 
 
 def make_executor(name: str | None = "local", backend: BackendSpec | None = None, **kw: Any) -> Executor:
@@ -316,7 +332,7 @@ def make_executor(name: str | None = "local", backend: BackendSpec | None = None
     if name == "inprocess":
         return InProcessExecutor(**kw)
     if name == "pool" or name.startswith("pool:"):
-        return PoolExecutor(workers=int(name.split(":", 1)[1]) if ":" in name else None, **kw)
+        return PoolExecutor(workers=pool_workers(name), **kw)
     if name.startswith("ray://"):
         return RayExecutor(address=name, **kw)
     return RayExecutor(**kw)

@@ -263,3 +263,107 @@ def test_item13_a_cache_line_with_a_bad_field_is_skipped_naming_file_and_line(tm
         return [(r.omega_b_deg_s, r.stderr_deg_s, r.unstable, r.reason) for r in rs]
 
     assert outcome(again) == outcome(good)  # the bad record was not loaded: its probe ran again
+
+
+def test_item10_every_output_path_is_checked_before_the_bench_runs(capsys):
+    from plate_env.cli import main
+
+    code = main(["bench", "--suite", "atlas-v0", "--agent", "grid", "--limit", "1", "--no-cache", "--no-progress",
+                 "--markdown", "/nonexistent/x.md", "--plot", "p.png"])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and "--markdown '/nonexistent/x.md'" in err and err.count("\n") == 1
+
+
+# ------------------------------------------------------------------------------------------- 13-15: blame
+def test_item14_a_pool_size_in_other_digits_is_refused_by_name():
+    from plate_env.executor import check_executor_name
+
+    with pytest.raises(ValueError, match="pool:N needs a positive number"):
+        check_executor_name("pool:²")
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--method", "lorentz", "--physics", "garbage"], "--physics garbage"),
+    (["--method", "lorentz", "--mass-g", "5"], "--mass-g applies to --method atlas only"),
+    (["--method", "lorentz", "--forward", "lab"], "--forward applies to --method atlas only"),
+    (["--method", "lorentz", "--bp", "2", "--diameter-mm", "60"], "--bp, --diameter-mm apply to --method atlas"),
+    (["--physics", "tilelink"], "--physics applies to --method lorentz only"),
+    (["--model", "pointmass"], "--model applies to --method lorentz only")])
+def test_item15_fit_options_the_method_ignores_are_refused(tmp_path, capsys, argv, needle):
+    from plate_env.cli import main
+
+    csv = tmp_path / "s.csv"
+    csv.write_text("f_p_hz,omega_b_deg_s\n20,100\n25,200\n30,100\n")
+    assert main(["fit", str(csv), "--amp", "3", *argv]) == 2
+    assert needle in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------------------------- 16-17: parsers
+def test_item16_bench_json_is_strict_json():
+    from plate_env.cli import strict_json
+
+    text = strict_json({"summaries": {"grid": {"p90_error": math.inf, "median_error": 0.1}}, "x": [math.nan, 1.0]})
+
+    def refuse(name):
+        raise ValueError(f"non-standard JSON constant {name}")
+
+    d = json.loads(text, parse_constant=refuse)
+    assert d["summaries"]["grid"] == {"p90_error": None, "median_error": 0.1} and d["x"] == [None, 1.0]
+    assert d["non_finite"] == ["summaries.grid.p90_error", "x[0]"]
+
+
+# ------------------------------------------------------------------------------------------- 19-23: newcomers
+def test_item19_version_and_defaults_in_help(capsys):
+    from plate_env.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.startswith("plate-env ")
+    with pytest.raises(SystemExit):
+        main(["sweep", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "(default: 10:40:1)" in text and "(default: tilelink)" in text and "(default: 3.0)" in text
+
+
+def test_item19_21_sweep_writes_the_csv_fit_reads_and_shows_no_omega_b_for_unstable_probes(tmp_path, capsys):
+    from plate_env.cli import main
+    from plate_env.probes import read_lab_csv
+
+    csv = tmp_path / "out.csv"
+    assert main(["sweep", "--physics", "atlas", "--omega-n", "10pi", "--alpha", "36.9", "--freqs", "10:40:1",
+                 "--no-progress", "--csv", str(csv)]) == 0
+    out = capsys.readouterr().out
+    rows = [line.split() for line in out.splitlines() if line.strip()[:1].isdigit() and "stable" in line]
+    assert len(rows) == 31
+    unstable = [r for r in rows if "unstable:" in r]
+    assert 0 < len(unstable) < 31
+    for r in rows:  # one rule: an unstable probe shows no omega_B, a stable one its value
+        assert (r[1], r[2]) == ("-", "-") if "unstable:" in r else float(r[1]) > 0, r
+    table = read_lab_csv(csv)
+    assert list(table.f_p_hz) == list(np.arange(10.0, 40.5, 1.0)) and table.unstable.sum() == len(unstable)
+    assert main(["fit", str(csv), "--forward", "tilelink/pointmass"]) == 0  # the CSV fit reads, fitted
+    out = capsys.readouterr().out
+    assert "68 % interval" in out and "95 % interval" in out
+
+
+def test_item20_an_error_says_each_reason_once(tmp_path, capsys):
+    from plate_env.cli import main
+
+    csv = tmp_path / "s.csv"
+    csv.write_text("f_p_hz,omega_b_deg_s\n20,100\n25,200\n30,100\n")
+    assert main(["fit", str(csv), "--amp", "3", "--mass-g", "100"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("build_atlas.py") == 1 and err.count("\n") == 1 and len(err) < 700, err
+
+
+def test_item23_a_pool_larger_than_the_machine_is_capped_with_a_note():
+    import os
+
+    from plate_env.executor import make_executor
+
+    with pytest.warns(UserWarning, match="CPU cores; using"):
+        ex = make_executor("pool:1000")
+    try:
+        assert ex.workers == (os.cpu_count() or 1)
+    finally:
+        ex.close()
