@@ -29,12 +29,12 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from forward_models import POINTMASS, TEST, episodes, sets_by_amplitude  # noqa: E402
 
-from plate_env.benchmarks import run_eval_set  # noqa: E402
-from plate_env.estimate import CHECK_P_MIN  # noqa: E402
-from plate_env.executor import add_executor_argument  # noqa: E402
-from plate_env.forward import load_forward_model  # noqa: E402
-from plate_env.inference import identify_atlas  # noqa: E402
-from plate_env.probes import ProbeTable  # noqa: E402
+from plate_env.build.eval_sets import run_eval_set  # noqa: E402
+from plate_env.core.probe_table import ProbeTable  # noqa: E402
+from plate_env.identify.estimate import CHECK_P_MIN  # noqa: E402
+from plate_env.identify.forward import load_forward_model  # noqa: E402
+from plate_env.identify.inference import identify_atlas  # noqa: E402
+from plate_env.run.executor import add_executor_argument  # noqa: E402
 
 RESULTS = Path("experiments/results")
 

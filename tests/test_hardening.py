@@ -9,10 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from plate_env.estimate import Estimate, Posterior
-from plate_env.forward import load_forward_model
+from plate_env.core.probe_table import ProbeTable
 from plate_env.identify import identify
-from plate_env.probes import ProbeTable
+from plate_env.identify.estimate import Estimate, Posterior
+from plate_env.identify.forward import load_forward_model
 
 #: The probes the bayes agent took on `identify --agent bayes --physics tilelink --omega-n 60pi --alpha 45 --seed 0`
 #: (f_p Hz, A_p deg, omega_B deg/s, stderr deg/s, unstable): main 284a76f answered 18.06pi, 95 % [17.1, 19.3]pi.
@@ -36,7 +36,7 @@ def _table(rows) -> ProbeTable:
 def _honest_sweep(omega_n: float, alpha_deg: float, a_p_deg: float, seed: int) -> ProbeTable:
     """A sweep drawn from the shipped point-mass forward model itself: its atlas's mean at the object, residuals
     Student-t (nu 4) of its own scale, instability flags from its own probabilities."""
-    from plate_env.inference import NU, smoothed_p
+    from plate_env.identify.inference import NU, smoothed_p
 
     m = load_forward_model("tilelink/pointmass").members[0]
     rng = np.random.default_rng(seed)
@@ -110,8 +110,8 @@ def test_item3_honest_sweeps_from_the_model_pass_the_check():
 
 
 def test_item3_the_check_is_deterministic_and_its_p_value_calibrated_on_its_own_replicates():
-    from plate_env.estimate import PredictiveCheck
-    from plate_env.inference import predictive_check
+    from plate_env.identify.estimate import PredictiveCheck
+    from plate_env.identify.inference import predictive_check
 
     t = _honest_sweep(8.5 * math.pi, 45.0, 3.0, seed=1)
     fm = load_forward_model("tilelink/pointmass")
@@ -128,16 +128,16 @@ def test_item3_the_check_is_deterministic_and_its_p_value_calibrated_on_its_own_
                                            ("atlas", {"instability_rho": 0.9}),
                                            ("atlas", {"instability_rho": 0.9, "instability_corr_hz": 5.0})])
 def test_item4_every_option_that_changes_results_is_in_the_sweep_cache_key(name, options):
-    from plate_env.executor import BackendSpec
-    from plate_env.sweeps import backend_tag
+    from plate_env.run.executor import BackendSpec
+    from plate_env.run.sweeps import backend_tag
 
     base = {"atlas": {"instability_rho": 0.9}}.get(name, {}) if "instability_corr_hz" in options else {}
     assert backend_tag(BackendSpec.of(name, **options)) != backend_tag(BackendSpec.of(name, **base))
 
 
 def test_item4_caches_of_the_default_settings_keep_their_keys():
-    from plate_env.executor import BackendSpec
-    from plate_env.sweeps import backend_tag
+    from plate_env.run.executor import BackendSpec
+    from plate_env.run.sweeps import backend_tag
 
     for name in ("tilelink", "pybullet", "atlas"):
         tag = backend_tag(BackendSpec.of(name))
@@ -166,7 +166,7 @@ def test_item5_a_vector_step_refused_for_one_sub_env_draws_nothing(kind):
     def make():
         if kind == "make_vec":
             return gym.make_vec("PlateRotation-v0", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
-        from plate_env.sb3 import PlateRotationSB3VecEnv
+        from plate_env.env.sb3 import PlateRotationSB3VecEnv
 
         return PlateRotationSB3VecEnv(2, **kwargs)
 
@@ -199,8 +199,8 @@ def _atlas_specs(freqs=(15.0, 20.0, 25.0)):
 
 
 def test_item7_a_full_disk_during_a_sweep_keeps_the_probes_and_names_the_cache(tmp_path, monkeypatch):
-    from plate_env import sweeps
-    from plate_env.executor import BackendSpec
+    from plate_env.run import sweeps
+    from plate_env.run.executor import BackendSpec
 
     class Full:
         def write(self, data):
@@ -242,8 +242,8 @@ def test_item8_a_cache_that_is_not_a_regular_file_is_refused_before_work(tmp_pat
 def test_item13_a_cache_line_with_a_bad_field_is_skipped_naming_file_and_line(tmp_path, field, value):
     import json as js
 
-    from plate_env import sweeps
-    from plate_env.executor import BackendSpec
+    from plate_env.run import sweeps
+    from plate_env.run.executor import BackendSpec
 
     backend = BackendSpec.of("atlas")
     specs = _atlas_specs()
@@ -276,7 +276,7 @@ def test_item10_every_output_path_is_checked_before_the_bench_runs(capsys):
 
 # ------------------------------------------------------------------------------------------- 13-15: blame
 def test_item14_a_pool_size_in_other_digits_is_refused_by_name():
-    from plate_env.executor import check_executor_name
+    from plate_env.run.executor import check_executor_name
 
     with pytest.raises(ValueError, match="pool:N needs a positive number"):
         check_executor_name("pool:²")
@@ -327,7 +327,7 @@ def test_item19_version_and_defaults_in_help(capsys):
 
 def test_item19_21_sweep_writes_the_csv_fit_reads_and_shows_no_omega_b_for_unstable_probes(tmp_path, capsys):
     from plate_env.cli import main
-    from plate_env.probes import read_lab_csv
+    from plate_env.core.probe_table import read_lab_csv
 
     csv = tmp_path / "out.csv"
     assert main(["sweep", "--physics", "atlas", "--omega-n", "10pi", "--alpha", "36.9", "--freqs", "10:40:1",
@@ -359,7 +359,7 @@ def test_item20_an_error_says_each_reason_once(tmp_path, capsys):
 def test_item23_a_pool_larger_than_the_machine_is_capped_with_a_note():
     import os
 
-    from plate_env.executor import make_executor
+    from plate_env.run.executor import make_executor
 
     with pytest.warns(UserWarning, match="CPU cores; using"):
         ex = make_executor("pool:1000")
