@@ -367,3 +367,24 @@ def test_item23_a_pool_larger_than_the_machine_is_capped_with_a_note():
         assert ex.workers == (os.cpu_count() or 1)
     finally:
         ex.close()
+
+
+@pytest.mark.parametrize("spec, needle", [("grid:n=abc", "agent 'grid:n=abc'"), ("grid:foo=1", "agent 'grid:foo=1'"),
+                                          ("{syntax}:A", "cannot be imported: SyntaxError"),
+                                          ("{imports}:A", "cannot be imported: ModuleNotFoundError"),
+                                          ("{raises}:A", "cannot be imported: RuntimeError"),
+                                          ("{exits}:A", "cannot be imported: SystemExit"),
+                                          ("{needs}:A", "cannot be made without arguments")])
+def test_item14_bad_agent_specs_are_one_line_naming_the_agent(tmp_path, capsys, spec, needle):
+    from plate_env.cli import main
+
+    files = {"syntax": "def (:\n", "imports": "import no_such_module_xyz\n", "raises": "raise RuntimeError('boom')\n",
+             "exits": "import sys\nsys.exit(3)\n",
+             "needs": "class A:\n    def __init__(self, x):\n        pass\n    def next_probe(self, h, o=None):\n"
+                      "        return None\n"}
+    for name, text in files.items():
+        (tmp_path / f"{name}.py").write_text(text)
+    spec = spec.format(**{k: str(tmp_path / f"{k}.py") for k in files})
+    assert main(["bench", "--suite", "atlas-v0", "--agent", spec, "--limit", "1", "--no-cache"]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and err.count("\n") == 1 and "internal error" not in err, err
