@@ -388,3 +388,63 @@ def test_item14_bad_agent_specs_are_one_line_naming_the_agent(tmp_path, capsys, 
     assert main(["bench", "--suite", "atlas-v0", "--agent", spec, "--limit", "1", "--no-cache"]) == 2
     err = capsys.readouterr().err
     assert needle in err and err.count("\n") == 1 and "internal error" not in err, err
+
+
+# ------------------------------------------------------------------------------------------- 18: security
+def _doctored_zip(tmp_path, change) -> str:
+    import zipfile
+
+    from plate_env_agents.ppo import DEFAULT_MODEL
+
+    out = tmp_path / "model.zip"
+    with zipfile.ZipFile(DEFAULT_MODEL) as src, zipfile.ZipFile(out, "w") as dst:
+        for item in src.namelist():
+            blob = src.read(item)
+            if item == "data":
+                d = json.loads(blob)
+                change(d)
+                blob = json.dumps(d).encode()
+            dst.writestr(item, blob)
+    return str(out)
+
+
+def test_item18_a_model_zip_never_gets_its_pickled_code_run(tmp_path):
+    import base64
+    import pickle
+
+    from plate_env_agents.ppo import PPOAgent
+
+    marker = tmp_path / "pwned"
+
+    class Evil:
+        def __reduce__(self):
+            return (marker.write_text, ("ran",))
+
+    def add_evil(d):
+        d["policy_class"] = {":type:": "<class 'abc.ABCMeta'>",
+                             ":serialized:": base64.b64encode(pickle.dumps(Evil())).decode(),
+                             "__init__": "<function ActorCriticPolicy.__init__ at 0x0>"}
+
+    agent = PPOAgent(_doctored_zip(tmp_path, add_evil), deterministic=False)
+    agent.model  # noqa: B018 - loads through SB3
+    assert not marker.exists()  # SB3 alone would have unpickled the policy class and run Evil
+    with pytest.raises(ValueError, match="stores a pickled 'surprise'"):
+        PPOAgent(_doctored_zip(tmp_path, lambda d: d.update(surprise=d["policy_class"])), deterministic=False)
+
+
+def test_item14_18_a_model_for_another_space_or_algorithm_is_one_line(tmp_path, capsys):
+    from plate_env.cli import main
+
+    def other_space(d):
+        d["observation_space"]["_shape"] = [17]
+
+    spec = "sb3:" + _doctored_zip(tmp_path, other_space)
+    assert main(["bench", "--suite", "atlas-v0", "--agent", spec, "--limit", "1", "--no-cache"]) == 2
+    err = capsys.readouterr().err
+    assert "not PlateRotation-v0's" in err and err.count("\n") == 1
+    from plate_env_agents.ppo import DEFAULT_MODEL
+
+    assert main(["bench", "--suite", "atlas-v0", "--agent", f"sb3:sac:{DEFAULT_MODEL}", "--limit", "1",
+                 "--no-cache"]) == 2
+    err = capsys.readouterr().err
+    assert "ActorCriticPolicy policy, not the SACPolicy" in err and err.count("\n") == 1
