@@ -497,6 +497,8 @@ def _fit_report(est, table) -> list[str]:
     return out
 
 
+#: Most rows ``fit`` reads (what one sweep may make; the posterior's cost grows with the rows).
+MAX_FIT_ROWS = MAX_SWEEP_PROBES
 #: ``fit``'s known inputs when not given (the paper's set-up and disc).
 FIT_KNOWN = {"bp": 3.0, "mass_g": 13.6, "diameter_mm": 80.0}
 #: Options of ``fit`` that only one method reads (refused with the other, never dropped silently).
@@ -539,6 +541,10 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     if args.method == "atlas" and args.forward not in forward_model_names():
         raise CliError(f"--forward {args.forward!r}: choose one of {forward_model_names()}")
     table = read_lab_csv(args.csv, a_p_deg=args.amp)
+    if len(table) > MAX_FIT_ROWS:
+        raise CliError(f"{args.csv}: {len(table)} rows; fit takes at most {MAX_FIT_ROWS} (the most a sweep makes: the "
+                       "posterior's time grows with the rows, ~16 ms a row on the lab model); average repeated "
+                       "frequencies or split the file")
     model = args.model or ("lab" if args.physics == "lab" else "pointmass")
     est = identify(table, method=args.method, physics=args.physics, model=model, forward=args.forward, known=known)
     if args.json:

@@ -448,3 +448,14 @@ def test_item14_18_a_model_for_another_space_or_algorithm_is_one_line(tmp_path, 
                  "--no-cache"]) == 2
     err = capsys.readouterr().err
     assert "ActorCriticPolicy policy, not the SACPolicy" in err and err.count("\n") == 1
+
+
+def test_item11_fit_refuses_more_rows_than_its_documented_limit_before_any_work(tmp_path, capsys):
+    from plate_env.cli import MAX_FIT_ROWS, main
+
+    csv = tmp_path / "big.csv"
+    n = MAX_FIT_ROWS + 1
+    csv.write_text("f_p_hz,omega_b_deg_s\n" + "".join(f"{10 + 30 * i / n:.4f},100\n" for i in range(n)))
+    assert main(["fit", str(csv), "--amp", "3"]) == 2
+    err = capsys.readouterr().err
+    assert f"{n} rows; fit takes at most {MAX_FIT_ROWS}" in err
