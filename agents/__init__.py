@@ -19,7 +19,12 @@ AGENT_NAMES = ("grid", "coarse_to_fine", "bayes", "ppo")
 
 
 def make_agent(name: str, **options) -> Agent:
-    """Create a shipped agent by name; options go to its constructor."""
+    """Create a shipped agent by name; options go to its constructor. A spec :func:`load_agent` takes
+    (``sb3:model.zip``, ``path/to/file.py:MyAgent``, ``grid:n=30``) is loaded by it (without further options)."""
+    if isinstance(name, str) and ":" in name:
+        if options:
+            raise ValueError(f"make_agent({name!r}, ...): a spec carries its own options (name:key=value,...)")
+        return load_agent(name)
     if name == "grid":
         from plate_env_agents.grid import GridAgent
 

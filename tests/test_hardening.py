@@ -459,3 +459,12 @@ def test_item11_fit_refuses_more_rows_than_its_documented_limit_before_any_work(
     assert main(["fit", str(csv), "--amp", "3"]) == 2
     err = capsys.readouterr().err
     assert f"{n} rows; fit takes at most {MAX_FIT_ROWS}" in err
+
+
+def test_item19_make_agent_takes_the_specs_bench_takes():
+    from plate_env_agents import make_agent
+    from plate_env_agents.ppo import DEFAULT_MODEL, PPOAgent
+
+    agent = make_agent(f"sb3:{DEFAULT_MODEL}")
+    assert isinstance(agent, PPOAgent) and agent.path == DEFAULT_MODEL
+    assert make_agent("grid:n=7").n == 7
