@@ -468,3 +468,21 @@ def test_item19_make_agent_takes_the_specs_bench_takes():
     agent = make_agent(f"sb3:{DEFAULT_MODEL}")
     assert isinstance(agent, PPOAgent) and agent.path == DEFAULT_MODEL
     assert make_agent("grid:n=7").n == 7
+
+
+def _sigint_handler(_backend, _chunk):
+    import signal
+
+    return [signal.getsignal(signal.SIGINT) == signal.SIG_IGN]
+
+
+def test_item23_pool_workers_leave_ctrl_c_to_the_driver():
+    """Ctrl-C reaches every process of the group: a worker that ignores it prints no KeyboardInterrupt traceback;
+    the driver keeps the finished chunks and ends the workers."""
+    from plate_env.run.executor import BackendSpec, make_executor
+
+    ex = make_executor("pool:1")
+    try:
+        assert [r for _, r in ex.map(BackendSpec.of("atlas"), [[1]], task=_sigint_handler)] == [[True]]
+    finally:
+        ex.close()

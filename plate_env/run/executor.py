@@ -184,7 +184,18 @@ class PoolExecutor:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
-        return ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"))
+        return ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
+                                   initializer=ignore_interrupts)
+
+    def _terminate(self) -> None:
+        """Ctrl-C: end the workers now (they ignore SIGINT, so none prints a traceback) and drop the pool."""
+        if self._pool is None:
+            return
+        for proc in list((getattr(self._pool, "_processes", None) or {}).values()):
+            with contextlib.suppress(Exception):
+                proc.terminate()
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        self._pool = None
 
     def worker_pids(self) -> list[int]:
         """Process ids of the live workers (for fault tests)."""
@@ -208,6 +219,9 @@ class PoolExecutor:
                     res = fut.result()
                     pending.remove(i)
                     yield i, res
+            except KeyboardInterrupt:
+                self._terminate()
+                raise
             except BrokenProcessPool:
                 self._pool.shutdown(wait=False, cancel_futures=True)
                 self._pool = None
@@ -226,6 +240,14 @@ class PoolExecutor:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+
+
+def ignore_interrupts() -> None:
+    """A pool worker's initializer: Ctrl-C reaches the whole process group, and the driver alone handles it (it
+    keeps the finished chunks and ends the workers); a worker would print its own KeyboardInterrupt traceback."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 class RayExecutor:
