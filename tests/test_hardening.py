@@ -486,3 +486,40 @@ def test_item23_pool_workers_leave_ctrl_c_to_the_driver():
         assert [r for _, r in ex.map(BackendSpec.of("atlas"), [[1]], task=_sigint_handler)] == [[True]]
     finally:
         ex.close()
+
+
+def test_item9_a_read_only_install_and_home_compile_the_kernels_in_memory(tmp_path, monkeypatch):
+    """numba's cache=True with no writable place refuses to define a kernel ("no locator available"): the kernels
+    then compile in memory, with one warning; a NUMBA_CACHE_DIR that is not writable is named as numba's."""
+    import numba
+
+    from plate_env.physics.tilelink import jit_cache
+
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    ro_src = tmp_path / "pkg"
+    ro_src.mkdir()
+    (ro_src / "k.py").write_text("")
+    home = tmp_path / "home"
+    home.mkdir()
+    monkeypatch.setenv("HOME", str(home))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(home / ".cache"))
+    assert jit_cache.can_cache(ro_src / "k.py") == (True, None)
+    ro_src.chmod(0o555)
+    home.chmod(0o555)
+    try:
+        import os
+
+        if os.access(ro_src, os.W_OK):  # root ignores permission bits: make the check see a read-only tree
+            monkeypatch.setattr(jit_cache, "_writable_dir", lambda path: False)
+        usable, why = jit_cache.can_cache(ro_src / "k.py")
+        assert not usable and "compile in memory" in why and "NUMBA_CACHE_DIR" in why
+        numba.njit(cache=usable)(lambda x: x + 1)(1)  # what the kernels do with it: defined and run
+        monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "full"))
+        usable, why = jit_cache.can_cache(ro_src / "k.py")
+        assert not usable and "numba's compilation cache" in why
+    finally:
+        ro_src.chmod(0o755)
+        home.chmod(0o755)
+    from plate_env.physics.tilelink import kernels
+
+    assert kernels.CACHE is jit_cache.CACHE
