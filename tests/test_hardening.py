@@ -523,3 +523,36 @@ def test_item9_a_read_only_install_and_home_compile_the_kernels_in_memory(tmp_pa
     from plate_env.physics.tilelink import kernels
 
     assert kernels.CACHE is jit_cache.CACHE
+
+
+def _slow_chunk(_backend, chunk):
+    import time
+
+    time.sleep(60)
+    return list(chunk)
+
+
+def test_item12_ctrl_c_ends_a_pool_sweep_without_waiting_for_running_chunks():
+    """Ctrl-C while pool workers run long chunks (rigid_limit sweeps run in a pool): the driver ends the workers at
+    once instead of waiting for their chunks (25-49 s before)."""
+    import os
+    import signal
+    import threading
+    import time
+
+    from plate_env.run.executor import BackendSpec, make_executor
+
+    ex = make_executor("pool:1")
+    it = ex.map(BackendSpec.of("atlas"), [[1], [2]], task=_slow_chunk)
+    timer = threading.Timer(3.0, lambda: os.kill(os.getpid(), signal.SIGINT))
+    t0 = time.perf_counter()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            next(it)
+        pids = ex.worker_pids()
+        ex.close()
+        elapsed = time.perf_counter() - t0
+    finally:
+        timer.cancel()
+    assert elapsed < 20.0 and pids == [], elapsed
