@@ -556,3 +556,19 @@ def test_item12_ctrl_c_ends_a_pool_sweep_without_waiting_for_running_chunks():
     finally:
         timer.cancel()
     assert elapsed < 20.0 and pids == [], elapsed
+
+
+@pytest.mark.parametrize("body, needle", [("raise RuntimeError('agent bug')", "failed in next_probe: RuntimeError"),
+                                          ("return None", "stopped before its first probe"),
+                                          ("import sys; sys.exit(5)", "failed in next_probe: SystemExit")])
+def test_item14_an_agent_that_fails_during_the_bench_is_one_line_naming_it(tmp_path, capsys, body, needle):
+    from plate_env.cli import main
+
+    (tmp_path / "ag.py").write_text("from plate_env.env.protocol import Agent\n\n\nclass A(Agent):\n"
+                                    "    name = 'mine'\n\n    def next_probe(self, history, obs=None):\n"
+                                    f"        {body}\n")
+    argv = ["bench", "--suite", "atlas-v0", "--agent", f"{tmp_path / 'ag.py'}:A", "--limit", "1", "--no-cache",
+            "--no-progress", "--json"]
+    assert main(argv) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and "agent 'mine'" in err and needle in err and err.count("\n") == 1, err

@@ -83,6 +83,22 @@ def _step(env, agent, choice):
         raise ValueError(f"agent {agent.name!r}: next_probe returned {choice!r}: {exc}") from None
 
 
+class AgentError(ValueError):
+    """An agent failed (raised, exited, stopped before its first probe): the message names it. A ValueError, so the
+    command line answers it as the user's input (exit 2), not as a bug of plate-env."""
+
+
+def _call(agent, method: str, *args):
+    """``agent.<method>(*args)``, its failures (an exception, ``sys.exit``) as :class:`AgentError` naming it."""
+    try:
+        return getattr(agent, method)(*args)
+    except AgentError:
+        raise
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - a user's agent may raise anything; Ctrl-C passes
+        name = getattr(agent, "name", type(agent).__name__)
+        raise AgentError(f"agent {name!r} failed in {method}: {type(exc).__name__}: {exc}") from None
+
+
 def run_episode(env, agent, seed: int, options: dict | None = None,
                 on_probe: Callable[[int, dict], None] | None = None,
                 max_sim_s: float | None = None) -> EpisodeResult:
@@ -93,17 +109,17 @@ def run_episode(env, agent, seed: int, options: dict | None = None,
     t0 = time.perf_counter()
     e = env.unwrapped
     obs, info = env.reset(seed=seed, options=options)
-    agent.reset(ProbeContext.from_env(env, max_sim_s), np.random.default_rng(seed))
+    _call(agent, "reset", ProbeContext.from_env(env, max_sim_s), np.random.default_rng(seed))
     sims: list[float] = []
     decisions: list[float] = []
     done = False
     while not done and not (max_sim_s is not None and info["sim_s"] >= max_sim_s):
         table = e.table()
         t = time.perf_counter()
-        choice = agent.next_probe(table, obs)
+        choice = _call(agent, "next_probe", table, obs)
         decisions.append(time.perf_counter() - t)
         if choice is None and len(table) == 0:
-            raise RuntimeError(f"agent {agent.name} stopped before its first probe")
+            raise AgentError(f"agent {agent.name!r} stopped before its first probe (an episode needs at least one)")
         obs, _, terminated, truncated, info = _step(env, agent, choice)
         done = terminated or truncated
         if info["probes"] > len(sims):
