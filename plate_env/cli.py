@@ -4,6 +4,7 @@ document."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -367,9 +368,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     for spec, agent in agents.items():
         what = agent if where == "inprocess" else functools.partial(load_agent, spec)
         try:
-            runs.append(benchmark.evaluate(what, suite, label=spec, budgets_s=budgets, executor=args.executor,
-                                           cache=cache, limit=args.limit, chunk=args.chunk,
-                                           progress=not (args.json or args.no_progress)))
+            # what agents and libraries (Ray's worker lines) print while episodes run goes to stderr: stdout keeps
+            # the one result document
+            with contextlib.redirect_stdout(sys.stderr):
+                runs.append(benchmark.evaluate(what, suite, label=spec, budgets_s=budgets, executor=args.executor,
+                                               cache=cache, limit=args.limit, chunk=args.chunk,
+                                               progress=not (args.json or args.no_progress)))
         except benchmark.BenchInterrupted as exc:
             kept = f"kept in {exc.cache}; rerun the same command to resume" if exc.cache else "not kept (--no-cache)"
             print(f"plate-env bench: interrupted during {spec} after {exc.finished} episodes ({kept})",

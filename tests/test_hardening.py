@@ -572,3 +572,18 @@ def test_item14_an_agent_that_fails_during_the_bench_is_one_line_naming_it(tmp_p
     assert main(argv) == 2
     out, err = capsys.readouterr()
     assert out == "" and "agent 'mine'" in err and needle in err and err.count("\n") == 1, err
+
+
+def test_item14_17_what_an_agent_prints_during_the_bench_goes_to_stderr(tmp_path, capsys):
+    from plate_env.cli import main
+
+    (tmp_path / "ag.py").write_text("from plate_env_agents.grid import GridAgent\n\n\nclass A(GridAgent):\n"
+                                    "    def next_probe(self, history, obs=None):\n"
+                                    "        print('chatty agent')\n"
+                                    "        return super().next_probe(history, obs)\n")
+    argv = ["bench", "--suite", "atlas-v0", "--agent", f"{tmp_path / 'ag.py'}:A", "--limit", "1", "--no-cache",
+            "--no-progress", "--json"]
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    json.loads(out)  # one document, nothing else
+    assert "chatty agent" in err
