@@ -26,10 +26,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.api import METHODS
 from plate_env.surrogate.conditioning import KnownInputs
 
 #: The estimators an agent may name as its ``method``.
-AGENT_METHODS = ("atlas", "lorentz")
+AGENT_METHODS = METHODS
 
 
 @dataclass(frozen=True)

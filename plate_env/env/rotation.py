@@ -14,7 +14,7 @@ import numpy as np
 from gymnasium import spaces
 
 from plate_env.core import checks
-from plate_env.core.motion import B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
+from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import ObjectPrior, ObjectSpec
 from plate_env.core.probe import (
     MIN_PROBE_FREQ_HZ,
@@ -24,7 +24,9 @@ from plate_env.core.probe import (
     ProbeSpec,
 )
 from plate_env.core.probe_table import ProbeTable
+from plate_env.core.setup import B_P_RANGE_M, FREQ_RANGE_HZ, PAPER_SETUP
 from plate_env.env.codec import ACTION_SIZE, Codec
+from plate_env.identify.api import METHODS
 from plate_env.identify.estimate import Estimate
 from plate_env.physics import PHYSICS_NAMES, make_physics
 from plate_env.physics.camera import camera_omega_b
@@ -35,7 +37,7 @@ from plate_env.surrogate.conditioning import KnownInputs
 #: shipped policy (the observation's length, 7 * max_probes + 2, depends on it).
 DEFAULT_MAX_PROBES = 30
 #: Mass of the hidden object before ``mass_variation``, kg (the paper's cheese slice).
-MASS_KG = ObjectSpec().mass
+MASS_KG = PAPER_SETUP.mass
 #: Keys ``reset(options=...)`` accepts: the hidden object's omega_n (rad/s), alpha (rad), mass (kg).
 RESET_OPTIONS = ("omega_n", "alpha", "mass")
 #: The constructor option that decides each quantity of the probes a backend may refuse (ProbeRefused.quantity).
@@ -172,7 +174,7 @@ class PlateRotationEnv(gym.Env):
                  omega_n_range_pi: tuple[float, float] = ObjectPrior.omega_n_range_pi,
                  alpha_range_deg: tuple[float, float] = ObjectPrior.alpha_range_deg,
                  mass_variation: float = 0.0, f_band_hz: tuple[float, float] = (10.0, 40.0),
-                 amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = 3.0,
+                 amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = PAPER_SETUP.b_p_mm,
                  max_probes: int = DEFAULT_MAX_PROBES,
                  max_sim_s: float | None = None, measure_range_s: tuple[float, float] = (0.25, 2.0),
                  settle_s: float = 0.5, camera_fps: float = 30.0, angle_noise_deg: float = 0.5,
@@ -181,7 +183,7 @@ class PlateRotationEnv(gym.Env):
         super().__init__()
         # every option checked (a ValueError naming it) before the physics is built
         render_mode = checks.one_of("render_mode", render_mode, (None, *self.metadata["render_modes"]))
-        method = checks.one_of("method", method, ("atlas", "lorentz"))
+        method = checks.one_of("method", method, METHODS)
         omega_n_range_pi = checks.pair("omega_n_range_pi", omega_n_range_pi, 0.1, 300.0, "pi rad/s")
         alpha_range_deg = checks.pair("alpha_range_deg", alpha_range_deg, 1.0, 89.0, "deg")
         mass_variation = checks.real("mass_variation", mass_variation, 0.0, 1.0, open_hi=True)

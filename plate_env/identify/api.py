@@ -20,7 +20,8 @@ from plate_env.identify.forward import ForwardModel, load_forward_model
 from plate_env.identify.inference import GAUSS_HERMITE, identify_atlas
 from plate_env.surrogate.conditioning import KnownInputs
 
-METHODS = ("lorentz", "atlas")
+#: The identification methods: ``"atlas"``, a forward model's posterior; ``"lorentz"``, the paper's Eqs. 9-10.
+METHODS = ("atlas", "lorentz")
 
 
 def _table(probes: Sequence[ProbeResult] | ProbeTable) -> ProbeTable:
