@@ -306,7 +306,7 @@ def _parse_budgets(text: str | None) -> list[float] | None:
 def _cmd_bench(args: argparse.Namespace) -> int:
     import functools
 
-    from plate_env.bench import runner as benchmark
+    from plate_env import bench as benchmark
     from plate_env.bench.suites import load_suite
     from plate_env.run.executor import check_executor_name, default_local
 
@@ -314,7 +314,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from plate_env_agents import load_agent
 
     suite = load_suite(args.suite)
-    budgets = benchmark._check_budgets(suite, _parse_budgets(args.budgets))
+    budgets = benchmark.check_budgets(suite, _parse_budgets(args.budgets))
     plot = plot_path(args.plot) if args.plot else None
     check_executor_name(args.executor)
     if len(set(args.agent)) != len(args.agent):
