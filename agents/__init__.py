@@ -1,7 +1,7 @@
 """Probing agents: the paper's grid sweep, a coarse-to-fine heuristic, Bayesian design, a trained PPO policy.
 
 Installed as ``plate_env_agents`` (the folder is ``agents/``). They follow the protocol of
-:mod:`plate_env.protocol`; :func:`load_agent` also loads an agent of your own from a file or a Stable-Baselines3
+:mod:`plate_env.env.protocol`; :func:`load_agent` also loads an agent of your own from a file or a Stable-Baselines3
 model, by the specs ``plate-env bench --agent`` takes.
 """
 
@@ -77,7 +77,7 @@ def load_agent(spec: str):
     * ``sb3:model.zip`` or ``sb3:a2c:model.zip``: a Stable-Baselines3 policy trained on PlateRotation-v0
       (:class:`plate_env_agents.ppo.PPOAgent`; algorithm PPO unless named).
 
-    The agent is checked against the protocol (:func:`plate_env.protocol.check_agent`); a bad spec is a ValueError
+    The agent is checked against the protocol (:func:`plate_env.env.protocol.check_agent`); a bad spec is a ValueError
     naming it."""
     if not isinstance(spec, str) or not spec:
         raise ValueError(f"agent spec {spec!r}: give a name, file.py:Class or sb3:model.zip")

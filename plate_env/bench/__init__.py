@@ -3,7 +3,7 @@
 run's scores and comparisons (:mod:`~plate_env.bench.summary`, on the statistics of :mod:`~plate_env.bench.scoring`),
 the leaderboard's markdown (:mod:`~plate_env.bench.report`) and report summaries (:mod:`~plate_env.bench.reporting`).
 
-``from plate_env.bench import evaluate`` (``plate_env.benchmark``, the old path, still imports with a
+``from plate_env.bench import evaluate`` (``plate_env.bench.runner``, the old path, still imports with a
 DeprecationWarning)."""
 
 from plate_env.bench.fingerprint import code_fingerprint, outcome_modules

@@ -13,7 +13,7 @@ from plate_env.bench.scoring import Scores, Stat
 
 @dataclass(frozen=True)
 class BudgetScores:
-    """An agent's scores at one budget: :class:`~plate_env.scoring.Scores`, mean probes, median seconds used."""
+    """An agent's scores at one budget: :class:`~plate_env.bench.scoring.Scores`, mean probes, median seconds used."""
 
     budget_s: float
     scores: Scores

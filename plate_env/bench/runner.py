@@ -1,10 +1,10 @@
 """The benchmark: an agent on a suite's episodes, scored against simulated probing seconds, with bootstrap intervals.
 
     from plate_env.bench import evaluate
-    run = evaluate(agent, "tilelink-v0")          # an agent following plate_env.protocol, or a factory of one
+    run = evaluate(agent, "tilelink-v0")          # an agent following plate_env.env.protocol, or a factory of one
     print(run.summary().to_markdown())
 
-Episodes. Every object of the suite (:mod:`plate_env.suites`) is one episode: the env is reset with the object and
+Episodes. Every object of the suite (:mod:`plate_env.bench.suites`) is one episode: the env is reset with the object and
 its seed, the agent's generator is seeded with the same seed, and the agent probes until it stops, the env's probe
 budget ends, or the probes have taken the suite's largest budget in simulated seconds (the agent's context names
 that budget; the env's observation is the one the env gives without a time budget, as policies are trained).
@@ -15,8 +15,8 @@ at most B (none: no estimate). An agent that stopped before B is scored on all i
 every budget is read from one episode run at the largest budget; an agent that would spend a smaller budget
 differently if it were told so in advance is scored as an anytime agent.
 
-Metrics (per budget, over the suite's objects; :mod:`plate_env.scoring`): median and 90th-percentile relative error
-of omega_n_hat (no estimate = infinite error), no-estimate rate, 68 % and 95 % interval coverage, median 95 %
+Metrics (per budget, over the suite's objects; :mod:`~plate_env.bench.scoring`): median and 90th-percentile relative
+error of omega_n_hat (no estimate = infinite error), no-estimate rate, 68 % and 95 % interval coverage, median 95 %
 width, each with its 95 % percentile-bootstrap interval over objects; mean probes and median probing seconds used.
 The error curve: median (and p90) error against the budget on a grid of :data:`CURVE_STEP_S` from 0 to the
 largest budget, with errors capped at 100 % (no estimate counts as 100 %), and its area (the mean of the capped
@@ -153,8 +153,8 @@ def _agent_of(factory):
     return _AGENTS[key]
 
 
-def run_episode_chunk(backend, items: Sequence[tuple]) -> list[Episode]:
-    """Executor task: play episodes ``(agent factory, suite, index, max budget)`` in this process (the env of a
+def run_episode_chunk(items: Sequence[tuple]) -> list[Episode]:
+    """Executor ``fn``: play episodes ``(agent factory, suite, index, max budget)`` in this process (the env of a
     suite and the agent of a factory are built once per process)."""
     out = []
     for factory, suite, index, budget in items:
@@ -193,10 +193,10 @@ def evaluate(agent, suite: Suite | str, *, label: str | None = None, budgets_s: 
              chunk: int = 2) -> AgentRun:
     """Play ``agent`` on every episode of ``suite`` and return the :class:`AgentRun` (see the module docstring).
 
-    ``agent``: an agent (:mod:`plate_env.protocol`) or a zero-argument factory of one (a picklable one, e.g.
+    ``agent``: an agent (:mod:`plate_env.env.protocol`) or a zero-argument factory of one (a picklable one, e.g.
     ``functools.partial(plate_env_agents.load_agent, "bayes")``, for process or Ray executors). ``budgets_s``:
     the budgets to score (default the suite's; each at most its largest; episodes always run to the largest).
-    ``executor``: where episodes run (:func:`plate_env.executor.make_executor` names; default in-process, a process
+    ``executor``: where episodes run (:func:`plate_env.run.executor.make_executor` names; default in-process, a process
     pool for PyBullet), ``chunk`` episodes per task. ``cache``: a JSON-lines file of finished episodes (appended as
     they finish; a rerun resumes). ``limit``: only the first ``limit`` objects (quick looks; not the suite's result).
     Ctrl-C raises :class:`BenchInterrupted` after the finished episodes are written.
@@ -236,7 +236,7 @@ def evaluate(agent, suite: Suite | str, *, label: str | None = None, budgets_s: 
             bar = tqdm(total=n, initial=n - len(todo), desc=f"{label} on {suite.name}", unit="episode")
         fh = open_for_append(path) if path else None
         try:
-            for _, episodes in ex.map(backend, chunks, task=run_episode_chunk):
+            for _, episodes in ex.map(run_episode_chunk, chunks):
                 for ep in episodes:
                     done[ep.index] = ep
                     if fh is not None:

@@ -5,7 +5,7 @@
                        cache="experiments/cache/atlas_x.jsonl", executor="ray")
 
 ``results`` is an object array shaped (n_f, n_a, n_omega, n_alpha, repeats) of :class:`ProbeResult`, ready for
-:func:`plate_env.atlas.atlas_from_repeats`. Used by ``experiments/build_atlas.py``.
+:func:`plate_env.surrogate.atlas.atlas_from_repeats`. Used by ``experiments/build_atlas.py``.
 
 A grid file is JSON with ``f_p_hz``, ``a_p_deg``, ``omega_n_pi`` (units of pi rad/s), ``alpha_deg`` (lists of
 numbers; ``f_p_hz`` may also be ``"start:stop:step"``, inclusive) and optionally ``settle_s``, ``measure_s`` and the
@@ -135,7 +135,7 @@ def run_grid(backend: BackendSpec, grid: AtlasGrid, repeats: int, seed: int, cac
              executor: Executor | str | None = None, chunk: int | None = None, placed: bool = True,
              sweeps: bool = False, progress: bool = True, desc: str = "atlas") -> np.ndarray:
     """Every grid probe's result (object array shaped ``grid.shape(repeats)``), run through ``executor`` with the
-    resumable cache (:func:`plate_env.sweeps.run_cached`). ``chunk`` defaults to one sweep (``len(grid.f_hz)``)
+    resumable cache (:func:`plate_env.run.sweeps.run_cached`). ``chunk`` defaults to one sweep (``len(grid.f_hz)``)
     with ``sweeps``, else 128 in-process and 16 on workers (many chunks to spread, each still a batch)."""
     order, specs = grid_probes(grid, repeats, np.random.default_rng(seed), placed=placed, sweeps=sweeps)
     if chunk is None:

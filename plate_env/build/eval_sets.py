@@ -60,7 +60,7 @@ PYBULLET_HELD_OUT_OBJECTS = ((6.0, 41.0), (8.5, 50.0), (11.5, 33.0), (16.5, 55.0
 
 
 # --------------------------------------------------------------------------- identification prior and eval sets
-#: The identification prior is the env's object prior (:class:`plate_env.objects.ObjectPrior`): omega_n
+#: The identification prior is the env's object prior (:class:`plate_env.core.objects.ObjectPrior`): omega_n
 #: log-uniform over this range (pi rad/s) and alpha uniform over this range (deg).
 PRIOR_OMEGA_PI = ObjectPrior.omega_n_range_pi
 PRIOR_ALPHA_DEG = ObjectPrior.alpha_range_deg
@@ -92,7 +92,7 @@ class EvalSet:
 
     Objects come from ``prior_objects(n, default_rng(seed))``, placements from ``default_rng(seed + 1)`` (the same
     draws at every amplitude), and, with ``nuisance``, each object's unknown joint and contact values from
-    ``plate_env.nuisance.PRIOR`` with ``default_rng(seed + 2)``. ``source`` names the backend for caches and
+    ``plate_env.physics.nuisance.PRIOR`` with ``default_rng(seed + 2)``. ``source`` names the backend for caches and
     reports (e.g. ``"tilelink_pointmass"``); ``omega_range_pi`` narrows the prior for a model that cannot make
     every object (the PyBullet sheet folds below ~5pi).
     """
@@ -111,7 +111,7 @@ class EvalSet:
         return prior_objects(self.n, np.random.default_rng(self.seed), self.omega_range_pi)
 
     def nuisances(self) -> list | None:
-        """Each object's :class:`plate_env.nuisance.Nuisance` (None without ``nuisance``)."""
+        """Each object's :class:`plate_env.physics.nuisance.Nuisance` (None without ``nuisance``)."""
         if not self.nuisance:
             return None
         from plate_env.physics.nuisance import PRIOR
@@ -132,7 +132,7 @@ class EvalSet:
 def run_eval_set(es: EvalSet, backend_of, executor=None, progress: bool = False) -> dict:
     """``{A_p: [ProbeTable per object]}`` for an :class:`EvalSet`, run resumably (its cache files).
 
-    ``backend_of(nuisance)`` gives the :class:`plate_env.executor.BackendSpec` for an object's nuisance draw (None
+    ``backend_of(nuisance)`` gives the :class:`plate_env.run.executor.BackendSpec` for an object's nuisance draw (None
     for a set without nuisances); objects sharing a backend run as one batch."""
     from plate_env.core.probe_table import ProbeTable
     from plate_env.run.sweeps import run_cached

@@ -156,7 +156,7 @@ class PlateRotationEnv(gym.Env):
 
     ``gym.make_vec("PlateRotation-v0", num_envs=8, vectorization_mode="vector_entry_point", physics="atlas")``:
     one batched physics call per step for all sub-environments (Gymnasium's next-step autoreset);
-    ``plate_env.sb3.make_sb3_vec_env(n_envs=8, physics="atlas")``: the same as a Stable-Baselines3 ``VecEnv``.
+    ``plate_env.env.sb3.make_sb3_vec_env(n_envs=8, physics="atlas")``: the same as a Stable-Baselines3 ``VecEnv``.
 
     ## Version History
 
