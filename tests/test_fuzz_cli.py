@@ -120,11 +120,10 @@ def lab_csv(draw):
 # ------------------------------------------------------------------------------------------- tests
 @FUZZ
 @given(argv=cli_args())
-def test_fuzz_cli_arguments(argv, capsys, monkeypatch):
+def test_fuzz_cli_arguments(argv, capsys, monkeypatch, tmp_path):
     monkeypatch.delenv("PLATE_ENV_TRACEBACK", raising=False)
-    with tempfile.TemporaryDirectory() as tmp:
-        monkeypatch.chdir(tmp)
-        code, out, err = _run(argv, capsys)
+    monkeypatch.chdir(tmp_path)  # files an example writes land here (a directory that outlives every example)
+    code, out, err = _run(argv, capsys)
     _check(argv, code, out, err)
 
 

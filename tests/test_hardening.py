@@ -470,7 +470,7 @@ def test_item19_make_agent_takes_the_specs_bench_takes():
     assert make_agent("grid:n=7").n == 7
 
 
-def _sigint_handler(_backend, _chunk):
+def _sigint_handler(_item):
     import signal
 
     return [signal.getsignal(signal.SIGINT) == signal.SIG_IGN]
@@ -479,11 +479,11 @@ def _sigint_handler(_backend, _chunk):
 def test_item23_pool_workers_leave_ctrl_c_to_the_driver():
     """Ctrl-C reaches every process of the group: a worker that ignores it prints no KeyboardInterrupt traceback;
     the driver keeps the finished chunks and ends the workers."""
-    from plate_env.run.executor import BackendSpec, make_executor
+    from plate_env.run.executor import make_executor
 
     ex = make_executor("pool:1")
     try:
-        assert [r for _, r in ex.map(BackendSpec.of("atlas"), [[1]], task=_sigint_handler)] == [[True]]
+        assert [r for _, r in ex.map(_sigint_handler, [1])] == [[True]]
     finally:
         ex.close()
 
@@ -525,11 +525,11 @@ def test_item9_a_read_only_install_and_home_compile_the_kernels_in_memory(tmp_pa
     assert kernels.CACHE is jit_cache.CACHE
 
 
-def _slow_chunk(_backend, chunk):
+def _slow_item(item):
     import time
 
     time.sleep(60)
-    return list(chunk)
+    return item
 
 
 def test_item12_ctrl_c_ends_a_pool_sweep_without_waiting_for_running_chunks():
@@ -540,10 +540,10 @@ def test_item12_ctrl_c_ends_a_pool_sweep_without_waiting_for_running_chunks():
     import threading
     import time
 
-    from plate_env.run.executor import BackendSpec, make_executor
+    from plate_env.run.executor import make_executor
 
     ex = make_executor("pool:1")
-    it = ex.map(BackendSpec.of("atlas"), [[1], [2]], task=_slow_chunk)
+    it = ex.map(_slow_item, [1, 2])
     timer = threading.Timer(3.0, lambda: os.kill(os.getpid(), signal.SIGINT))
     t0 = time.perf_counter()
     timer.start()
