@@ -123,7 +123,8 @@ def parse_freqs(text: str) -> np.ndarray:
             raise CliError(f"--freqs {text!r}: start and stop must satisfy {lo:g} <= start <= stop <= {hi:g} Hz")
         if not step > 0:
             raise CliError(f"--freqs {text!r}: the step must be positive")
-        count = math.floor((stop - start) / step + 1e-6) + 1
+        span = (stop - start) / step  # inf for a subnormal step (1e-320): refused, not an overflow
+        count = math.floor(span + 1e-6) + 1 if math.isfinite(span) else math.inf
         if count > MAX_SWEEP_PROBES:
             raise CliError(f"--freqs {text!r}: {count:.4g} probes; at most {MAX_SWEEP_PROBES} per sweep "
                            f"(use a larger step)")

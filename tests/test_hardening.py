@@ -587,3 +587,11 @@ def test_item14_17_what_an_agent_prints_during_the_bench_goes_to_stderr(tmp_path
     out, err = capsys.readouterr()
     json.loads(out)  # one document, nothing else
     assert "chatty agent" in err
+
+
+def test_item14_a_subnormal_frequency_step_is_refused_by_name(capsys):
+    from plate_env.cli import main
+
+    assert main(["sweep", "--physics", "atlas", "--freqs", "10:40:1e-320", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "--freqs '10:40:1e-320'" in err and "at most 2000" in err
