@@ -1,0 +1,237 @@
+"""Calibrated identification (issue 23): each source as "the lab", K reference discs of known omega_n drawn from it,
+every other object of that source read through what the references taught.
+
+    python experiments/calibration_study.py study [--draws 20] [--seed 0]
+
+Sources (the sweeps of ``experiments/forward_models.py lomo``, read from its caches; ``--executor`` runs what is
+missing): the point mass with every unknown joint/contact value drawn per object, the paper-faithful rigid tiles
+(``rigid_limit``), the PyBullet sheet. For a lab, the members of its own source's family are left out of the
+forward model: the estimator sees that source only through its K references. The scatter prior of the lab model
+is learned from the *other* sources read through the remaining members (never from the lab's source).
+
+Writes ``experiments/results/calibration_study.json`` (the source of truth) and ``.md`` (generated from it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+import forward_models as fmod  # noqa: E402
+
+from plate_env.forward import ForwardModel  # noqa: E402
+from plate_env.lab_calibration import (  # noqa: E402
+    Readings,
+    ScatterPrior,
+    fit_lab,
+    member_readings,
+    predict,
+)
+
+RESULTS = Path("experiments/results")
+CACHE = Path("experiments/cache")
+KS = (1, 2, 3, 5)
+SOURCES = ("pointmass", "rigid", "pybullet")
+MEMBER_FILES = [f for fam in SOURCES for f in fmod.FAMILIES[fam]]
+
+
+def all_members() -> tuple[ForwardModel, list[str]]:
+    """Every member of every family (the ``lab`` forward model's members at 13.6 g) and each one's family."""
+    members, fams = [], []
+    for fam in SOURCES:
+        for f in fmod.FAMILIES[fam]:
+            members.append(fmod.member(f))
+            fams.append(fam)
+    return ForwardModel("all", tuple(members)), fams
+
+
+def source_data(fam: str, n: int | None, executor) -> tuple[list[float], list]:
+    es = fmod.DATA[fam] if n is None else dataclasses.replace(fmod.DATA[fam], n=n)
+    return fmod.data_of(fam, executor, es)
+
+
+def readings_of(fam: str, truth, tables, fm: ForwardModel) -> list[Readings]:
+    """Every member's reading of every sweep of a source (cached: the readings depend on the data and atlases)."""
+    path = CACHE / f"calibration_readings_{fam}_n{len(tables)}.npz"
+    if path.exists():
+        z = np.load(path)
+        return [Readings(z["log_w"], p, lz) for p, lz in zip(z["prob"], z["log_z"], strict=True)]
+    t0 = time.perf_counter()
+    out = [member_readings(fm, t) for t in tables]
+    CACHE.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, log_w=out[0].log_w, prob=np.stack([r.prob for r in out]),
+                        log_z=np.stack([r.log_z for r in out]))
+    print(f"readings {fam}: {len(tables)} sweeps x {len(fm.members)} members in {time.perf_counter() - t0:.0f} s",
+          file=sys.stderr, flush=True)
+    return out
+
+
+def lab_readings(readings: list[Readings], fams: list[str], exclude: set[str], pooling: str) -> tuple[list, list]:
+    """The readings of the members outside the families ``exclude``: each member alone (``pooling="member"``) or
+    each family's members pooled by evidence (``"family"``); and their names."""
+    if pooling == "member":
+        idx = [i for i, f in enumerate(fams) if f not in exclude]
+        return [r.subset(idx) for r in readings], [MEMBER_FILES[i] for i in idx]
+    groups = {f: [i for i, g in enumerate(fams) if g == f] for f in SOURCES if f not in exclude}
+    return [r.pooled(list(groups.values())) for r in readings], list(groups)
+
+
+# --------------------------------------------------------------------------------------------------- scoring
+def per_object_scores(truth: np.ndarray, preds) -> dict[str, np.ndarray]:
+    err = np.array([abs(p.omega_n - w) / w if p.ok else math.inf for p, w in zip(preds, truth, strict=True)])
+    in68 = np.array([p.ok and p.ci68[0] <= w <= p.ci68[1] for p, w in zip(preds, truth, strict=True)], float)
+    in95 = np.array([p.ok and p.ci95[0] <= w <= p.ci95[1] for p, w in zip(preds, truth, strict=True)], float)
+    width = np.array([(p.ci95[1] - p.ci95[0]) / w if p.ok else math.inf for p, w in zip(preds, truth, strict=True)])
+    return {"error": err, "in68": in68, "in95": in95, "width95": width}
+
+
+STATS = {
+    "median_error": ("error", lambda x: np.nanmedian(x, axis=-1)),
+    "p90_error": ("error", lambda x: np.nanpercentile(x, 90, axis=-1)),
+    "coverage68": ("in68", lambda x: np.nanmean(x, axis=-1)),
+    "coverage95": ("in95", lambda x: np.nanmean(x, axis=-1)),
+    "width95": ("width95", lambda x: np.nanmedian(x, axis=-1)),
+}
+
+
+def summarize(blocks: list[dict[str, np.ndarray]], rng: np.random.Generator, n_boot: int = 1000) -> dict:
+    """Statistics over every (object, draw) pair with 95 % bootstrap intervals over objects (an object carries all
+    its draws). ``blocks``: per source, arrays (n_objects, n_draws) with NaN where the object was a reference."""
+    arrays = {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
+    n = arrays["error"].shape[0]
+    idx = rng.integers(0, n, size=(n_boot, n))
+    out = {"objects": int(n), "pairs": int(np.isfinite(arrays["in95"]).sum())}
+    for name, (key, fn) in STATS.items():
+        v = arrays[key]
+        value = float(fn(v.reshape(1, -1))[0])
+        boot = np.array([fn(v[i].reshape(1, -1))[0] for i in idx])
+        out[name] = {"value": value, "ci95": [float(np.percentile(boot, 2.5)), float(np.percentile(boot, 97.5))]}
+    return out
+
+
+# --------------------------------------------------------------------------------------------------- study
+def learn_prior(lab: str, data: dict, fams: list[str], method: dict, log_sd: float) -> tuple[ScatterPrior, dict]:
+    """The scatter prior for ``lab`` from the other sources read through members of neither the lab's nor their own
+    family: each such pseudo-lab fitted with all its objects as references (a flat scatter prior), its posterior
+    mean scatter; the prior's median is their geometric mean, ``log_sd`` its spread."""
+    flat = ScatterPrior(0.2, 5.0)
+    found = {}
+    for s in SOURCES:
+        if s == lab:
+            continue
+        truth, readings = data[s]
+        refs, names = lab_readings(readings, fams, {lab, s}, method["pooling"])
+        post = fit_lab(refs, np.log(truth), names, flat, slope=method["slope"])
+        found[s] = post.summary()["sigma_mean"]
+    med = float(np.exp(np.mean(np.log(list(found.values())))))
+    return ScatterPrior(med, log_sd), {"pseudo_labs": found, "median": med, "log_sd": log_sd}
+
+
+def run_lab(lab: str, K: int, data: dict, fams: list[str], prior: ScatterPrior, method: dict, draws: int,
+            rng: np.random.Generator) -> dict[str, np.ndarray]:
+    truth, readings = data[lab]
+    rd, names = lab_readings(readings, fams, {lab}, method["pooling"])
+    n = len(truth)
+    out = {k: np.full((n, draws), np.nan) for k in ("error", "in68", "in95", "width95")}
+    slope = None if method["slope"] else False
+    for d in range(draws):
+        ref = rng.choice(n, size=K, replace=False)
+        post = fit_lab([rd[i] for i in ref], np.log(np.asarray(truth)[ref]), names, prior, slope=slope)
+        others = [i for i in range(n) if i not in set(ref.tolist())]
+        sc = per_object_scores(np.asarray(truth)[others], [predict(post, rd[i]) for i in others])
+        for k, v in sc.items():
+            out[k][others, d] = v
+    return out
+
+
+METHODS = {
+    "offset": {"slope": False, "pooling": "member", "label": "member + offset + scatter (b = 1)"},
+    "slope": {"slope": True, "pooling": "member", "label": "member + offset + slope (K >= 3) + scatter"},
+    "family_offset": {"slope": False, "pooling": "family",
+                      "label": "family (members pooled by evidence) + offset + scatter (b = 1)"},
+    "family_slope": {"slope": True, "pooling": "family",
+                     "label": "family (members pooled by evidence) + offset + slope (K >= 3) + scatter"},
+}
+
+
+def commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                              check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def stage_study(args) -> None:
+    fm, fams = all_members()
+    data = {}
+    for fam, n in (("pointmass", args.n_pointmass), ("rigid", args.n_rigid), ("pybullet", args.n_pybullet)):
+        truth, tables = source_data(fam, n, args.executor)
+        data[fam] = (np.asarray(truth), readings_of(fam, truth, tables, fm))
+    results: dict = {"command": "python " + " ".join(sys.argv), "commit": commit(), "draws": args.draws,
+                     "seed": args.seed, "ks": list(KS), "log_sd": args.log_sd,
+                     "sources": {s: {"objects": int(len(data[s][0])), "eval_set": dataclasses.asdict(fmod.DATA[s])}
+                                 for s in SOURCES},
+                     "members": [m.label for m in fm.members], "member_family": fams, "methods": {}}
+    for mname in args.methods:
+        method = METHODS[mname]
+        res: dict = {"label": method["label"], "priors": {}, "by_k": {}}
+        priors = {}
+        for lab in SOURCES:
+            priors[lab], res["priors"][lab] = learn_prior(lab, data, fams, method, args.log_sd)
+        for K in KS:
+            t0 = time.perf_counter()
+            blocks = {}
+            for j, lab in enumerate(SOURCES):
+                rng = np.random.default_rng([args.seed, K, j])
+                blocks[lab] = run_lab(lab, K, data, fams, priors[lab], method, args.draws, rng)
+            brng = np.random.default_rng([args.seed, K, 99])
+            res["by_k"][str(K)] = {"pooled": summarize(list(blocks.values()), brng),
+                                   **{lab: summarize([b], brng) for lab, b in blocks.items()},
+                                   "wall_s": time.perf_counter() - t0}
+            print(mname, K, json.dumps({k: round(v["coverage95"]["value"], 3) for k, v in res["by_k"][str(K)].items()
+                                        if isinstance(v, dict)}),
+                  {k: round(v["median_error"]["value"], 3) for k, v in res["by_k"][str(K)].items()
+                   if isinstance(v, dict)}, flush=True)
+        results["methods"][mname] = res
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "calibration_study.json").write_text(json.dumps(results, indent=1) + "\n")
+    write_md(results)
+
+
+def write_md(results: dict) -> None:
+    lines = ["# Calibrated identification: K reference discs of known omega_n (issue 23)", "",
+             f"Command: `{results['command']}` at commit {results['commit']}. Generated from "
+             "`calibration_study.json` (the source of truth).", ""]
+    (RESULTS / "calibration_study.md").write_text("\n".join(lines) + "\n")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("stage", choices=("study", "md"))
+    ap.add_argument("--draws", type=int, default=20, help="random reference sets per source and K")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
+    ap.add_argument("--log-sd", type=float, default=0.75, help="spread (sd of log sigma) of the scatter prior")
+    ap.add_argument("--n-pointmass", type=int, default=None)
+    ap.add_argument("--n-rigid", type=int, default=None)
+    ap.add_argument("--n-pybullet", type=int, default=None)
+    fmod.add_executor_argument(ap)
+    args = ap.parse_args()
+    if args.stage == "md":
+        write_md(json.loads((RESULTS / "calibration_study.json").read_text()))
+    else:
+        stage_study(args)
+
+
+if __name__ == "__main__":
+    main()
