@@ -28,8 +28,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 import forward_models as fmod  # noqa: E402
 
-from plate_env.forward import ForwardModel  # noqa: E402
-from plate_env.lab_calibration import (  # noqa: E402
+from plate_env.identify.forward import ForwardModel  # noqa: E402
+from plate_env.identify.lab_calibration import (  # noqa: E402
     Readings,
     ScatterPrior,
     fit_lab,

@@ -36,8 +36,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import fftconvolve
 
-from plate_env.forward import ForwardModel
-from plate_env.probes import ProbeTable
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.forward import ForwardModel
 
 #: The offset grid (log omega_n): a map may move a member's reading by up to a factor e^2.5 either way.
 OFFSET_GRID = np.round(np.arange(-2.5, 2.5 + 1e-9, 0.02), 6)
@@ -112,7 +112,7 @@ def reading_grid(fm: ForwardModel, n_omega: int = 321) -> np.ndarray:
 
 def member_readings(fm: ForwardModel, table: ProbeTable, n_omega: int = 321, n_alpha: int = 16) -> Readings:
     """Each member's posterior over log omega_n for the probes ``table`` (see the module docstring, step 1)."""
-    from plate_env.inference import STEP_FLOOR, _smooth_log_omega, member_coverage, member_log_likelihood
+    from plate_env.identify.inference import STEP_FLOOR, _smooth_log_omega, member_coverage, member_log_likelihood
 
     log_w = reading_grid(fm, n_omega)
     w = np.exp(log_w)
