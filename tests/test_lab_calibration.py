@@ -183,3 +183,19 @@ def test_calibration_for_another_setup_or_edited_is_refused(calibrated, tmp_path
     (tmp_path / "other.json").write_text(json.dumps(other))
     _refused(["fit", disc, "--amp", "3", "--calibration", str(tmp_path / "other.json")], capsys,
              "written by plate-env '0.0.1'")
+
+
+def test_paper_calibration_reads_fig7a(tmp_path, capsys):
+    """The shipped paper calibration (Eq. 10 and Table 1 as references) reads Fig. 7(a)'s curve (10pi, 36.9 deg:
+    omega_Brmax 598.7 deg/s, b 5.1 Hz, f0 25.1 Hz, 14-34 Hz) with its 95 % interval holding 10pi."""
+    from plate_env.identify.fitting import lorentzian
+
+    f = np.arange(14.0, 34.01, 1.0)
+    y = lorentzian(f, 598.7, 25.1, 5.1)
+    (tmp_path / "fig7a.csv").write_text("f_p_hz,omega_b_deg_s,stderr_deg_s\n"
+                                        + "".join(f"{a:g},{float(b)!r},10\n" for a, b in zip(f, y, strict=True)))
+    assert main(["fit", str(tmp_path / "fig7a.csv"), "--amp", "3", "--calibration", "paper", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    lo, hi = out["omega_n_ci95_rad_s"]
+    assert out["calibrated"] is True and lo <= 10 * math.pi <= hi
+    assert abs(out["omega_n_rad_s"] / (10 * math.pi) - 1) < 0.15

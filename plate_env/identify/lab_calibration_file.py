@@ -4,7 +4,7 @@ CAL.json is one JSON object::
 
     schema            "plate-env/lab-calibration"        what this file is
     schema_version    1                                    the layout (a reader refuses any other)
-    package_version   plate_env.__version__ that wrote it  (a reader refuses another version)
+    package_version   the plate-env version that wrote it  (a reader refuses another version)
     commit            git commit of the writer if known, else null
     inputs_sha256     hash of the references' probes and known omega_n (what it was fitted from)
     forward           the forward model whose members read the sweeps (e.g. "lab")
@@ -97,16 +97,14 @@ class LabCalibration:
 
     @classmethod
     def from_json(cls, d: dict, where: str = "calibration") -> LabCalibration:
-        import plate_env
-
         if not isinstance(d, dict) or d.get("schema") != SCHEMA:
             raise CalibrationError(f"{where}: not a plate-env lab calibration (schema {SCHEMA!r})")
         if d.get("schema_version") != SCHEMA_VERSION:
             raise CalibrationError(f"{where}: schema_version {d.get('schema_version')!r}, this plate-env reads "
                                    f"{SCHEMA_VERSION}: run plate-env calibrate again")
-        if d.get("package_version") != plate_env.__version__:
+        if d.get("package_version") != package_version():
             raise CalibrationError(f"{where}: written by plate-env {d.get('package_version')!r}, this is "
-                                   f"{plate_env.__version__}: run plate-env calibrate again with this version")
+                                   f"{package_version()}: run plate-env calibrate again with this version")
         body = {k: v for k, v in d.items() if k != "content_sha256"}
         if d.get("content_sha256") != content_hash(body):
             raise CalibrationError(f"{where}: content hash does not match (the file was edited by hand or damaged): "
@@ -122,6 +120,17 @@ class LabCalibration:
                                     for r in d["references"]),
                    scatter_prior=ScatterPrior(**d["scatter_prior"]), posterior=post,
                    inputs_sha256=d["inputs_sha256"], package_version=d["package_version"], commit=d.get("commit"))
+
+
+def package_version() -> str:
+    """The installed plate-env's version (the distribution's metadata: plate_env.__version__ lives in the edge
+    layer)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("plate-env")
+    except PackageNotFoundError:
+        return "unknown"
 
 
 def content_hash(body: dict) -> str:
@@ -178,8 +187,6 @@ def calibrate(tables: Sequence[ProbeTable], omega_n: Sequence[float], objects: S
               known: KnownInputs, forward: str = "lab", prior: ScatterPrior = SCATTER_PRIOR) -> LabCalibration:
     """Fit a lab calibration from reference sweeps of discs of known omega_n (rad/s), all at amplitude
     ``a_p_deg`` and on the set-up ``known``."""
-    import plate_env
-
     check_references(objects, omega_n)
     if len(set(objects)) != len(objects):
         raise CalibrationError(f"reference names repeat: {sorted(objects)}; one sweep table per disc")
@@ -196,7 +203,7 @@ def calibrate(tables: Sequence[ProbeTable], omega_n: Sequence[float], objects: S
     post = fit_lab(readings, np.log(np.asarray(omega_n, dtype=float)), ["+".join(f) for f in files], prior)
     return LabCalibration(forward, files, float(a_p_deg), known,
                           tuple((o, float(w), len(t)) for o, w, t in zip(objects, omega_n, tables, strict=True)),
-                          prior, post, inputs_hash(tables, omega_n), plate_env.__version__, _commit())
+                          prior, post, inputs_hash(tables, omega_n), package_version(), _commit())
 
 
 def check_data(cal: LabCalibration, table: ProbeTable, known: KnownInputs) -> None:
@@ -233,9 +240,19 @@ def save(cal: LabCalibration, path: str | Path) -> None:
     Path(path).write_text(json.dumps(cal.to_json(), indent=1) + "\n")
 
 
+#: ``--calibration paper``: the paper's published numbers as the reference set (package data, written by
+#: ``python experiments/calibration_study.py paper``).
+PAPER = "paper"
+PAPER_FILE = "calibration_paper.json"
+
+
 def load(path: str | Path) -> LabCalibration:
-    """Read CAL.json; CalibrationError (naming the file) when it is not one, is from another version, or was
-    edited."""
+    """Read CAL.json (or the shipped ``"paper"`` calibration); CalibrationError (naming the file) when it is not
+    one, is from another version, or was edited."""
+    if str(path) == PAPER:
+        from importlib import resources
+
+        path = Path(str(resources.files("plate_env") / "data" / PAPER_FILE))
     try:
         d = json.loads(Path(path).read_text())
     except (OSError, json.JSONDecodeError) as exc:
