@@ -199,3 +199,14 @@ def test_paper_calibration_reads_fig7a(tmp_path, capsys):
     lo, hi = out["omega_n_ci95_rad_s"]
     assert out["calibrated"] is True and lo <= 10 * math.pi <= hi
     assert abs(out["omega_n_rad_s"] / (10 * math.pi) - 1) < 0.15
+
+
+def test_identify_takes_a_calibration(calibrated, rigid_source):
+    from plate_env.identify import identify
+
+    _, tables, _ = rigid_source
+    cal = lcf.load(calibrated / "cal.json")
+    est = identify(tables[20], calibration=str(calibrated / "cal.json"))
+    assert est.method == "calibrated" and est.omega_n == lcf.identify_calibrated(tables[20], cal).omega_n
+    with pytest.raises(ValueError, match="no method, forward"):
+        identify(tables[20], forward="lab", calibration=cal)
