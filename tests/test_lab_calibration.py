@@ -210,3 +210,17 @@ def test_identify_takes_a_calibration(calibrated, rigid_source):
     assert est.method == "calibrated" and est.omega_n == lcf.identify_calibrated(tables[20], cal).omega_n
     with pytest.raises(ValueError, match="no method, forward"):
         identify(tables[20], forward="lab", calibration=cal)
+
+
+def test_env_carries_a_calibration(calibrated):
+    """The env's estimate reads its probes through a calibration; one for another amplitude is refused up front."""
+    from plate_env.env import PlateRotationEnv
+
+    cal = str(calibrated / "cal.json")
+    with pytest.raises(ValueError, match="amplitudes_deg"):
+        PlateRotationEnv(physics="atlas", calibration=cal)
+    env = PlateRotationEnv(physics="atlas", amplitudes_deg=(3.0,), calibration=cal)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    est = env.estimate()
+    assert est.method == "calibrated", est.reason
