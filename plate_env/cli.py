@@ -259,6 +259,9 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--model", default=None, help="lorentz method: tilelink model of the calibration (pointmass)")
     f.add_argument("--plot", default=None, help="write a PNG of data, fitted curve and posterior (after the results)")
     f.add_argument("--json", action="store_true", help="print one JSON document")
+    f.add_argument("--calibration", default=None, help="a lab calibration (CAL.json from plate-env calibrate): read "
+                   "the data through what the lab's reference discs taught")
+    _add_calibrate(sub)
     for p in sub.choices.values():  # --help shows every default
         p.formatter_class = _DefaultsFormatter
     return parser
@@ -555,13 +558,84 @@ def _fit_options(args: argparse.Namespace) -> None:
                            f"{', '.join(sources + ['paper'])}")
 
 
+def _add_calibrate(sub) -> None:
+    c = sub.add_parser("calibrate", help="learn a lab calibration from reference discs of known omega_n")
+    c.add_argument("refs", help="CSV: the fit columns plus object and omega_n_rad_s (optional mass_g per object)")
+    c.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees")
+    c.add_argument("--bp", type=_arg(checks.real, 0.1, 50.0, unit="mm"), default=3.0, help="B_p, mm")
+    c.add_argument("--mass-g", type=_arg(checks.real, 0.1, 1000.0, unit="g"), default=None,
+                   help="the discs' mass, g (default: the file's mass_g, else 13.6)")
+    c.add_argument("--diameter-mm", type=_arg(checks.real, 10.0, 500.0, unit="mm"), default=80.0, help="mm")
+    c.add_argument("--forward", default="lab", help="the forward model whose members read the sweeps")
+    c.add_argument("--out", required=True, help="the calibration file to write (CAL.json)")
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from plate_env.identify import lab_calibration_file as lcf
+    from plate_env.surrogate.catalog import forward_model_names
+    from plate_env.surrogate.conditioning import KnownInputs
+
+    if args.forward not in forward_model_names():
+        raise CliError(f"--forward {args.forward!r}: choose one of {forward_model_names()}")
+    objects, omega_n, tables, masses = lcf.read_reference_csv(args.refs, a_p_deg=args.amp)
+    lcf.check_references(objects, omega_n)
+    given = {m for m in masses if m is not None}
+    if len(given) > 1:
+        raise CliError(f"the references have different masses {sorted(given)} g: one calibration holds for one mass")
+    mass_g = args.mass_g if args.mass_g is not None else (given.pop() if given else 13.6)
+    amps = sorted({float(a) for t in tables for a in t.a_p_deg})
+    if len(amps) != 1:
+        raise CliError(f"the references are at A_p {amps} deg: one calibration holds for one amplitude")
+    known = KnownInputs(b_p=args.bp * 1e-3, mass=mass_g * 1e-3, diameter=args.diameter_mm * 1e-3)
+    cal = lcf.calibrate(tables, omega_n, objects, amps[0], known, forward=args.forward)
+    lcf.save(cal, args.out)
+    s = cal.posterior.summary()
+    top = max(s["member_weights"].items(), key=lambda kv: kv[1])
+    print(f"calibration of {len(objects)} reference disc(s) at A_p = {amps[0]:g} deg written to {args.out}: "
+          f"offset {s['a_mean']:+.2f}, slope {s['b_mean']:.2f}, scatter {s['sigma_mean']:.2f} (log omega_n), "
+          f"member {top[0]} ({top[1]:.0%})", flush=True)
+    return 0
+
+
+#: Printed by ``fit`` without a calibration.
+UNCALIBRATED_NOTE = ("uncalibrated: the interval carries the disagreement between the physics models (about x11 "
+                     "either way at 95 %); measure reference discs of known omega_n and run plate-env calibrate to "
+                     "narrow it (docs/calibration.md)")
+
+
+def _cmd_fit_calibrated(args: argparse.Namespace) -> int:
+    from plate_env.core.probe_table import read_lab_csv
+    from plate_env.identify import lab_calibration_file as lcf
+    from plate_env.surrogate.conditioning import KnownInputs
+
+    cal = lcf.load(args.calibration)
+    if args.method != "atlas":
+        raise CliError("--calibration reads the data through the atlas members: drop --method lorentz")
+    known = KnownInputs(b_p=args.bp * 1e-3, mass=args.mass_g * 1e-3, diameter=args.diameter_mm * 1e-3)
+    table = read_lab_csv(args.csv, a_p_deg=args.amp)
+    lcf.check_data(cal, table, known)
+    est = lcf.identify_calibrated(table, cal, known)
+    if args.json:
+        print(json.dumps({"file": str(args.csv), "calibrated": True, "calibration": str(args.calibration),
+                          **est.to_dict()}), flush=True)
+    elif est.ok:
+        lo, hi = est.omega_n_ci95
+        print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s ({format_omega_pi(est.omega_n)}; "
+              f"95 % interval {lo:.1f}-{hi:.1f} rad/s) calibrated by {args.calibration}", flush=True)
+    else:
+        print(f"no estimate: {est.reason}", flush=True)
+    return 0 if est.ok else 1
+
+
 def _cmd_fit(args: argparse.Namespace) -> int:
+    _fit_options(args)
+    if args.calibration is not None:
+        return _cmd_fit_calibrated(args)
     from plate_env.core.probe_table import read_lab_csv
     from plate_env.identify import identify
     from plate_env.surrogate.catalog import forward_model_names
     from plate_env.surrogate.conditioning import KnownInputs
 
-    _fit_options(args)
     plot = plot_path(args.plot) if args.plot else None
     known = KnownInputs(b_p=args.bp * 1e-3, mass=args.mass_g * 1e-3, diameter=args.diameter_mm * 1e-3)
     if args.method == "atlas" and args.forward not in forward_model_names():
@@ -574,8 +648,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     model = args.model or ("lab" if args.physics == "lab" else "pointmass")
     est = identify(table, method=args.method, physics=args.physics, model=model, forward=args.forward, known=known)
     if args.json:
-        print(json.dumps({"file": str(args.csv), "physics": args.physics, "model": model, **est.to_dict()}),
-              flush=True)
+        print(json.dumps({"file": str(args.csv), "physics": args.physics, "model": model, "calibrated": False,
+                          **est.to_dict()}), flush=True)
     else:
         for line in _fit_report(est, table):
             print(line)
@@ -586,6 +660,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
             print(_intervals(est))
             if est.alpha is not None:
                 print(f"alpha_hat   = {math.degrees(est.alpha):.1f} +- {math.degrees(est.alpha_stderr):.1f} deg")
+            if est.method == "atlas" and est.forward == "lab":
+                print(UNCALIBRATED_NOTE)
         else:
             print(f"no estimate: {est.reason}")
         sys.stdout.flush()
@@ -672,7 +748,7 @@ def _print_identify(res) -> None:
 
 
 COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep, "fit": _cmd_fit, "identify": _cmd_identify,
-            "bench": _cmd_bench}
+            "bench": _cmd_bench, "calibrate": _cmd_calibrate}
 
 
 #: A command-line token that is a negative value, not an option: "-10pi", "-1e-3", "-inf", "-.5".

@@ -138,6 +138,7 @@ class PlateRotationEnv(gym.Env):
     | ``camera_fps`` | 30 | camera frame rate, Hz |
     | ``angle_noise_deg`` | 0.5 | camera angle noise (sd), deg |
     | ``cost_per_sim_s`` | 0.005 | reward cost per simulated second |
+    | ``calibration`` | None | a lab calibration (CAL.json, ``"paper"``): the estimate reads the probes through it |
     | ``error_cap`` | 1 | largest error charged |
     | ``no_estimate_penalty`` | 1 | reward when no estimate can be made |
     | ``render_mode`` | None | ``rgb_array`` or ``human`` |
@@ -179,7 +180,7 @@ class PlateRotationEnv(gym.Env):
                  max_sim_s: float | None = None, measure_range_s: tuple[float, float] = (0.25, 2.0),
                  settle_s: float = 0.5, camera_fps: float = 30.0, angle_noise_deg: float = 0.5,
                  cost_per_sim_s: float = 0.005, error_cap: float = 1.0, no_estimate_penalty: float = 1.0,
-                 render_mode: str | None = None) -> None:
+                 render_mode: str | None = None, calibration=None) -> None:
         super().__init__()
         # every option checked (a ValueError naming it) before the physics is built
         render_mode = checks.one_of("render_mode", render_mode, (None, *self.metadata["render_modes"]))
@@ -201,6 +202,7 @@ class PlateRotationEnv(gym.Env):
         error_cap = checks.real("error_cap", error_cap, 0.0, 1e3, open_lo=True)
         no_estimate_penalty = checks.real("no_estimate_penalty", no_estimate_penalty, 0.0, 1e3)
         physics = checks.one_of("physics", physics, PHYSICS_NAMES)
+        self.calibration = _calibration(calibration, amplitudes_deg, b_p_mm)
         if physics_options is not None and not isinstance(physics_options, dict):
             raise ValueError(f"physics_options = {physics_options!r} must be a dict of backend options or None")
         self.physics_name = physics
@@ -390,6 +392,8 @@ class PlateRotationEnv(gym.Env):
         if not self._rows:
             return Estimate(ok=False, method=self.method, reason="no probes")
         try:
+            if self.calibration is not None:
+                return identify(self.table(), calibration=self.calibration, known=self.known_inputs())
             return identify(self.table(), method=self.method, physics=self.source, model=self.model,
                             known=self.known_inputs())
         except ValueError as exc:
@@ -488,3 +492,19 @@ def _amplitudes(values) -> tuple[float, ...]:
     if 0.0 in amps or len(set(amps)) != len(amps):
         raise ValueError(f"amplitudes_deg = {values!r}: amplitudes must be distinct and non-zero")
     return amps
+
+
+def _calibration(calibration, amplitudes_deg: tuple[float, ...], b_p_mm: float):
+    """The env's lab calibration (None: the estimate's own forward model), checked against the amplitudes and
+    B_p the episodes use (ValueError naming the mismatch)."""
+    if calibration is None:
+        return None
+    from plate_env.identify import lab_calibration_file as lcf
+
+    cal = calibration if isinstance(calibration, lcf.LabCalibration) else lcf.load(calibration)
+    if tuple(float(a) for a in amplitudes_deg) != (cal.a_p_deg,):
+        raise ValueError(f"calibration holds for A_p = {cal.a_p_deg:g} deg only: set amplitudes_deg=({cal.a_p_deg:g},) "
+                         f"(got {tuple(amplitudes_deg)})")
+    if abs(b_p_mm - cal.known.b_p * 1e3) > 0.02 * cal.known.b_p * 1e3:
+        raise ValueError(f"calibration holds for B_p = {cal.known.b_p * 1e3:g} mm, the env's b_p_mm is {b_p_mm:g}")
+    return cal
