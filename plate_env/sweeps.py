@@ -16,10 +16,10 @@ from plate_env.executor import BackendSpec, Executor, InProcessExecutor, check_e
 from plate_env.physics.base import Physics, ProbeResult, ProbeSpec
 
 #: Backend settings that change results and so enter the cache key (each where the backend has it).
-TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact", "record_interval_s")
+TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact", "record_interval_s", "kernel")
 #: Settings named in the key only when they differ from this default: they became options after caches of the
 #: default existed, which stay valid.
-TAG_DEFAULTS = {"record_interval_s": 1e-3}
+TAG_DEFAULTS = {"record_interval_s": 1e-3, "kernel": "v1"}
 
 
 def backend_tag(physics: Physics | BackendSpec) -> str:

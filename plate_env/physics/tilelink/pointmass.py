@@ -102,3 +102,83 @@ def implicit_damping_matrix(params: PointMassParams, dt: float) -> np.ndarray:
     n = params.geom.n_nodes
     a = np.eye(n) + dt * params.eta_bending * params.k_bending / params.node_mass * params.laplacian
     return np.linalg.inv(a)
+
+
+#: Signs of an orbit's members (node, u-mirror, v-mirror, both) in its four parity combinations.
+PARITY_SIGNS = np.array([[1, 1, 1, 1], [1, -1, 1, -1], [1, 1, -1, -1], [1, -1, -1, 1]], dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class GridLayout:
+    """The disc's nodes on the padded 8 x 8 grid of the v2 kernel (:mod:`kernels_v2`).
+
+    ``slot`` (N,): each node's index in the padded slot array; ``masks`` (7, G): 1 where a joint leaves a slot in
+    each of the four directions, where a triplet is centred in each of the two, and where a node sits.
+    """
+
+    slot: np.ndarray
+    masks: np.ndarray
+
+
+def grid_layout(geom: DiscGeometry) -> GridLayout:
+    """Place ``geom``'s nodes on the v2 kernel's grid and mark its joints, triplets and nodes there; checks that
+    the joints and triplets marked are exactly ``geom``'s."""
+    from plate_env.physics.tilelink import kernels_v2 as k2
+
+    side = k2.SIDE
+    cols = np.rint(geom.rest[:, 0] / geom.spacing + (side - 1) / 2).astype(np.int64)
+    rows = np.rint(geom.rest[:, 1] / geom.spacing + (side - 1) / 2).astype(np.int64)
+    slot = k2.PAD + side * rows + cols
+    node_at = {(int(c), int(r)): k for k, (c, r) in enumerate(zip(cols, rows, strict=True))}
+    masks = np.zeros((7, k2.SLOTS + 2 * k2.PAD))
+    masks[k2.M_NODE, slot] = 1.0
+    steps = {1: (1, 0), side: (0, 1), side + 1: (1, 1), side - 1: (-1, 1)}
+    found: dict[str, set] = {"links": set(), "diagonals": set(), "triplets": set()}
+    for (c, r), k in node_at.items():
+        for p, o in enumerate(k2.PAIR_OFFSETS):
+            dc, dr = steps[o]
+            b = node_at.get((c + dc, r + dr))
+            if b is None:
+                continue
+            cell = [node_at.get((min(c, c + dc) + ic, r + jr)) for ic in (0, 1) for jr in (0, 1)]
+            if p < 2 or all(q is not None for q in cell):  # a diagonal exists where its cell's four nodes do
+                masks[p, slot[k]] = 1.0
+                found["links" if p < 2 else "diagonals"].add(frozenset((k, b)))
+        for t, o in enumerate(k2.TRIPLET_OFFSETS):
+            dc, dr = steps[o]
+            a, b = node_at.get((c - dc, r - dr)), node_at.get((c + dc, r + dr))
+            if a is not None and b is not None:
+                masks[4 + t, slot[k]] = 1.0
+                found["triplets"].add((frozenset((a, b)), k))
+    assert found["links"] == {frozenset(map(int, e)) for e in geom.links}, "links do not match the grid"
+    assert found["diagonals"] == {frozenset(map(int, e)) for e in geom.diagonals}, "diagonals do not match the grid"
+    assert found["triplets"] == {(frozenset((int(a), int(c))), int(b)) for a, b, c in geom.triplets}, \
+        "triplets do not match the grid"
+    return GridLayout(slot=slot, masks=masks)
+
+
+def grid_damping_blocks(params: PointMassParams, dt: float) -> np.ndarray:
+    """The implicit damper ``(I + dt eta k_b / m L)^-1`` in the v2 kernel's layout (4, 16, 16): one block per
+    parity of the grid's mirror flips over the quadrant's 16 slots, ``[p, q, o]`` block p's entry (o, q), zero
+    where a slot is empty.
+
+    ``L`` commutes with both flips, so in the orthonormal basis ``1/2 sum_k s_pk e_{orbit[k]}`` of each orbit of
+    four mirror images ``I + c L`` is block diagonal and each block is inverted on its own.
+    """
+    geom = params.geom
+    n = geom.n_nodes
+    a = np.eye(n) + dt * params.eta_bending * params.k_bending / params.node_mass * params.laplacian
+    cols = np.rint(geom.rest[:, 0] / geom.spacing + 3.5).astype(np.int64)
+    rows = np.rint(geom.rest[:, 1] / geom.spacing + 3.5).astype(np.int64)
+    node_at = {(int(r), int(c)): k for k, (r, c) in enumerate(zip(rows, cols, strict=True))}
+    real = [q for q in range(16) if (q // 4, q % 4) in node_at]
+    blocks = np.zeros((4, 16, 16))
+    for p, signs in enumerate(PARITY_SIGNS):
+        basis = np.zeros((n, len(real)))
+        for col, q in enumerate(real):
+            r, c = q // 4, q % 4
+            for sign, rc in zip(signs, ((r, c), (r, 7 - c), (7 - r, c), (7 - r, 7 - c)), strict=True):
+                basis[node_at[rc], col] = 0.5 * sign
+        inv = np.linalg.inv(basis.T @ a @ basis)
+        blocks[p][np.ix_(real, real)] = inv.T
+    return blocks
