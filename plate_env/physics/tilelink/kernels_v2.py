@@ -152,7 +152,8 @@ def grid_damper(vs, v, blocks, z, w):
 def grid_contact(x, v, masks, fsp, prm, th_dot, xp_dot, s_th, c_th):
     """Plate contact at every node: implicit normal damper, Coulomb stick/slip (the law of :mod:`contact`).
 
-    The spring ``k a^2.2`` first (``exp``/``log`` calls, a loop of its own), then every slot computes the rest
+    The spring ``k a^2.2`` first (one ``pow`` call per node in contact, a loop of its own; v1 calls ``exp`` and
+    ``log``: 11 against 15 ns here), then every slot computes the rest
     and a select keeps its velocity where it is out of contact, as v1's branches do; ``fsp`` (G,): scratch."""
     m = prm[P_MASS]
     inv_m = 1.0 / m
@@ -160,7 +161,7 @@ def grid_contact(x, v, masks, fsp, prm, th_dot, xp_dot, s_th, c_th):
     cc = prm[P_CC]
     for s in range(PAD, PAD + SLOTS):
         depth = x[1, s] * s_th - x[2, s] * c_th
-        fsp[s] = prm[P_KC] * math.exp(CONTACT_EXPONENT * math.log(depth)) if depth > 0.0 else 0.0
+        fsp[s] = prm[P_KC] * math.pow(depth, CONTACT_EXPONENT) if depth > 0.0 else 0.0
     for s in range(PAD, PAD + SLOTS):
         pvx = xp_dot
         pvy = -th_dot * x[2, s]
