@@ -35,18 +35,15 @@ def reference_probes():
 
 
 def _dense_from_blocks(geom, blocks):
+    layout = grid_layout(geom)
+    node_of = {int(s): k for k, s in enumerate(layout.slot)}
     n = geom.n_nodes
-    cols = np.rint(geom.rest[:, 0] / geom.spacing + 3.5).astype(int)
-    rows = np.rint(geom.rest[:, 1] / geom.spacing + 3.5).astype(int)
-    node_at = {(r, c): k for k, (r, c) in enumerate(zip(rows, cols, strict=True))}
     full = np.zeros((n, n))
     for p, signs in enumerate(PARITY_SIGNS):
-        basis = np.zeros((n, 16))
-        for q in range(16):
-            r, c = divmod(q, 4)
-            for sign, rc in zip(signs, ((r, c), (r, 7 - c), (7 - r, c), (7 - r, 7 - c)), strict=True):
-                if rc in node_at:
-                    basis[node_at[rc], q] = 0.5 * sign
+        basis = np.zeros((n, len(layout.quad)))
+        for o, members in enumerate(layout.quad):
+            for sign, member in zip(signs, members, strict=True):
+                basis[node_of[int(member)], o] = 0.5 * sign
         full += basis @ blocks[p].T @ basis.T
     return full
 
@@ -55,7 +52,7 @@ def _dense_from_blocks(geom, blocks):
 def test_grid_layout_holds_every_joint_triplet_and_node(diameter):
     grid = grid_layout(disc_geometry(diameter))  # raises if a joint or triplet differs from the geometry's
     assert grid.masks.sum(axis=1).tolist() == [44, 44, 37, 37, 36, 36, 52]
-    assert len(set(grid.slot.tolist())) == 52
+    assert len(set(grid.slot.tolist())) == 52 and grid.quad.shape == (13, 4)
 
 
 def test_grid_layout_refuses_a_geometry_it_does_not_match():

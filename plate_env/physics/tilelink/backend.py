@@ -224,15 +224,18 @@ class TileLinkPhysics:
 
 def run_v2_arrays(prm: np.ndarray, blocks: np.ndarray, rest: np.ndarray, geom, grid, spacing: np.ndarray
                   ) -> dict[str, np.ndarray]:
-    """Run the v2 point-mass kernel on prepared arrays: ``blocks`` (B, 4, 16, 16) damper blocks, ``grid`` the
+    """Run the v2 point-mass kernel on prepared arrays: ``blocks`` (B, 4, K, K) damper blocks, ``grid`` the
     :class:`GridLayout` of ``geom``, ``spacing`` (B,) each probe's grid spacing, m."""
     from plate_env.physics.tilelink import kernels_v2 as k2
 
     out = allocate_outputs(prm)
     pair_rest = spacing[:, None] * np.array([1.0, 1.0, math.sqrt(2.0), math.sqrt(2.0)])
     kernel = k2.pointmass_batch_serial if len(prm) == 1 else k2.pointmass_batch_parallel
-    kernel(prm, blocks, grid.slot, grid.masks, pair_rest, rest, geom.cells, out["yaw"], out["cu"], out["cv"],
-           out["status"], out["nrec"])
+    if grid.quad.shape[0] != k2.QUAD:
+        raise ValueError(f"the v2 kernel needs {k2.QUAD} mirror orbits of nodes, the geometry has "
+                         f"{grid.quad.shape[0]}")
+    kernel(prm, blocks, grid.slot, grid.quad, grid.masks, pair_rest, rest, geom.cells, out["yaw"], out["cu"],
+           out["cv"], out["status"], out["nrec"])
     return out
 
 

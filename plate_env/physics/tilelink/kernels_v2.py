@@ -4,9 +4,9 @@ Why another layout (measured, ``experiments/results/bench_kernel.md``): v1 loops
 triplets) that read and write nodes through indices; on this machine's compiler and CPU such loops stay scalar
 (gathers are not chosen). Here the state is ``(3, G)`` over the slots of the 8 x 8 grid the 52 nodes sit on
 (slot ``8 j + i`` at column i, row j, with ``PAD`` empty slots on both sides), so every joint, triplet and node
-loop is a shifted, contiguous, elementwise operation over the 64 slots that the compiler vectorises; masks
+loop is a shifted, contiguous, elementwise operation over the 64 slots, which the compiler can vectorise; masks
 zero the slots and pairs that do not exist. The implicit bending damper is applied in the symmetry basis of the
-grid's two mirror flips: four blocks of 16 x 16 instead of a dense 52 x 52 matrix.
+grid's two mirror flips: four blocks of 13 x 13 instead of a dense 52 x 52 matrix.
 
 Arithmetic is plain IEEE-754 (no fastmath: no reassociation, no FMA contraction, no approximate functions) and
 each sum runs in a fixed order, so the same inputs give bit-identical traces in any process, compiled or loaded
@@ -61,6 +61,8 @@ PAIR_OFFSETS = (1, SIDE, SIDE + 1, SIDE - 1)
 TRIPLET_OFFSETS = (1, SIDE)
 #: Rows of the mask array: the four joint directions, the two triplet directions, the nodes.
 M_NODE = 6
+#: Orbits of four mirror images that the 52 nodes form (a constant, so the damper's loops have a known length).
+QUAD = 13
 
 _ENV = {"cache": True, "error_model": "numpy"}
 
@@ -109,43 +111,32 @@ def grid_forces(x, v, f, masks, pair_rest, m, grav, kb, kin, cin, kap, fp):
 
 
 @numba.njit(inline="always", **_ENV)
-def grid_damper(vs, v, blocks, z, w):
-    """``v = A vs`` with ``A`` the implicit damper as four parity blocks over the quadrant's 16 slots
-    (``blocks[p, q, o]``: block p's entry (o, q); zero where a slot is empty); ``z``, ``w`` (4, 3, 16): scratch.
-
-    Quadrant slot ``(r, c)`` (r, c < 4) stands for grid slots (r, c), (r, 7-c), (7-r, c), (7-r, 7-c)."""
-    for r in range(4):
-        for c in range(4):
-            q = 4 * r + c
-            sa = PAD + SIDE * r + c
-            sb = PAD + SIDE * r + (SIDE - 1 - c)
-            sc = PAD + SIDE * (SIDE - 1 - r) + c
-            se = PAD + SIDE * (SIDE - 1 - r) + (SIDE - 1 - c)
-            for d in range(3):
-                z[0, d, q] = 0.5 * ((vs[d, sa] + vs[d, sb]) + (vs[d, sc] + vs[d, se]))
-                z[1, d, q] = 0.5 * ((vs[d, sa] - vs[d, sb]) + (vs[d, sc] - vs[d, se]))
-                z[2, d, q] = 0.5 * ((vs[d, sa] + vs[d, sb]) - (vs[d, sc] + vs[d, se]))
-                z[3, d, q] = 0.5 * ((vs[d, sa] - vs[d, sb]) - (vs[d, sc] - vs[d, se]))
+def grid_damper(vs, v, blocks, quad, z, w):
+    """``v = A vs`` with ``A`` the implicit damper as four parity blocks over the ``QUAD`` orbits of four mirror
+    images: ``quad`` (QUAD, 4) their slots (a node, its mirror in u, in v, in both), ``blocks[p, q, o]`` block
+    p's entry (o, q); ``z``, ``w`` (4, 3, QUAD): scratch."""
+    for k in range(QUAD):
+        sa, sb, sc, se = quad[k, 0], quad[k, 1], quad[k, 2], quad[k, 3]
+        for d in range(3):
+            z[0, d, k] = 0.5 * ((vs[d, sa] + vs[d, sb]) + (vs[d, sc] + vs[d, se]))
+            z[1, d, k] = 0.5 * ((vs[d, sa] - vs[d, sb]) + (vs[d, sc] - vs[d, se]))
+            z[2, d, k] = 0.5 * ((vs[d, sa] + vs[d, sb]) - (vs[d, sc] + vs[d, se]))
+            z[3, d, k] = 0.5 * ((vs[d, sa] - vs[d, sb]) - (vs[d, sc] - vs[d, se]))
     for p in range(4):
         for d in range(3):
-            for o in range(16):
+            for o in range(QUAD):
                 w[p, d, o] = 0.0
-            for q in range(16):
+            for q in range(QUAD):
                 zq = z[p, d, q]
-                for o in range(16):
+                for o in range(QUAD):
                     w[p, d, o] += blocks[p, q, o] * zq
-    for r in range(4):
-        for c in range(4):
-            q = 4 * r + c
-            sa = PAD + SIDE * r + c
-            sb = PAD + SIDE * r + (SIDE - 1 - c)
-            sc = PAD + SIDE * (SIDE - 1 - r) + c
-            se = PAD + SIDE * (SIDE - 1 - r) + (SIDE - 1 - c)
-            for d in range(3):
-                v[d, sa] = 0.5 * ((w[0, d, q] + w[1, d, q]) + (w[2, d, q] + w[3, d, q]))
-                v[d, sb] = 0.5 * ((w[0, d, q] - w[1, d, q]) + (w[2, d, q] - w[3, d, q]))
-                v[d, sc] = 0.5 * ((w[0, d, q] + w[1, d, q]) - (w[2, d, q] + w[3, d, q]))
-                v[d, se] = 0.5 * ((w[0, d, q] - w[1, d, q]) - (w[2, d, q] - w[3, d, q]))
+    for k in range(QUAD):
+        sa, sb, sc, se = quad[k, 0], quad[k, 1], quad[k, 2], quad[k, 3]
+        for d in range(3):
+            v[d, sa] = 0.5 * ((w[0, d, k] + w[1, d, k]) + (w[2, d, k] + w[3, d, k]))
+            v[d, sb] = 0.5 * ((w[0, d, k] - w[1, d, k]) + (w[2, d, k] - w[3, d, k]))
+            v[d, sc] = 0.5 * ((w[0, d, k] + w[1, d, k]) - (w[2, d, k] + w[3, d, k]))
+            v[d, se] = 0.5 * ((w[0, d, k] - w[1, d, k]) - (w[2, d, k] - w[3, d, k]))
 
 
 @numba.njit(inline="always", **_ENV)
@@ -187,11 +178,12 @@ def grid_contact(x, v, masks, fsp, prm, th_dot, xp_dot, s_th, c_th):
 
 
 @numba.njit(**_ENV)
-def pointmass_probe(prm, blocks, slot, masks, pair_rest, rest, cells, yaw_out, cu_out, cv_out):
+def pointmass_probe(prm, blocks, slot, quad, masks, pair_rest, rest, cells, yaw_out, cu_out, cv_out):
     """Simulate one point-mass probe; fills the traces and returns (status, records written).
 
     ``slot`` (N,): each node's slot in the padded grid; ``masks`` (7, G): joints per direction, triplets per
-    direction, nodes; ``pair_rest`` (4,): rest length per joint direction, m; ``blocks``: see :func:`grid_damper`.
+    direction, nodes; ``pair_rest`` (4,): rest length per joint direction, m; ``blocks``, ``quad``: see
+    :func:`grid_damper` (:class:`plate_env.physics.tilelink.pointmass.GridLayout` builds them).
     """
     n = rest.shape[0]
     g = masks.shape[1]
@@ -202,8 +194,8 @@ def pointmass_probe(prm, blocks, slot, masks, pair_rest, rest, cells, yaw_out, c
     fsp = np.zeros(g)
     kap = np.zeros((2, 3, g))
     fp = np.zeros((4, 3, g))
-    z = np.empty((4, 3, 16))
-    w = np.empty((4, 3, 16))
+    z = np.empty((4, 3, QUAD))
+    w = np.empty((4, 3, QUAD))
     pos = np.empty((n, 3))
     dt = prm[P_DT]
     step_m = dt / prm[P_MASS]
@@ -243,7 +235,7 @@ def pointmass_probe(prm, blocks, slot, masks, pair_rest, rest, cells, yaw_out, c
         for d in range(3):
             for s in range(PAD, PAD + SLOTS):
                 vs[d, s] = v[d, s] + step_m * f[d, s]
-        grid_damper(vs, v, blocks, z, w)
+        grid_damper(vs, v, blocks, quad, z, w)
         grid_contact(x, v, masks, fsp, prm, th_dot, xp_dot, s_th, c_th)
         for d in range(3):
             for s in range(PAD, PAD + SLOTS):
@@ -252,22 +244,22 @@ def pointmass_probe(prm, blocks, slot, masks, pair_rest, rest, cells, yaw_out, c
 
 
 @numba.njit(parallel=True, **_ENV)
-def pointmass_batch_parallel(prm, blocks, slot, masks, pair_rest, rest, cells, yaw_out, cu_out, cv_out, status_out,
-                             nrec_out):
+def pointmass_batch_parallel(prm, blocks, slot, quad, masks, pair_rest, rest, cells, yaw_out, cu_out, cv_out,
+                             status_out, nrec_out):
     """Run a batch of probes over threads (one probe per iteration; each as :func:`pointmass_probe` alone)."""
     for b in numba.prange(prm.shape[0]):
-        s, r = pointmass_probe(prm[b], blocks[b], slot, masks, pair_rest[b], rest[b], cells, yaw_out[b], cu_out[b],
-                               cv_out[b])
+        s, r = pointmass_probe(prm[b], blocks[b], slot, quad, masks, pair_rest[b], rest[b], cells, yaw_out[b],
+                               cu_out[b], cv_out[b])
         status_out[b] = s
         nrec_out[b] = r
 
 
 @numba.njit(**_ENV)
-def pointmass_batch_serial(prm, blocks, slot, masks, pair_rest, rest, cells, yaw_out, cu_out, cv_out, status_out,
-                           nrec_out):
+def pointmass_batch_serial(prm, blocks, slot, quad, masks, pair_rest, rest, cells, yaw_out, cu_out, cv_out,
+                           status_out, nrec_out):
     """The same batch on the calling thread."""
     for b in range(prm.shape[0]):
-        s, r = pointmass_probe(prm[b], blocks[b], slot, masks, pair_rest[b], rest[b], cells, yaw_out[b], cu_out[b],
-                               cv_out[b])
+        s, r = pointmass_probe(prm[b], blocks[b], slot, quad, masks, pair_rest[b], rest[b], cells, yaw_out[b],
+                               cu_out[b], cv_out[b])
         status_out[b] = s
         nrec_out[b] = r

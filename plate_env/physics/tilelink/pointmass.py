@@ -113,11 +113,14 @@ class GridLayout:
     """The disc's nodes on the padded 8 x 8 grid of the v2 kernel (:mod:`kernels_v2`).
 
     ``slot`` (N,): each node's index in the padded slot array; ``masks`` (7, G): 1 where a joint leaves a slot in
-    each of the four directions, where a triplet is centred in each of the two, and where a node sits.
+    each of the four directions, where a triplet is centred in each of the two, and where a node sits; ``quad``
+    (N/4, 4): the slots of each orbit of four mirror images (a node with u < 0, v < 0, its mirror in u, in v, in
+    both), in the order of the damper blocks' rows.
     """
 
     slot: np.ndarray
     masks: np.ndarray
+    quad: np.ndarray
 
 
 def grid_layout(geom: DiscGeometry) -> GridLayout:
@@ -154,31 +157,33 @@ def grid_layout(geom: DiscGeometry) -> GridLayout:
     assert found["diagonals"] == {frozenset(map(int, e)) for e in geom.diagonals}, "diagonals do not match the grid"
     assert found["triplets"] == {(frozenset((int(a), int(c))), int(b)) for a, b, c in geom.triplets}, \
         "triplets do not match the grid"
-    return GridLayout(slot=slot, masks=masks)
+    half = side // 2
+    quad = [[k2.PAD + side * rr + cc for rr, cc in ((r, c), (r, side - 1 - c), (side - 1 - r, c),
+                                                   (side - 1 - r, side - 1 - c))]
+            for r in range(half) for c in range(half) if (c, r) in node_at]
+    quad_arr = np.asarray(quad, dtype=np.int64)
+    assert sorted(quad_arr.ravel().tolist()) == sorted(slot.tolist()), "the nodes are not mirror symmetric"
+    return GridLayout(slot=slot, masks=masks, quad=quad_arr)
 
 
 def grid_damping_blocks(params: PointMassParams, dt: float) -> np.ndarray:
-    """The implicit damper ``(I + dt eta k_b / m L)^-1`` in the v2 kernel's layout (4, 16, 16): one block per
-    parity of the grid's mirror flips over the quadrant's 16 slots, ``[p, q, o]`` block p's entry (o, q), zero
-    where a slot is empty.
+    """The implicit damper ``(I + dt eta k_b / m L)^-1`` in the v2 kernel's layout (4, K, K): one block per
+    parity of the grid's mirror flips over the K orbits of :attr:`GridLayout.quad`, ``[p, q, o]`` block p's
+    entry (o, q).
 
-    ``L`` commutes with both flips, so in the orthonormal basis ``1/2 sum_k s_pk e_{orbit[k]}`` of each orbit of
-    four mirror images ``I + c L`` is block diagonal and each block is inverted on its own.
+    ``L`` commutes with both flips, so in the orthonormal basis ``1/2 sum_k s_pk e_{orbit[k]}`` of each orbit
+    ``I + c L`` is block diagonal and each block is inverted on its own.
     """
     geom = params.geom
     n = geom.n_nodes
     a = np.eye(n) + dt * params.eta_bending * params.k_bending / params.node_mass * params.laplacian
-    cols = np.rint(geom.rest[:, 0] / geom.spacing + 3.5).astype(np.int64)
-    rows = np.rint(geom.rest[:, 1] / geom.spacing + 3.5).astype(np.int64)
-    node_at = {(int(r), int(c)): k for k, (r, c) in enumerate(zip(rows, cols, strict=True))}
-    real = [q for q in range(16) if (q // 4, q % 4) in node_at]
-    blocks = np.zeros((4, 16, 16))
+    layout = grid_layout(geom)
+    node_of = {int(s): k for k, s in enumerate(layout.slot)}
+    blocks = np.zeros((4, len(layout.quad), len(layout.quad)))
     for p, signs in enumerate(PARITY_SIGNS):
-        basis = np.zeros((n, len(real)))
-        for col, q in enumerate(real):
-            r, c = q // 4, q % 4
-            for sign, rc in zip(signs, ((r, c), (r, 7 - c), (7 - r, c), (7 - r, 7 - c)), strict=True):
-                basis[node_at[rc], col] = 0.5 * sign
-        inv = np.linalg.inv(basis.T @ a @ basis)
-        blocks[p][np.ix_(real, real)] = inv.T
+        basis = np.zeros((n, len(layout.quad)))
+        for o, members in enumerate(layout.quad):
+            for sign, member in zip(signs, members, strict=True):
+                basis[node_of[int(member)], o] = 0.5 * sign
+        blocks[p] = np.linalg.inv(basis.T @ a @ basis).T
     return blocks
