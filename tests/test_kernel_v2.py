@@ -20,7 +20,7 @@ from plate_env.physics.tilelink.pointmass import (
     grid_layout,
     implicit_damping_matrix,
 )
-from plate_env.sweeps import backend_tag
+from plate_env.run.sweeps import backend_tag
 
 #: omega_B (deg/s) and its standard error from v1 (the code of main at 284a76f, unchanged) for the probes of
 #: ``reference_probes``, recorded on the project machine by experiments/bench_kernel.py

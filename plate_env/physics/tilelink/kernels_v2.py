@@ -22,7 +22,7 @@ import math
 import numba
 import numpy as np
 
-from plate_env.physics.base import Status
+from plate_env.core.probe import Status
 from plate_env.physics.tilelink.contact import CONTACT_EXPONENT
 from plate_env.physics.tilelink.kernels import plate_state, record
 from plate_env.physics.tilelink.params import (
