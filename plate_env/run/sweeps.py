@@ -26,12 +26,12 @@ from plate_env.run.executor import (
 
 #: Backend settings that change results and so enter the cache key (each where the backend has it).
 TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact", "record_interval_s",
-                "slip_limit", "k_elastic", "stderr_tol_deg_s", "rho", "corr_hz")
+                "slip_limit", "k_elastic", "stderr_tol_deg_s", "rho", "corr_hz", "kernel")
 #: Settings named in the key only when they differ from this default: they became options after caches of the
-#: default existed, which stay valid (tilelink ``slip_limit``, pybullet ``k_elastic`` and ``stderr_tol_deg_s``, the
-#: atlas's ``instability_rho`` and ``instability_corr_hz``, kept as ``rho`` and ``corr_hz``).
+#: default existed, which stay valid (tilelink ``slip_limit`` and ``kernel``, pybullet ``k_elastic`` and
+#: ``stderr_tol_deg_s``, the atlas's ``instability_rho`` and ``instability_corr_hz``, kept as ``rho`` and ``corr_hz``).
 TAG_DEFAULTS = {"record_interval_s": 1e-3, "slip_limit": SLIP_LIMIT_M, "k_elastic": None, "stderr_tol_deg_s": None,
-                "rho": 0.0, "corr_hz": 2.0}
+                "rho": 0.0, "corr_hz": 2.0, "kernel": "v1"}
 
 
 def backend_tag(physics: Physics | BackendSpec) -> str:
