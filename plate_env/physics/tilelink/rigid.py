@@ -91,6 +91,15 @@ class RigidTileConfig:
 #: and against dt: ``experiments/results/bench_models.md``).
 RIGID_LIMIT_CONFIG = RigidTileConfig(omega_rigid=40000.0, iterations=4)
 
+#: ``model="rigid_fast"`` (issue 26): the held rows near their rigid limit integrated by many small steps with one
+#: Gauss-Seidel sweep each (the velocity-level form of XPBD's compliant constraints, Macklin et al. 2019: "one
+#: iteration per substep"), at :data:`params.DEFAULT_DT` ``["rigid_fast"]``. Chosen by measurement against the
+#: converged rigid limit; its accuracy, speed and the routes that failed: ``experiments/results/rigid_fast.md``.
+RIGID_FAST_CONFIG = RigidTileConfig(omega_rigid=20000.0, iterations=1)
+
+#: Each rigid-tile model's joint and solver values.
+MODEL_CONFIGS = {"rigid": RigidTileConfig(), "rigid_limit": RIGID_LIMIT_CONFIG, "rigid_fast": RIGID_FAST_CONFIG}
+
 
 @dataclass(frozen=True)
 class RigidTileParams:
