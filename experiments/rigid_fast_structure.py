@@ -25,7 +25,7 @@ import plate_env as pe
 from plate_env.physics.base import ProbeSpec
 from plate_env.physics.tilelink import rigid
 from plate_env.physics.tilelink import rigid_kernels as rk
-from plate_env.physics.tilelink.params import P_NSTEPS
+from plate_env.physics.tilelink.params import DEFAULT_DT, P_NSTEPS
 
 
 @numba.njit(cache=True)
@@ -72,9 +72,9 @@ def exact_solve(dt: float = 1e-4) -> dict:
         _band_solve(lb, b.copy(), bw)
     per = (time.perf_counter() - t0) / reps
     spec = ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(20.0, 3.0, 3.0))
-    rk.run_rigid_arrays([spec], dt=5e-5, config=rigid.RIGID_FAST_CONFIG, parallel=False)
+    rk.run_rigid_arrays([spec], dt=DEFAULT_DT["rigid_fast"], config=rigid.RIGID_FAST_CONFIG, parallel=False)
     t0 = time.perf_counter()
-    run = rk.run_rigid_arrays([spec], dt=5e-5, config=rigid.RIGID_FAST_CONFIG, parallel=False)
+    run = rk.run_rigid_arrays([spec], dt=DEFAULT_DT["rigid_fast"], config=rigid.RIGID_FAST_CONFIG, parallel=False)
     step_us = 1e6 * (time.perf_counter() - t0) / run["prm"][0, P_NSTEPS]
     return {"rows": n, "bandwidth_rcm": bw, "rigid_fast_step_us_same_run": step_us,
             "factor_band_entries": int(n * (bw + 1)),
@@ -111,7 +111,7 @@ def bend_angles() -> dict:
     cases = [(10.0, 22.0, 3.0), (10.0, 26.0, 3.0), (33.0, 28.0, 3.0), (10.0, 13.0, 12.0)]
     specs = [ProbeSpec(obj=pe.ObjectSpec.from_paper(wn, 36.9), motion=pe.PlateMotion.from_paper(f, a, 3.0))
              for wn, f, a in cases]
-    out = rk.run_rigid_arrays(specs, dt=5e-5, config=rigid.RIGID_FAST_CONFIG)
+    out = rk.run_rigid_arrays(specs, dt=DEFAULT_DT["rigid_fast"], config=rigid.RIGID_FAST_CONFIG)
     return {f"{wn:g}pi_{f:g}Hz_{a:g}deg": round(math.degrees(out["diag"][b, 1]), 2)
             for b, (wn, f, a) in enumerate(cases)}
 
