@@ -3,7 +3,8 @@
 * Exact velocity-level solve of the joint system with its fixed sparsity: the 5 rows x 88 joints system
   ``A = J M^-1 J^T + Gamma`` (rest geometry, the rows as backward-Euler spring-dampers at dt), reordered by reverse
   Cuthill-McKee; the nonzeros of its Cholesky factor give the flops of one forward/backward solve, timed here in
-  numba, with a whole `rigid_fast` step (one contact and one joint sweep) timed in the same run.
+  numba, with a whole `rigid_fast` step timed in the same run, split into its fixed part (frames, contact
+  detection, warm start, records) and one more sweep (contacts + joints).
 * Reduced coordinates: the null space of the held rows' rest Jacobian (rows 1, 2, 4 of each joint): its dimension
   in plane and out of plane, and how dense an orthonormal basis is (a dense basis maps 312 tile velocities to the
   reduced ones at 2 x 312 x r flops per use); where the nearly-constant Jacobian stops holding is read from the
@@ -44,6 +45,22 @@ def _band_solve(lb, b, bw):
         b[i] = s / lb[i, 0]
 
 
+def _step_us(sweeps: int) -> float:
+    """Wall microseconds of one rigid_fast step with ``sweeps`` sweeps (median of 3, one probe, 10pi at 20 Hz)."""
+    from dataclasses import replace
+
+    spec = ProbeSpec(obj=pe.ObjectSpec.from_paper(10.0, 36.9), motion=pe.PlateMotion.from_paper(20.0, 3.0, 3.0),
+                     settle_s=0.1, measure_s=0.3)
+    cfg = replace(rigid.RIGID_FAST_CONFIG, iterations=sweeps)
+    rk.run_rigid_arrays([spec], dt=DEFAULT_DT["rigid_fast"], config=cfg, parallel=False)
+    times = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        run = rk.run_rigid_arrays([spec], dt=DEFAULT_DT["rigid_fast"], config=cfg, parallel=False)
+        times.append((time.perf_counter() - t0) / run["prm"][0, P_NSTEPS])
+    return 1e6 * float(np.median(times))
+
+
 def exact_solve(dt: float = 1e-4) -> dict:
     """Size, fill and solve time of the joint system's banded Cholesky factor at the rest geometry."""
     from scipy.sparse import csr_matrix
@@ -71,12 +88,9 @@ def exact_solve(dt: float = 1e-4) -> dict:
     for _ in range(reps):
         _band_solve(lb, b.copy(), bw)
     per = (time.perf_counter() - t0) / reps
-    spec = ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(20.0, 3.0, 3.0))
-    rk.run_rigid_arrays([spec], dt=DEFAULT_DT["rigid_fast"], config=rigid.RIGID_FAST_CONFIG, parallel=False)
-    t0 = time.perf_counter()
-    run = rk.run_rigid_arrays([spec], dt=DEFAULT_DT["rigid_fast"], config=rigid.RIGID_FAST_CONFIG, parallel=False)
-    step_us = 1e6 * (time.perf_counter() - t0) / run["prm"][0, P_NSTEPS]
-    return {"rows": n, "bandwidth_rcm": bw, "rigid_fast_step_us_same_run": step_us,
+    step_us = {sweeps: _step_us(sweeps) for sweeps in (1, 2)}
+    return {"rows": n, "bandwidth_rcm": bw, "rigid_fast_step_us_same_run": step_us[1],
+            "one_more_sweep_us": step_us[2] - step_us[1], "fixed_part_of_a_step_us": 2 * step_us[1] - step_us[2],
             "factor_band_entries": int(n * (bw + 1)),
             "factor_nonzeros": int(np.count_nonzero(np.abs(ll) > 1e-300)),
             "flops_per_solve": int(4 * n * (bw + 1)), "solve_us": 1e6 * per, "dt_s": dt}
