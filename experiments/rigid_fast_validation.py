@@ -96,17 +96,18 @@ def compare(rows: list[dict], results) -> dict:
            if not u and not v and abs(w) > 0]
     agree = float(np.mean([u == v for u, v in zip(ref_u, new_u, strict=True)]))
     ref_fit, new_fit = fits(rows, ref_w, ref_u), fits(rows, new_w, new_u)
-    df0 = {k: new_fit[k]["f0_hz"] - ref_fit[k]["f0_hz"] for k in ref_fit
-           if "f0_hz" in ref_fit[k] and "f0_hz" in new_fit.get(k, {})}
+    ref_ok = [k for k in ref_fit if "f0_hz" in ref_fit[k]]
+    df0 = {k: new_fit[k]["f0_hz"] - ref_fit[k]["f0_hz"] for k in ref_ok if "f0_hz" in new_fit.get(k, {})}
     arel = np.abs(rel) if rel else np.array([math.nan])
     summary = {"n_probes": len(rows), "n_both_stable": len(rel), "median_abs_rel": float(np.median(arel)),
                "max_abs_rel": float(np.max(arel)), "stability_agreement": agree, "f0_diff_hz": df0,
                "max_abs_f0_diff_hz": max((abs(v) for v in df0.values()), default=math.nan),
-               "n_fits_compared": len(df0), "n_fits_reference": len(ref_fit)}
+               "n_fits_compared": len(df0), "n_fits_reference": len(ref_ok),
+               "n_sweeps": len(ref_fit)}
     summary["holds"] = {
         "omega_b_median": summary["median_abs_rel"] <= TOL_MEDIAN, "omega_b_max": summary["max_abs_rel"] <= TOL_MAX,
         "stability_agreement": agree >= TOL_AGREE,
-        "fits": len(df0) == len(ref_fit) > 0 and summary["max_abs_f0_diff_hz"] <= TOL_F0}
+        "fits": len(df0) == len(ref_ok) > 0 and summary["max_abs_f0_diff_hz"] <= TOL_F0}
     probes = [{"key": r["key"], "ref": w, "ref_unstable": u, "new": n, "new_unstable": v, "new_reason": x.reason}
               for r, w, u, n, v, x in zip(rows, ref_w, ref_u, new_w, new_u, results, strict=True)]
     return {"summary": summary, "fits_reference": ref_fit, "fits_route": new_fit, "probes": probes}
@@ -153,13 +154,25 @@ def markdown(report: dict) -> str:
         s, sp = r["compare"]["summary"], r["speed"]
         lines.append(f"| {name} | {r['dt']:g} | {s['n_both_stable']} | {100 * s['median_abs_rel']:.1f} % / "
                      f"{100 * s['max_abs_rel']:.1f} % | {100 * s['stability_agreement']:.0f} % | "
-                     f"{s['max_abs_f0_diff_hz']:.2f} ({s['n_fits_compared']}/{s['n_fits_reference']} fits) | "
+                     f"{s['max_abs_f0_diff_hz']:.2f} ({s['n_fits_compared']} of {s['n_fits_reference']} fits; "
+                     f"{s['n_sweeps']} sweeps) | "
                      f"{sp['route']['one_probe_rtf']:.2f} ({sp['pointmass']['one_probe_rtf']:.1f}) | "
                      f"{sp['route']['batch32_rtf']:.2f} ({sp['pointmass']['batch32_rtf']:.1f}) | "
                      f"{sp['load_avg_1min']:.1f} |")
     lines += ["", "Routes:", ""] + [f"- {n}: {ROUTES[n][3]}" for n in report["routes"]]
+    lines += ["", "Speed as a share of the point mass's in the same run (its real-time factors on a quiet machine: "
+              "experiments/results/bench_physics.md): " + "; ".join(
+                  f"{n} {r['speed']['route']['one_probe_rtf'] / r['speed']['pointmass']['one_probe_rtf']:.3f} (one) / "
+                  f"{r['speed']['route']['batch32_rtf'] / r['speed']['pointmass']['batch32_rtf']:.3f} (batch)"
+                  for n, r in report["routes"].items())]
     for name, r in report["routes"].items():
-        lines += ["", f"## {name}: first-hump fits (f0 / b Hz / omega_max deg/s), reference -> route", ""]
+        s = r["compare"]["summary"]
+        off = [p for p in r["compare"]["probes"] if p["ref_unstable"] != p["new_unstable"]]
+        lines += ["", f"## {name}", "", f"What holds: {s['holds']} / speed {r['speed']['holds']}.", "",
+                  "Stability calls that differ (reference -> route): " + (", ".join(
+                      f"{p['key']} ({'unstable' if p['ref_unstable'] else 'stable'} -> "
+                      f"{p['new_reason'] or 'stable'})" for p in off) or "none") + ".", "",
+                  "First-hump fits (f0 Hz / b Hz / omega_max deg/s), reference -> route:", ""]
         for k, ref in r["compare"]["fits_reference"].items():
             new = r["compare"]["fits_route"].get(k, {})
             lines.append(f"- {k}: {_fit_cell(ref)} -> {_fit_cell(new)}")
