@@ -23,7 +23,7 @@ import numba
 import numpy as np
 
 import plate_env as pe
-from plate_env.physics.base import ProbeSpec
+from plate_env.core.probe import ProbeSpec
 from plate_env.physics.tilelink import rigid
 from plate_env.physics.tilelink import rigid_kernels as rk
 from plate_env.physics.tilelink.params import DEFAULT_DT, P_NSTEPS

@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 
 import plate_env as pe
-from plate_env.fitting import fit_lorentzian
-from plate_env.physics.base import ProbeSpec
+from plate_env.core.probe import ProbeSpec
+from plate_env.identify.fitting import fit_lorentzian
 from plate_env.physics.tilelink.rigid import RIGID_FAST_CONFIG, RigidTileConfig
 
 HERE = Path(__file__).resolve().parent

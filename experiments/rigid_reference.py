@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 import plate_env as pe
-from plate_env.physics.base import ProbeSpec
+from plate_env.core.probe import ProbeSpec
 
 RESULTS = Path(__file__).resolve().parent / "results"
 LINES = RESULTS / "rigid_reference.jsonl"

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 import plate_env as pe
-from plate_env.physics.base import ProbeRefused, ProbeSpec
+from plate_env.core.probe import ProbeRefused, ProbeSpec
 from plate_env.physics.tilelink import rigid
 from plate_env.physics.tilelink.params import DEFAULT_DT
 
