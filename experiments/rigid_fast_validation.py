@@ -187,7 +187,17 @@ def main() -> None:
     ap.add_argument("--routes", default=",".join(ROUTES), help="comma-separated subset of " + ", ".join(ROUTES))
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--no-structure", action="store_true")
+    ap.add_argument("--render-only", action="store_true",
+                    help="rewrite the markdown (and the structure section) from the JSON of an earlier run")
     args = ap.parse_args()
+    if args.render_only:
+        report = json.loads(OUT.with_suffix(".json").read_text())
+        if not args.no_structure:
+            report["structure"] = structure()
+        OUT.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
+        OUT.with_suffix(".md").write_text(markdown(report))
+        print(markdown(report))
+        return
     rows = load_reference()
     specs = [spec_of(r) for r in rows]
     report = {"reference_dt": rows[0]["dt_s"], "n_reference": len(rows), "routes": {}}
