@@ -75,3 +75,13 @@ def test_agrees_with_the_converged_rigid_limit_on_cheap_probes(key):
     res = pe.make_physics("tilelink", model="rigid_fast").run([spec])[0]
     assert not res.unstable
     assert res.omega_b_deg_s == pytest.approx(row["omega_b_deg_s"], rel=0.02)
+
+
+def test_a_nuisance_draw_keeps_the_models_own_solver_values():
+    from plate_env.physics.nuisance import Nuisance
+
+    for model in ("rigid", "rigid_limit", "rigid_fast"):
+        cfg = Nuisance(k_inplane=600.0).tilelink_options(model)["rigid_config"]
+        assert cfg.k_inplane == 600.0
+        assert (cfg.omega_rigid, cfg.iterations) == (rigid.MODEL_CONFIGS[model].omega_rigid,
+                                                    rigid.MODEL_CONFIGS[model].iterations)
