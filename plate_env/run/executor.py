@@ -49,7 +49,7 @@ WORKER_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THRE
 #: Executor names accepted by :func:`make_executor` (plus ``pool:N`` and ``ray://HOST:PORT``).
 EXECUTOR_NAMES = ("local", "inprocess", "pool", "ray")
 #: tilelink models that run in a process pool under the ``local`` executor.
-POOLED_TILELINK_MODELS = ("rigid", "rigid_limit")
+POOLED_TILELINK_MODELS = ("rigid", "rigid_limit", "rigid_fast")
 
 
 @dataclass(frozen=True)

@@ -40,18 +40,22 @@ from plate_env.physics.tilelink.pointmass import (
     grid_layout,
     implicit_damping_matrix,
 )
-from plate_env.physics.tilelink.rigid import RIGID_LIMIT_CONFIG, RigidTileConfig
+from plate_env.physics.tilelink.rigid import MODEL_CONFIGS, RigidTileConfig
 
-MODELS = ("pointmass", "rigid", "rigid_limit")
+MODELS = ("pointmass", "rigid", "rigid_limit", "rigid_fast")
+#: The models run by the rigid-tile kernel.
+RIGID_MODELS = ("rigid", "rigid_limit", "rigid_fast")
 #: Point-mass kernels: "v1" (dense damper, the numbers the shipped atlases were built with) and "v2" (the damper
 #: in the symmetry basis, faster; its omega_B against v1's: experiments/results/bench_kernel.md).
 KERNELS = ("v1", "v2")
 #: Largest time step measured stable for each model, s, and where: point mass, no blow-up over the 1600-probe
 #: stress map at <= 4e-4 s, 52 % ran away at 6e-4 s; rigid, every probe ran away at 4e-4 s; rigid_limit, the
-#: coarsest step measured (its rows at half the stiffness already run away at 2e-4 s).
+#: coarsest step measured (its rows at half the stiffness already run away at 2e-4 s); rigid_fast, with one sweep a
+#: step its rows ran away at 5e-5 s (experiments/results/rigid_fast.md).
 STABLE_DT = {"pointmass": (4e-4, "experiments/results/stress_tilelink_pointmass.md"),
              "rigid": (2e-4, "experiments/results/bench_models.md, rigid: omega_B against dt"),
-             "rigid_limit": (5e-5, "experiments/results/bench_models.md, rigid_limit: omega_B against dt")}
+             "rigid_limit": (5e-5, "experiments/results/bench_models.md, rigid_limit: omega_B against dt"),
+             "rigid_fast": (2.5e-5, "experiments/results/rigid_fast.md")}
 #: Probes per kernel call when a progress bar is shown.
 PROGRESS_CHUNK = 8
 
@@ -94,9 +98,11 @@ class TileLinkPhysics:
 
     Args:
         model: ``"pointmass"`` (the fast point-mass reduction, default), ``"rigid"`` (52 rigid tiles with the
-            joints' held motions as stiff rows at 5000 rad/s) or ``"rigid_limit"`` (the same tiles with the rows
+            joints' held motions as stiff rows at 5000 rad/s), ``"rigid_limit"`` (the same tiles with the rows
             in their converged rigid limit, :data:`rigid.RIGID_LIMIT_CONFIG`, at dt = 2.5e-5 s: the paper's
-            model). Their speeds and first-hump fits: ``experiments/results/bench_models.md``.
+            model) or ``"rigid_fast"`` (the same model by small steps of one sweep each,
+            :data:`rigid.RIGID_FAST_CONFIG`; accuracy, speed: ``experiments/results/rigid_fast.md``).
+            Their speeds and first-hump fits: ``experiments/results/bench_models.md``.
         dt: time step, s; None takes the model's default (:data:`params.DEFAULT_DT`; its error against
             smaller steps: ``experiments/results/bench_physics.md`` and ``bench_models.md``).
         slip_limit: centre displacement (m, plate frame) beyond which a probe is unstable (the paper: 10 mm).
@@ -137,7 +143,7 @@ class TileLinkPhysics:
         self.record_interval_s = float(record_interval_s)
         self.config = config or PointMassConfig()
         if rigid_config is None:
-            rigid_config = RIGID_LIMIT_CONFIG if model == "rigid_limit" else RigidTileConfig()
+            rigid_config = MODEL_CONFIGS.get(model, RigidTileConfig())
         self.rigid_config = rigid_config
         if not isinstance(contact, ContactLaw):
             raise TypeError(f"contact must be a ContactLaw, got {type(contact).__name__}")
@@ -161,7 +167,7 @@ class TileLinkPhysics:
 
     def run_arrays(self, probes: Sequence[ProbeSpec]) -> dict[str, np.ndarray]:
         """Run the kernel on a batch and return its raw arrays (parameters, traces, status, records)."""
-        if self.model in ("rigid", "rigid_limit"):
+        if self.model in RIGID_MODELS:
             from plate_env.physics.tilelink.rigid_kernels import run_rigid_arrays
 
             return run_rigid_arrays(probes, self.dt, self.slip_limit, config=self.rigid_config, law=self.contact,
