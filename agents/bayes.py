@@ -30,16 +30,8 @@ import numpy as np
 
 from plate_env import checks
 from plate_env.forward import ForwardModel, load_forward_model
-from plate_env.inference import (
-    blurred,
-    log_student,
-    member_coverage,
-    member_domain,
-    member_response,
-    pool,
-    probe_log_likelihood,
-    smoothed_p,
-)
+from plate_env.inference import blurred, log_student, member_domain, member_response, smoothed_p
+from plate_env.posterior_state import PosteriorState
 from plate_env.probes import ProbeTable
 from plate_env_agents.base import Agent, Probe
 
@@ -103,11 +95,13 @@ class BayesAgent(Agent):
         self.amps = list(self.tables)
         if not self.amps:
             raise ValueError(f"none of the env's amplitudes {context.amplitudes_deg} is in forward model {fm.name!r}")
-        self.inside = [member_coverage(m, self.omega, self.alpha) for m in fm.members]
-        self.lls = [np.zeros((len(self.omega), self.n_alpha)) for _ in fm.members]
-        step = math.log(self.omega[1] / self.omega[0])
-        self.blur_steps = [math.hypot(m.blur, self.blur) / step for m in fm.members]
-        self._seen = 0
+        # the design posterior: on the agent's grid, every member's likelihood on the whole grid, blurred by the
+        # agent's blur too, members compared on their own probes
+        self.state = PosteriorState(fm, grid=(self.omega, self.alpha),
+                                    blurs=[math.hypot(m.blur, self.blur) for m in fm.members],
+                                    member_rows_only=False, compare_on_common=False)
+        self.inside = self.state.inside
+        self.blur_steps = self.state.blur_steps
 
     def _table(self, member, a_p_deg: float):
         """A member's predictive over the candidate frequencies at one amplitude: (covered (n_f,), mean, spread,
@@ -124,21 +118,12 @@ class BayesAgent(Agent):
 
     # ----------------------------------------------------------------- posterior
     def _update(self, history: ProbeTable) -> None:
-        for k in range(self._seen, len(history)):
-            f, amp = float(history.f_p_hz[k]), float(history.a_p_deg[k])
-            for i, m in enumerate(self.fm.members):
-                if member_domain(m, f, amp) is not None:
-                    continue
-                mu, s, p = member_response(m, amp, self.omega, self.alpha)[0](f)
-                self.lls[i] += blurred(probe_log_likelihood(mu, s, p, float(history.omega_b_deg_s[k]),
-                                                            float(history.stderr_deg_s[k]), bool(history.unstable[k]),
-                                                            m.sigma_model, m.atlas.n_repeats), self.blur_steps[i])
-        self._seen = len(history)
+        self.state.add_table(history, start=self.state.n_probes)
 
     def posterior(self):
         """What the probes say: the forward model's posterior on the agent's grid, without the discrepancies no
         probe can reduce (a :class:`plate_env.estimate.Posterior`); the stopping rule reads it."""
-        return pool(dataclasses.replace(self.fm, sigma_eps=0.0, offset_sigma=0.0), self.omega, self.alpha, self.lls)
+        return self.state.posterior(discrepancy=False)
 
     def design_eps(self) -> tuple[float, float]:
         """(scale, nu) of the estimate's coherent discrepancy: ``design_discrepancy`` if given, else
@@ -163,20 +148,7 @@ class BayesAgent(Agent):
 
     def _member_posts(self) -> tuple[np.ndarray, np.ndarray]:
         """Unsmoothed per-member posteriors (K, n_omega, n_alpha), each normalised, and the members' weights."""
-        posts, log_z = [], []
-        for ll, inside, m in zip(self.lls, self.inside, self.fm.members, strict=True):
-            ll = np.where(inside, ll, -np.inf)
-            top = float(ll.max())
-            like = np.exp(ll - top)
-            mass = float(like.sum())
-            posts.append(like / mass)
-            log_z.append(top + math.log(mass) - math.log(max(int(inside.sum()), 1)) + math.log(m.weight))
-        log_z = np.array(log_z)
-        if self.fm.pooling == "evidence":
-            wts = np.exp(log_z - log_z.max())
-        else:
-            wts = np.array([m.weight for m in self.fm.members], dtype=float)
-        return np.array(posts), wts / wts.sum()
+        return self.state.member_posteriors()
 
     def _pooled_var(self, posts: np.ndarray, wts: np.ndarray) -> np.ndarray:
         """Variance of log omega_n of mixtures: ``posts`` (..., K, n_omega, n_alpha) unnormalised per member,

@@ -2,7 +2,7 @@
 
 Built by ``experiments/build_atlas.py`` from repeated probes of a real backend (each repeat places the disc at a
 random yaw and offset, as a real experiment would), shipped as package data (``.npz`` with provenance), and
-interpolated smoothly: tensor-product cubic splines along f_p, log omega_n and alpha (scipy's
+interpolated smoothly: tensor-product cubic splines along f_p, log omega_n and alpha (the spline of scipy's
 RegularGridInterpolator "cubic"), passing exactly through the grid values; spreads are clipped at 0 and
 instability probabilities to [0, 1] where the spline overshoots. (Its "pchip" variant would not overshoot but
 evaluates ~700x slower: 4.4 s against 6 ms for 20,000 points, measured.) Plate amplitudes are not interpolated:
@@ -196,14 +196,28 @@ def _show(name: str, value: float, hi: float | None = None, unit: bool = True) -
 
 
 def _interp(atlas: Atlas, kind: str, amp: int) -> Callable[[np.ndarray], np.ndarray]:
-    from scipy.interpolate import RegularGridInterpolator
-    from scipy.sparse.linalg import spsolve
+    """The tensor-product cubic spline scipy's ``RegularGridInterpolator(method="cubic", solver=spsolve)`` builds
+    (its ``NdBSpline``), evaluated directly at points inside the grid (the same floats, without the interpolator's
+    per-call checks). Its coefficients are kept in the disk cache (:mod:`plate_env.cache`), keyed by the atlas's
+    values and axes: the sparse solve runs once per machine, not once per process."""
+    from scipy.interpolate import NdBSpline
 
-    values = getattr(atlas, kind)[:, amp, :, :]
+    from plate_env.cache import cached_arrays, content_key
 
-    # a direct solve of the spline system: exact at the nodes (the default iterative solver leaves ~1e-6)
-    return RegularGridInterpolator((atlas.f_hz, np.log(atlas.omega_n), atlas.alpha), values, method="cubic",
-                                   solver=spsolve)
+    values = np.ascontiguousarray(getattr(atlas, kind)[:, amp, :, :], dtype=float)
+    axes = (np.asarray(atlas.f_hz, float), np.log(atlas.omega_n), np.asarray(atlas.alpha, float))
+
+    def build() -> dict[str, np.ndarray]:
+        from scipy.interpolate import RegularGridInterpolator
+        from scipy.sparse.linalg import spsolve
+
+        # a direct solve of the spline system: exact at the nodes (the default iterative solver leaves ~1e-6)
+        spl = RegularGridInterpolator(axes, values, method="cubic", solver=spsolve)._spline
+        return {"c": spl.c, "k": np.asarray(spl.k), "t0": spl.t[0], "t1": spl.t[1], "t2": spl.t[2]}
+
+    arr = cached_arrays("atlas-spline", content_key("atlas-spline", *axes, values), build)
+    spline = NdBSpline((arr["t0"], arr["t1"], arr["t2"]), np.array(arr["c"]), tuple(int(k) for k in arr["k"]))
+    return lambda xi: spline(xi)
 
 
 #: Spread (deg/s) given to grid points where no repeat was stable.

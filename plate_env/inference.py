@@ -26,7 +26,7 @@ amplitudes, one-sided data, curves without a peak; probes outside a member's atl
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -92,11 +92,22 @@ def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
 
 
 def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
-    from scipy.interpolate import CubicSpline
+    from scipy.interpolate import CubicSpline, PPoly
 
-    ff, ww, aa = np.meshgrid(atlas.f_hz, w, a, indexing="ij")
-    mean, spread, pu = atlas.predict(ff, a_p_deg, ww, aa)
-    interps = [CubicSpline(atlas.f_hz, arr, axis=0) for arr in (mean, spread, pu)]
+    from plate_env.cache import cached_arrays, content_key
+
+    def build() -> dict[str, np.ndarray]:
+        ff, ww, aa = np.meshgrid(atlas.f_hz, w, a, indexing="ij")
+        arrays = atlas.predict(ff, a_p_deg, ww, aa)
+        return {name: CubicSpline(atlas.f_hz, arr, axis=0).c for name, arr in zip(RESPONSE, arrays, strict=True)}
+
+    key = content_key("response", atlas.f_hz, atlas.a_p_deg, atlas.omega_n, atlas.alpha, atlas.mean, atlas.spread,
+                      atlas.p_unstable, float(a_p_deg), np.asarray(w, float), np.asarray(a, float))
+    coef = cached_arrays("response", key, build, mmap=True,
+                         note=f"computing the {atlas.physics}/{atlas.model} atlas's response at A_p = {a_p_deg:g} deg "
+                              f"on a {len(w)} x {len(a)} posterior grid")
+    x = np.asarray(atlas.f_hz, float)
+    interps = [PPoly.construct_fast(coef[name], x, True, 0) for name in RESPONSE]  # CubicSpline's own polynomials
     inside = _covered(atlas, w, a)
 
     def at(f_hz: float):
@@ -106,10 +117,15 @@ def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     return at, inside
 
 
+#: The atlas quantities a member's response gives (mean, spread, instability share).
+RESPONSE = ("mean", "spread", "p_unstable")
+
+
 def member_response(member: Member, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     """``(f_hz -> (mean, spread, p_unstable)), inside``: a member's atlas on the grid ``w`` x ``a`` at one amplitude
     as cubic splines along f_p (exact at the atlas's nodes; built once per atlas, amplitude and grid, kept on the
-    atlas), and the mask of grid points inside its omega_n and alpha ranges."""
+    atlas, their coefficients in the disk cache of :mod:`plate_env.cache`, keyed by the atlas's arrays, the
+    amplitude and the grid), and the mask of grid points inside its omega_n and alpha ranges."""
     key = ("response", abs(float(a_p_deg)), float(w[0]), float(w[-1]), len(w), float(a[0]), float(a[-1]), len(a))
     return member.atlas.cached(key, lambda: _response(member.atlas, abs(float(a_p_deg)), w, a))
 
@@ -243,17 +259,24 @@ def posterior(fm: ForwardModel, table: ProbeTable, n_omega: int = N_OMEGA, n_alp
 def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:
     """omega_n and alpha as posterior medians of ``fm``, with equal-tailed 68 % / 95 % intervals; a bound (``ok``
     False) when the posterior piles against the edge of the identifiable range; no estimate when a probe lies
-    outside every member's atlas (it is named, not dropped)."""
-    n_un = int(table.unstable.sum())
-    base = {"method": "atlas", "n_probes": len(table), "n_unstable": n_un, "forward": fm.name}
-    if len(table) == 0:
-        return Estimate(ok=False, reason="no probes", **base)
+    outside every member's atlas (it is named, not dropped). From scratch; :class:`plate_env.posterior_state.
+    PosteriorState` gives the same estimate probe by probe."""
     orphans = sorted({reason for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)
                       if all((reason := member_domain(m, float(f), float(amp))) is not None for m in fm.members)})
+    return atlas_estimate(fm, len(table), int(table.unstable.sum()), orphans, lambda: posterior(fm, table))
+
+
+def atlas_estimate(fm: ForwardModel, n_probes: int, n_unstable: int, orphans: Sequence[str],
+                   make_posterior: Callable[[], Posterior]) -> Estimate:
+    """The estimate of :func:`identify_atlas` from the probes' counts, the reasons of probes no member describes
+    (``orphans``: then no estimate) and the posterior (``make_posterior()``, called only when it is needed)."""
+    base = {"method": "atlas", "n_probes": n_probes, "n_unstable": n_unstable, "forward": fm.name}
+    if n_probes == 0:
+        return Estimate(ok=False, reason="no probes", **base)
     if orphans:  # probes no member describes are not dropped silently
         return Estimate(ok=False, reason="; ".join(orphans) + f": leave those probes out or use a forward model "
                         f"that describes them (not {fm.name!r})", **base)
-    post = posterior(fm, table)
+    post = make_posterior()
     om, al = post.omega(), post.alpha_marginal()
     fields = dict(omega_n=om.value, omega_n_stderr=om.stderr, omega_n_ci68=om.ci68, omega_n_ci95=om.ci95,
                   alpha=al.value, alpha_stderr=al.stderr, posterior=post, **base)
