@@ -234,6 +234,7 @@ class PlateRotationEnv(gym.Env):
                                             dtype=np.float32)
         self._obj: ObjectSpec | None = None
         self._rows: list[tuple[float, float, float, float, bool, float]] = []
+        self._obs_rows: list[np.ndarray] = []  # the observation's features of each probe in _rows
         self._results: list[ProbeResult] = []
         self._sim_s = 0.0
         self._wall_s = 0.0
@@ -264,6 +265,7 @@ class PlateRotationEnv(gym.Env):
             self._refuse_unanswerable([obj], "reset option")
         self._obj = obj
         self._rows, self._results = [], []
+        self._obs_rows = []
         self._sim_s = self._wall_s = 0.0
         self._done = False
         self._last = None
@@ -427,18 +429,26 @@ class PlateRotationEnv(gym.Env):
 
     def _obs(self) -> np.ndarray:
         obs = np.zeros(self.observation_space.shape, dtype=np.float32)
-        f_lo, f_hi = self.f_band_hz
-        m_lo, m_hi = self.measure_range_s
-        n_amp = len(self.amplitudes_deg)
-        for i, (f, a, w, se, un, win) in enumerate(self._rows[: self.max_probes]):
-            k = self.amplitudes_deg.index(min(self.amplitudes_deg, key=lambda x: abs(x - a)))
-            obs[N_FEATURES * i: N_FEATURES * (i + 1)] = (
-                2 * (f - f_lo) / (f_hi - f_lo) - 1, (2 * k + 1) / n_amp - 1 if n_amp > 1 else 0.0,
-                np.clip(w / 1000.0, -10, 10), np.clip(se / 1000.0, 0, 10), float(un),
-                2 * (win - m_lo) / (m_hi - m_lo) - 1, 1.0)
+        rows = self._rows[: self.max_probes]
+        while len(self._obs_rows) < len(rows):  # each probe's features computed once, when it is recorded
+            self._obs_rows.append(self._obs_row(*rows[len(self._obs_rows)]))
+        for i, feats in enumerate(self._obs_rows[: len(rows)]):
+            obs[N_FEATURES * i: N_FEATURES * (i + 1)] = feats
         obs[-2] = 1.0 - len(self._rows) / self.max_probes
         obs[-1] = 1.0 - self._sim_s / self.max_sim_s if self.max_sim_s else 1.0
         return np.clip(obs, -10.0, 10.0)
+
+    def _obs_row(self, f, a, w, se, un, win) -> np.ndarray:
+        """One probe's features in the observation (float32, as the observation holds them)."""
+        f_lo, f_hi = self.f_band_hz
+        m_lo, m_hi = self.measure_range_s
+        n_amp = len(self.amplitudes_deg)
+        k = self.amplitudes_deg.index(min(self.amplitudes_deg, key=lambda x: abs(x - a)))
+        row = np.zeros(N_FEATURES, dtype=np.float32)
+        row[:] = (2 * (f - f_lo) / (f_hi - f_lo) - 1, (2 * k + 1) / n_amp - 1 if n_amp > 1 else 0.0,
+                  np.clip(w / 1000.0, -10, 10), np.clip(se / 1000.0, 0, 10), float(un),
+                  2 * (win - m_lo) / (m_hi - m_lo) - 1, 1.0)
+        return row
 
     def _info(self) -> dict[str, Any]:
         info: dict[str, Any] = {"omega_n_true": self._obj.omega_n if self._obj else None,

@@ -18,6 +18,7 @@ import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -246,12 +247,29 @@ REGISTRY_FILE = "forward_models.json"
 LAB = "lab"
 
 
-def _read_registry() -> dict:
-    import json
+@functools.lru_cache(maxsize=1)
+def _registry_path():
     from importlib import resources
 
-    ref = resources.files("plate_env") / "data" / REGISTRY_FILE
-    return json.loads(ref.read_text()) if ref.is_file() else {}
+    return resources.files("plate_env") / "data" / REGISTRY_FILE
+
+
+def _read_registry() -> dict:
+    """The registry of shipped forward models (a fresh dict each call; the file is read again when it changed)."""
+    import json
+
+    ref = _registry_path()
+    try:
+        st = Path(str(ref)).stat()
+        stamp = (st.st_size, st.st_mtime_ns)
+    except OSError:  # no such file, or not a plain one (a zipped package)
+        return json.loads(ref.read_text()) if ref.is_file() else {}
+    if _REGISTRY_TEXT.get("stamp") != stamp:
+        _REGISTRY_TEXT.update(stamp=stamp, text=ref.read_text())
+    return json.loads(_REGISTRY_TEXT["text"])
+
+
+_REGISTRY_TEXT: dict = {}
 
 
 def forward_model_names() -> list[str]:

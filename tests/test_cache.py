@@ -98,3 +98,25 @@ def test_content_key_depends_on_every_byte():
     assert content_key("k", x) != content_key("k", y)
     assert content_key("k", x) != content_key("k", x.astype(np.float32))
     assert content_key("k", 3.0) != content_key("k", 12.0)
+
+
+def test_pybullet_calibration_is_read_back_and_keyed_by_object(tmp_path, monkeypatch):
+    pytest.importorskip("pybullet")
+    from plate_env.objects import ObjectSpec
+    from plate_env.physics.pybullet_sheet import calibrate
+    from plate_env.physics.pybullet_sheet.scene import SheetConfig
+
+    calls = []
+
+    def fake(obj, config, tol, max_iter):
+        calls.append(obj.omega_n)
+        return 1.0 + obj.omega_n, obj.omega_n * 1.001
+
+    monkeypatch.setenv("PLATE_ENV_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(calibrate, "_ringdown_k", fake)
+    run = calibrate.calibrated_k.__wrapped__  # past the per-process cache: the disk's
+    a, b = ObjectSpec(omega_n=40.0, alpha=0.7), ObjectSpec(omega_n=41.0, alpha=0.7)
+    first = run(a, SheetConfig())
+    assert run(a, SheetConfig()) == first == (41.0, 40.0 * 1.001) and calls == [40.0]
+    assert run(b, SheetConfig()) == (42.0, 41.0 * 1.001) and calls == [40.0, 41.0]
+    assert run(a, SheetConfig(), tol=0.01) and calls == [40.0, 41.0, 40.0]
