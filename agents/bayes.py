@@ -102,6 +102,7 @@ class BayesAgent(Agent):
                                     member_rows_only=False, compare_on_common=False)
         self.inside = self.state.inside
         self.blur_steps = self.state.blur_steps
+        self._pu: dict = {}
 
     def _table(self, member, a_p_deg: float):
         """A member's predictive over the candidate frequencies at one amplitude: (covered (n_f,), mean, spread,
@@ -161,6 +162,19 @@ class BayesAgent(Agent):
         return np.maximum(m2 - m1 ** 2, 0.0)
 
     # ----------------------------------------------------------------- design
+    def _unstable_at(self, a: float, i_f: int) -> tuple[np.ndarray, np.ndarray]:
+        """Per member, the blurred instability probability of the candidate (amplitude ``a``, frequency index
+        ``i_f``) on the grid (ones where a member does not cover it), and which members cover it; computed once
+        per episode and candidate (it depends on neither the probes nor the draws)."""
+        key = (a, i_f)
+        if key not in self._pu:
+            per = self.tables[a]
+            self._pu[key] = (
+                np.stack([np.exp(blurred(np.log(t[3][i_f]), self.blur_steps[j])) if (t is not None and t[0][i_f])
+                          else np.ones((len(self.omega), self.n_alpha)) for j, t in enumerate(per)]),
+                np.array([t is not None and bool(t[0][i_f]) for t in per]))
+        return self._pu[key]
+
     def next_probe(self, history: ProbeTable, obs=None) -> Probe | None:
         self._update(history)
         ctx = self.context
@@ -186,9 +200,7 @@ class BayesAgent(Agent):
                 if all(t is None or not t[0][i_f] for t in per):
                     continue
                 # per member: p at this candidate (members that do not cover it learn nothing from it)
-                pu = np.stack([np.exp(blurred(np.log(t[3][i_f]), self.blur_steps[j])) if (t is not None and t[0][i_f])
-                               else np.ones((len(self.omega), self.n_alpha)) for j, t in enumerate(per)])
-                covers = np.array([t is not None and bool(t[0][i_f]) for t in per])
+                pu, covers = self._unstable_at(a, i_f)
                 p_un = float(np.sum(wts * np.where(covers, (posts * pu).sum(axis=(1, 2)), 0.0)))
                 post_un = np.where(covers[:, None, None], posts * pu, posts)
                 var_un = float(self._pooled_var(post_un, wts)) if p_un > 0 else v0

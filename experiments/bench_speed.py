@@ -64,8 +64,8 @@ def m_env(quick: bool) -> dict:
         if term or trunc:
             env.reset()
     rates, ends = [], 0
-    n = 300 if quick else 2000
-    for rep in range(3 if quick else 5):
+    n = 300 if quick else 1000
+    for rep in range(3):
         env.reset(seed=rep + 1)
         t0 = time.perf_counter()
         for _ in range(n):
@@ -93,8 +93,8 @@ def m_vec(quick: bool) -> dict:
     for _ in range(20):
         venv.step(acts())
     rates, ends = [], 0
-    n = 40 if quick else 200
-    for _ in range(3 if quick else 5):
+    n = 40 if quick else 100
+    for _ in range(3):
         batch = [acts() for _ in range(n)]
         t0 = time.perf_counter()
         for a in batch:
@@ -163,7 +163,7 @@ def m_bayes(quick: bool) -> dict:
     agent = make_agent("bayes")
     run_episode(env, agent, seed=99)  # warm up (forward model, responses)
     decisions, ends, errs, probes = [], [], [], []
-    for seed in range(3 if quick else 8):
+    for seed in range(3 if quick else 5):
         t0 = time.perf_counter()
         res = run_episode(env, agent, seed=seed)
         wall = time.perf_counter() - t0
@@ -246,8 +246,7 @@ def overlay(tree: Path, tmp: Path) -> Path:
     return d
 
 
-def run_child(path: Path, args: list[str], timeout: float = 900.0) -> dict:
-    env = dict(os.environ, PYTHONPATH=str(path))
+def run_child(path: Path, args: list[str], env: dict, timeout: float = 1800.0) -> dict:
     t0 = time.perf_counter()
     done = subprocess.run([sys.executable, str(Path(__file__).resolve()), *args], capture_output=True, text=True,
                           env=env, timeout=timeout, cwd=tempfile.gettempdir())
@@ -259,43 +258,51 @@ def run_child(path: Path, args: list[str], timeout: float = 900.0) -> dict:
     return out
 
 
-def run_cli_fit(path: Path, csv: Path, forward: str) -> dict:
-    env = dict(os.environ, PYTHONPATH=str(path))
+def run_cli_fit(csv: Path, forward: str, env: dict) -> dict:
     t0 = time.perf_counter()
     done = subprocess.run([sys.executable, "-m", "plate_env", "fit", str(csv), "--forward", forward, "--json"],
-                          capture_output=True, text=True, env=env, cwd=tempfile.gettempdir(), timeout=600)
+                          capture_output=True, text=True, env=env, cwd=tempfile.gettempdir(), timeout=1800)
     wall = time.perf_counter() - t0
     if done.returncode != 0:
         return {"error": (done.stderr or done.stdout).strip()[-300:], "cli_s": wall}
     out = json.loads(done.stdout.strip().splitlines()[-1])
-    return {"cli_s": wall, "ok": out.get("ok"), "omega_n": out.get("omega_n_rad_s")}
+    return {"cli_s": wall, "ok": out.get("ok"), "omega_n": out.get("omega_n_rad_s"),
+            "stderr_lines": [line for line in done.stderr.splitlines() if line.startswith("plate-env:")][:3]}
 
 
-def measure_tree(path: Path, args, csv: Path) -> dict:
-    res: dict = {}
+def measure_steps(path: Path, args, csv: Path, cache: Path):
+    """Every measurement on one tree, as ``(name, thunk)`` steps (the driver interleaves the trees step by step, so
+    both see the same load). Its processes share one disk cache (``PLATE_ENV_CACHE_DIR``), empty at the start: the
+    ``*_cold_cache`` figures are a first use on a machine, the others a later one (a tree without the disk cache
+    computes both the same way)."""
+    env = dict(os.environ, PYTHONPATH=str(path), PLATE_ENV_CACHE_DIR=str(cache))
     q = ["--quick"] if args.quick else []
-    for name in ("start", "env", "vec", "bayes"):
-        res[name] = run_child(path, ["--measure", name, *q])
-        print(f"  {name}: {res[name]}", file=sys.stderr, flush=True)
-    # two vector-env processes at once: the aggregate of the machine's 2 cores
-    env = dict(os.environ, PYTHONPATH=str(path))
-    procs = [subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--measure", "vec", *q],
-                              stdout=subprocess.PIPE, text=True, env=env, cwd=tempfile.gettempdir())
-             for _ in range(2)]
-    outs = [json.loads(p.communicate()[0].strip().splitlines()[-1]) for p in procs]
-    res["vec2"] = {"steps_per_s": sum(o["steps_per_s"] for o in outs), "per_process": [o["steps_per_s"] for o in outs]}
-    print(f"  vec2: {res['vec2']}", file=sys.stderr, flush=True)
+    for label, name in (("start_cold_cache", "start"), ("start", "start"), ("env", "env"), ("vec", "vec"),
+                        ("bayes", "bayes")):
+        yield label, lambda name=name: run_child(path, ["--measure", name, *q], env)
+
+    def vec2() -> dict:  # two vector-env processes at once: the aggregate of the machine's 2 cores
+        procs = [subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--measure", "vec", *q],
+                                  stdout=subprocess.PIPE, text=True, env=env, cwd=tempfile.gettempdir())
+                 for _ in range(2)]
+        outs = [json.loads(p.communicate()[0].strip().splitlines()[-1]) for p in procs]
+        return {"steps_per_s": sum(o["steps_per_s"] for o in outs), "per_process": [o["steps_per_s"] for o in outs]}
+
+    yield "vec2", vec2
     names = json.loads((path / "plate_env" / "data" / "forward_models.json").read_text())
-    res["fit"] = {}
+
+    def fit(fm: str) -> dict:
+        first = run_cli_fit(csv, fm, env)
+        cli = run_cli_fit(csv, fm, env)
+        inproc = run_child(path, ["--measure", "fit", "--forward", fm, "--csv", str(csv)], env)
+        return {**cli, "cli_s_cold_cache": first["cli_s"], "progress": first.get("stderr_lines"),
+                **{k: inproc.get(k) for k in ("import_s", "identify_s", "second_identify_s")}}
+
     for fm in sorted(names):
-        cli = run_cli_fit(path, csv, fm)
-        inproc = run_child(path, ["--measure", "fit", "--forward", fm, "--csv", str(csv)])
-        res["fit"][fm] = {**cli, **{k: inproc.get(k) for k in ("import_s", "identify_s", "second_identify_s")}}
-        print(f"  fit {fm}: {res['fit'][fm]}", file=sys.stderr, flush=True)
+        yield f"fit/{fm}", lambda fm=fm: fit(fm)
     if not args.no_pybullet:
-        res["pybullet"] = run_child(path, ["--measure", "pybullet"])
-        print(f"  pybullet: {res['pybullet']}", file=sys.stderr, flush=True)
-    return res
+        yield "pybullet_cold_cache", lambda: run_child(path, ["--measure", "pybullet"], env)
+        yield "pybullet", lambda: run_child(path, ["--measure", "pybullet"], env)
 
 
 #: (label, path in a tree's results, unit, better is "higher" or "lower", the issue's goal)
@@ -305,14 +312,20 @@ FIGURES = [
     ("SB3 vec env (16, batched), two processes (2 cores)", ("vec2", "steps_per_s"), "steps/s", "higher",
      ">= 50000"),
     ("first step after gym.make (make + reset + step)", ("start", "make_to_first_step_s"), "s", "lower", "<= 0.05"),
-    ("first step alone", ("start", "first_step_s"), "s", "lower", ""),
+    ("  the same, first use on the machine (empty disk cache)", ("start_cold_cache", "make_to_first_step_s"), "s",
+     "lower", ""),
     ("first episode end (the stop step)", ("start", "first_episode_end_s"), "s", "lower", ""),
+    ("  the same, first use on the machine (empty disk cache)", ("start_cold_cache", "first_episode_end_s"), "s",
+     "lower", ""),
+    ("import gymnasium + plate_env", ("start", "import_s"), "s", "lower", ""),
     ("bayes, per decision", ("bayes", "s_per_decision"), "s", "lower", "<= 0.02"),
     ("bayes, rest of an episode (probes + estimate)", ("bayes", "rest_of_episode_s"), "s", "lower", ""),
     ("PyBullet first probe after import (env + reset + probe)", ("pybullet", "first_probe_after_import_s"), "s",
      "lower", "<= 3"),
-    ("PyBullet scene build", ("pybullet", "scene_build_s"), "s", "lower", ""),
-    ("PyBullet omega_n calibration (ring-downs)", ("pybullet", "calibration_s"), "s", "lower", ""),
+    ("  of which the omega_n calibration (ring-downs)", ("pybullet", "calibration_s"), "s", "lower", ""),
+    ("  of which scene builds", ("pybullet", "scene_build_s"), "s", "lower", ""),
+    ("  the same, first use on the machine (empty disk cache)", ("pybullet_cold_cache",
+                                                                  "first_probe_after_import_s"), "s", "lower", ""),
 ]
 
 
@@ -326,6 +339,8 @@ def get(res: dict, path: tuple) -> float | None:
 
 
 def markdown(doc: dict) -> str:
+    if "current" not in doc["trees"]:  # --no-current: the reference alone, shown as the only column
+        doc = {**doc, "commit": doc["ref"], "ref": None, "trees": {"current": doc["trees"]["ref"]}}
     ref, cur = doc["trees"].get("ref"), doc["trees"]["current"]
     cols = ["figure", "goal"] + ([f"before ({doc['ref']})"] if ref else []) + [f"after ({doc['commit']})"] + \
         (["after / before (x faster)"] if ref else [])
@@ -347,7 +362,9 @@ def markdown(doc: dict) -> str:
 
     rows = list(FIGURES)
     for fm in sorted(cur.get("fit", {})):
-        rows.append((f"`plate-env fit --forward {fm}` (cold command)", ("fit", fm, "cli_s"), "s", "lower", "<= 1"))
+        rows.append((f"`plate-env fit --forward {fm}` (whole command)", ("fit", fm, "cli_s"), "s", "lower", "<= 1"))
+        rows.append(("  the same, first use on the machine (empty disk cache)", ("fit", fm, "cli_s_cold_cache"), "s",
+                     "lower", ""))
         rows.append((f"  identify alone, {fm}", ("fit", fm, "identify_s"), "s", "lower", ""))
     for label, path, unit, better, goal in rows:
         b = get(ref, path) if ref else None
@@ -388,17 +405,26 @@ def main() -> None:
         csv = tmp / "sweep.csv"
         csv.write_text(SWEEP_CSV)
         todo = ([("ref", args.ref)] if args.ref else []) + ([] if args.no_current else [("current", None)])
+        gens = {}
         for label, ref in todo:
-            print(f"{label} ({ref or commit}):", file=sys.stderr, flush=True)
-            path = overlay(tree_path(ref, tmp), tmp)
-            doc["trees"][label] = measure_tree(path, args, csv)
+            print(f"{label}: {ref or doc['commit']}", file=sys.stderr, flush=True)
+            path = overlay(tree_path(ref if ref or dirty else "HEAD", tmp), tmp)
+            gens[label] = measure_steps(path, args, csv, tmp / f"cache-{label}")
+            doc["trees"][label] = {"fit": {}}
+        for steps in zip(*gens.values(), strict=True):  # one measurement on every tree, then the next
+            for label, (name, thunk) in zip(gens, steps, strict=True):
+                out = thunk()
+                if name.startswith("fit/"):
+                    doc["trees"][label]["fit"][name[4:]] = out
+                else:
+                    doc["trees"][label][name] = out
+                print(f"  {label} {name}: {out}", file=sys.stderr, flush=True)
     doc["load_after"] = list(os.getloadavg())
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").write_text(json.dumps(doc, indent=1) + "\n")
-    if "current" in doc["trees"]:
-        out.with_suffix(".md").write_text(markdown(doc))
-        print(markdown(doc))
+    out.with_suffix(".md").write_text(markdown(doc))
+    print(markdown(doc))
 
 
 if __name__ == "__main__":

@@ -25,6 +25,7 @@ amplitudes, one-sided data, curves without a peak; probes outside a member's atl
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -183,12 +184,22 @@ def _smooth_log_omega(prob: np.ndarray, sigma_steps: float, nu: float = math.inf
     if math.isinf(nu):
         return gaussian_filter1d(prob, sigma_steps, axis=0, mode="constant", cval=0.0, truncate=5.0)
     from scipy.signal import fftconvolve
-    from scipy.stats import t
 
     half = min(int(math.ceil(sigma_steps * 40)), prob.shape[0])
-    kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
-    kernel = (kernel / kernel.sum()).reshape((-1,) + (1,) * (prob.ndim - 1))
+    kernel = _t_kernel(half, sigma_steps, nu).reshape((-1,) + (1,) * (prob.ndim - 1))
     return np.maximum(fftconvolve(prob, kernel, mode="same", axes=0), 0.0)  # zero beyond the grid, as above
+
+
+@functools.lru_cache(maxsize=64)
+def _t_kernel(half: int, sigma_steps: float, nu: float) -> np.ndarray:
+    """The normalised Student-t kernel of :func:`_smooth_log_omega` on ``2 half + 1`` grid steps (read-only: it is
+    shared by every call with these arguments)."""
+    from scipy.stats import t
+
+    kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
+    kernel = kernel / kernel.sum()
+    kernel.flags.writeable = False
+    return kernel
 
 
 def _log_evidence(ll: np.ndarray, inside: np.ndarray, sigma_steps: float, nu: float = math.inf,
