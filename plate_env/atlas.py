@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -220,9 +221,9 @@ def _interp(atlas: Atlas, kind: str, amp: int) -> Callable[[np.ndarray], np.ndar
 
 class _TensorSpline:
     """A tensor-product B-spline (knots ``t``, coefficients ``c``, degrees ``k``) evaluated as scipy's ``NdBSpline``
-    evaluates it, operation for operation: at a few points in plain Python (no scipy import: an env's first step
-    does not wait for scipy.interpolate), at many through ``NdBSpline`` itself. tests/test_atlas.py checks that the
-    two give the same floats."""
+    evaluates it, operation for operation: at a few points in plain Python while scipy.interpolate is not imported
+    (an env's first steps do not wait for its import), otherwise through ``NdBSpline`` itself.
+    tests/test_atlas.py checks that the two give the same floats."""
 
     #: Up to this many points are evaluated in Python.
     FEW = 8
@@ -235,7 +236,8 @@ class _TensorSpline:
 
     def __call__(self, xi: np.ndarray) -> np.ndarray:
         xi = np.asarray(xi, dtype=float)
-        if xi.ndim == 2 and xi.shape[0] <= self.FEW and xi.shape[1] == len(self.t):
+        if (xi.ndim == 2 and xi.shape[0] <= self.FEW and xi.shape[1] == len(self.t)
+                and "scipy.interpolate" not in sys.modules):  # once scipy is loaded, its faster call serves
             return np.array([self.at(row) for row in xi.tolist()], dtype=float)
         if self._scipy is None:
             from scipy.interpolate import NdBSpline
