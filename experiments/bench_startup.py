@@ -24,8 +24,8 @@ import time, json
 t0 = time.perf_counter()
 import numpy as np
 from plate_env_agents import make_agent
-from plate_env.env import PlateRotationEnv
-from plate_env.protocol import ProbeContext
+from plate_env.env.rotation import PlateRotationEnv
+from plate_env.env.protocol import ProbeContext
 t1 = time.perf_counter()
 agent = make_agent("ppo")
 if {force_sb3}:

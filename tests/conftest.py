@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 import plate_env as pe
-from plate_env.atlas import Atlas, atlas_from_repeats
-from plate_env.fitting import lorentzian
+from plate_env.identify.fitting import lorentzian
+from plate_env.surrogate.atlas import Atlas, atlas_from_repeats
 
 
 def pytest_configure(config) -> None:
-    """The disk cache of spline coefficients (plate_env/cache.py) in a directory of this test session (kept out of
+    """The disk cache of spline coefficients (plate_env/core/cache.py) in a directory of this test session (kept out of
     the user's cache; shared by the session's worker processes), unless PLATE_ENV_CACHE_DIR is set."""
     import os
     import tempfile

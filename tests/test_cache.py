@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from plate_env.atlas import Atlas, load_atlas_file
-from plate_env.cache import cache_dir, content_key
+from plate_env.core.cache import cache_dir, content_key
+from plate_env.surrogate.atlas import Atlas, load_atlas_file
 
 
 def _fresh(atlas: Atlas) -> Atlas:
@@ -46,8 +46,8 @@ def test_cached_atlas_spline_equals_scipys_interpolator(atlas, tmp_path, monkeyp
 
 
 def test_response_from_cache_equals_computed_and_other_inputs_miss(atlas, tmp_path, monkeypatch):
-    from plate_env.forward import Member
-    from plate_env.inference import member_response
+    from plate_env.identify.forward import Member
+    from plate_env.identify.inference import member_response
 
     w = np.geomspace(atlas.omega_n[0], atlas.omega_n[-1], 40)
     a = np.linspace(atlas.alpha[0], atlas.alpha[-1], 5)
@@ -76,8 +76,8 @@ def test_response_from_cache_equals_computed_and_other_inputs_miss(atlas, tmp_pa
 
 
 def test_unreadable_entry_is_rebuilt(atlas, tmp_path, monkeypatch):
-    from plate_env.forward import Member
-    from plate_env.inference import member_response
+    from plate_env.identify.forward import Member
+    from plate_env.identify.inference import member_response
 
     monkeypatch.setenv("PLATE_ENV_CACHE_DIR", str(tmp_path))
     w = np.geomspace(atlas.omega_n[0], atlas.omega_n[-1], 30)
@@ -102,7 +102,7 @@ def test_content_key_depends_on_every_byte():
 
 def test_pybullet_calibration_is_read_back_and_keyed_by_object(tmp_path, monkeypatch):
     pytest.importorskip("pybullet")
-    from plate_env.objects import ObjectSpec
+    from plate_env.core.objects import ObjectSpec
     from plate_env.physics.pybullet_sheet import calibrate
     from plate_env.physics.pybullet_sheet.scene import SheetConfig
 

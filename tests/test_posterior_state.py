@@ -9,9 +9,10 @@ import pickle
 import numpy as np
 import pytest
 
-from plate_env.forward import ForwardModel, KnownInputs, Member, load_forward_model
+from plate_env.core.probe_table import ProbeTable
 from plate_env.identify import identify
-from plate_env.inference import (
+from plate_env.identify.forward import ForwardModel, Member, load_forward_model
+from plate_env.identify.inference import (
     blurred,
     identify_atlas,
     member_domain,
@@ -20,13 +21,13 @@ from plate_env.inference import (
     posterior,
     probe_log_likelihood,
 )
-from plate_env.posterior_state import PosteriorState
-from plate_env.probes import ProbeTable
+from plate_env.identify.posterior_state import PosteriorState
+from plate_env.surrogate.conditioning import KnownInputs
 
 
 def _episode_table(seed: int, n: int, amps=(3.0, 12.0), band=(10.0, 40.0)) -> ProbeTable:
     """Probes of a hidden object answered by the atlas physics (seeded), some unstable."""
-    from plate_env.env import PlateRotationEnv
+    from plate_env.env.rotation import PlateRotationEnv
 
     env = PlateRotationEnv(physics="atlas", amplitudes_deg=amps, f_band_hz=band, max_probes=n)
     env.reset(seed=seed)
@@ -120,7 +121,7 @@ def test_blurs_must_match_members():
 
 
 def test_env_episode_end_reads_the_state_and_equals_identify():
-    from plate_env.env import PlateRotationEnv
+    from plate_env.env.rotation import PlateRotationEnv
 
     env = PlateRotationEnv(physics="atlas", max_probes=5)
     env.reset(seed=11)
@@ -136,7 +137,7 @@ def test_env_episode_end_reads_the_state_and_equals_identify():
 
 
 def test_env_state_missing_forward_model_gives_reason(monkeypatch):
-    from plate_env.env import PlateRotationEnv
+    from plate_env.env.rotation import PlateRotationEnv
 
     env = PlateRotationEnv(physics="atlas", max_probes=3)
     env.reset(seed=0)
@@ -147,8 +148,8 @@ def test_env_state_missing_forward_model_gives_reason(monkeypatch):
 
 
 def test_run_episode_prefix_estimates_equal_from_scratch():
-    from plate_env.env import PlateRotationEnv
-    from plate_env.episode import estimate_model_of, estimate_of, run_episode
+    from plate_env.env.episode import estimate_model_of, estimate_of, run_episode
+    from plate_env.env.rotation import PlateRotationEnv
     from plate_env_agents import make_agent
 
     env = PlateRotationEnv(physics="atlas", max_probes=6)

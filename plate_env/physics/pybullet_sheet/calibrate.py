@@ -30,7 +30,7 @@ from importlib import resources
 
 import numpy as np
 
-from plate_env.objects import ObjectSpec
+from plate_env.core.objects import ObjectSpec
 from plate_env.physics.pybullet_sheet.scene import Client, SheetConfig, SheetScene
 
 #: Stiffness grid (N/m) of the stored calibration table.
@@ -147,13 +147,13 @@ def calibrated_k(obj: ObjectSpec, config: SheetConfig, tol: float = 0.02, max_it
     The ring-down estimate wiggles by up to ~10 % around the sqrt(k) law between table points, so the table
     value is checked by a ring-down at that k and corrected with ``k *= (target / measured)^2`` until the
     measured omega_n is within ``tol`` (at most ``max_iter`` ring-downs, ~0.5-2 s each). Once per object and
-    process, and kept in the disk cache (:mod:`plate_env.cache`) keyed by the object, the config, the tolerances,
+    process, and kept in the disk cache (:mod:`plate_env.core.cache`) keyed by the object, the config, the tolerances,
     the pybullet version and this package's PyBullet source: a new process reads it instead of running the
     ring-downs again. Returns the best pair seen.
     """
     import pybullet
 
-    from plate_env.cache import cached_arrays, content_key
+    from plate_env.core.cache import cached_arrays, content_key
 
     key = content_key("pybullet-k", repr(obj), repr(config), tol, max_iter, _source_digest(),
                       getattr(pybullet, "getAPIVersion", lambda: "?")())

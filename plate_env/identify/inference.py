@@ -32,10 +32,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from plate_env.atlas import Atlas
-from plate_env.estimate import Estimate, Posterior
-from plate_env.forward import ForwardModel, Member
-from plate_env.probes import ProbeTable
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.estimate import Estimate, Posterior
+from plate_env.identify.forward import ForwardModel, Member
+from plate_env.surrogate.atlas import Atlas
 
 #: Degrees of freedom of the Student-t likelihood of a stable probe.
 NU = 4.0
@@ -95,7 +95,7 @@ def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
 def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     from scipy.interpolate import CubicSpline, PPoly
 
-    from plate_env.cache import cached_arrays, content_key
+    from plate_env.core.cache import cached_arrays, content_key
 
     def build() -> dict[str, np.ndarray]:
         ff, ww, aa = np.meshgrid(atlas.f_hz, w, a, indexing="ij")
@@ -125,7 +125,7 @@ RESPONSE = ("mean", "spread", "p_unstable")
 def member_response(member: Member, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     """``(f_hz -> (mean, spread, p_unstable)), inside``: a member's atlas on the grid ``w`` x ``a`` at one amplitude
     as cubic splines along f_p (exact at the atlas's nodes; built once per atlas, amplitude and grid, kept on the
-    atlas, their coefficients in the disk cache of :mod:`plate_env.cache`, keyed by the atlas's arrays, the
+    atlas, their coefficients in the disk cache of :mod:`plate_env.core.cache`, keyed by the atlas's arrays, the
     amplitude and the grid), and the mask of grid points inside its omega_n and alpha ranges."""
     key = ("response", abs(float(a_p_deg)), float(w[0]), float(w[-1]), len(w), float(a[0]), float(a[-1]), len(a))
     return member.atlas.cached(key, lambda: _response(member.atlas, abs(float(a_p_deg)), w, a))
@@ -270,7 +270,7 @@ def posterior(fm: ForwardModel, table: ProbeTable, n_omega: int = N_OMEGA, n_alp
 def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:
     """omega_n and alpha as posterior medians of ``fm``, with equal-tailed 68 % / 95 % intervals; a bound (``ok``
     False) when the posterior piles against the edge of the identifiable range; no estimate when a probe lies
-    outside every member's atlas (it is named, not dropped). From scratch; :class:`plate_env.posterior_state.
+    outside every member's atlas (it is named, not dropped). From scratch; :class:`plate_env.identify.posterior_state.
     PosteriorState` gives the same estimate probe by probe."""
     orphans = sorted({reason for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)
                       if all((reason := member_domain(m, float(f), float(amp))) is not None for m in fm.members)})
@@ -392,7 +392,7 @@ def truth_log_density(post: Posterior, omega_true: float, sigma: float, nu: floa
     (``post.model_omega``, before any discrepancy) is smoothed by a discrepancy of scale ``sigma`` (at least
     ``STEP_FLOOR`` grid steps) and ``nu`` degrees of freedom, as :func:`pool` applies it; the grid is padded as
     :meth:`ForwardModel.grid` pads it. -690 (1e-300) beyond the padded grid."""
-    from plate_env.forward import pad_log
+    from plate_env.identify.forward import pad_log
 
     lw = np.log(post.omega_n)
     step = float(lw[1] - lw[0])

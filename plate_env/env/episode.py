@@ -10,9 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from plate_env.estimate import Estimate
-from plate_env.probes import ProbeTable
-from plate_env.protocol import Probe, ProbeContext
+from plate_env.core.probe_table import ProbeTable
+from plate_env.env.protocol import Probe, ProbeContext
+from plate_env.identify.estimate import Estimate
 
 
 @dataclass(frozen=True)
@@ -71,13 +71,13 @@ def estimate_of(env, table: ProbeTable, method: str, forward=None) -> Estimate:
 
 def prefix_estimates(env, table: ProbeTable, method: str, forward=None) -> tuple[Estimate, ...]:
     """``method``'s estimate after each probe of ``table`` (as :func:`estimate_of` of each prefix gives it): for the
-    atlas method from one :class:`~plate_env.posterior_state.PosteriorState` the probes are added to one by one
+    atlas method from one :class:`~plate_env.identify.posterior_state.PosteriorState` the probes are added to one by one
     (each prefix costs one pooling, not a recomputation of every probe's likelihood)."""
     if method != "atlas":
         return tuple(estimate_of(env, table.subset(np.arange(len(table)) < k), method, forward)
                      for k in range(1, len(table) + 1))
-    from plate_env.forward import load_forward_model
-    from plate_env.posterior_state import PosteriorState
+    from plate_env.identify.forward import load_forward_model
+    from plate_env.identify.posterior_state import PosteriorState
 
     e = env.unwrapped
     try:

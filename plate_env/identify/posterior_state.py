@@ -18,9 +18,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from plate_env.estimate import Estimate, Posterior
-from plate_env.forward import ForwardModel
-from plate_env.inference import (
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.estimate import Estimate, Posterior
+from plate_env.identify.forward import ForwardModel
+from plate_env.identify.inference import (
     N_ALPHA,
     N_OMEGA,
     atlas_estimate,
@@ -32,7 +33,6 @@ from plate_env.inference import (
     pool,
     probe_log_likelihood,
 )
-from plate_env.probes import ProbeTable
 
 
 class PosteriorState:

@@ -200,9 +200,9 @@ def _show(name: str, value: float, hi: float | None = None, unit: bool = True) -
 def _interp(atlas: Atlas, kind: str, amp: int) -> Callable[[np.ndarray], np.ndarray]:
     """The tensor-product cubic spline scipy's ``RegularGridInterpolator(method="cubic", solver=spsolve)`` builds
     (its ``NdBSpline``), evaluated directly at points inside the grid (the same floats, without the interpolator's
-    per-call checks). Its coefficients are kept in the disk cache (:mod:`plate_env.cache`), keyed by the atlas's
+    per-call checks). Its coefficients are kept in the disk cache (:mod:`plate_env.core.cache`), keyed by the atlas's
     values and axes: the sparse solve runs once per machine, not once per process."""
-    from plate_env.cache import cached_arrays, content_key
+    from plate_env.core.cache import cached_arrays, content_key
 
     values = np.ascontiguousarray(getattr(atlas, kind)[:, amp, :, :], dtype=float)
     axes = (np.asarray(atlas.f_hz, float), np.log(atlas.omega_n), np.asarray(atlas.alpha, float))
