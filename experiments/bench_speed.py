@@ -41,6 +41,17 @@ RESULTS = HERE / "results"
 
 
 # ------------------------------------------------------------------------------------------- measurements
+def attr(module: str, old_module: str, name: str):
+    """``module.name``, or ``old_module.name`` in a tree before the layered layout (issue 24): the measurements run
+    on earlier commits too (``--ref``), so the old path is tried by name only where the new one does not exist."""
+    import importlib
+
+    try:
+        return getattr(importlib.import_module(module), name)
+    except ImportError:
+        return getattr(importlib.import_module(old_module), name)
+
+
 # Each runs in a fresh process (``--measure NAME``) and prints one JSON line.
 def random_action(rng, stop_p: float = 0.1):
     import numpy as np
@@ -80,7 +91,7 @@ def m_env(quick: bool) -> dict:
 def m_vec(quick: bool) -> dict:
     import numpy as np
 
-    from plate_env.sb3 import make_sb3_vec_env
+    make_sb3_vec_env = attr("plate_env.env.sb3", "plate_env.sb3", "make_sb3_vec_env")
 
     n_envs = 16
     venv = make_sb3_vec_env(n_envs, seed=0, physics="atlas")
@@ -140,15 +151,16 @@ SWEEP_POINTS = "9 points at A_p = 3 deg, 10-26 Hz"
 
 def m_fit_inproc(quick: bool, forward: str, csv: str) -> dict:
     t0 = time.perf_counter()
-    from plate_env.forward import KnownInputs
     from plate_env.identify import identify
-    from plate_env.probes import read_lab_csv
+
+    known_inputs = attr("plate_env.surrogate.conditioning", "plate_env.forward", "KnownInputs")
+    read_lab_csv = attr("plate_env.core.probe_table", "plate_env.probes", "read_lab_csv")
 
     t1 = time.perf_counter()
     table = read_lab_csv(csv)
-    est = identify(table, method="atlas", forward=forward, known=KnownInputs())
+    est = identify(table, method="atlas", forward=forward, known=known_inputs())
     t2 = time.perf_counter()
-    est2 = identify(table, method="atlas", forward=forward, known=KnownInputs())
+    est2 = identify(table, method="atlas", forward=forward, known=known_inputs())
     t3 = time.perf_counter()
     return {"import_s": t1 - t0, "identify_s": t2 - t1, "second_identify_s": t3 - t2, "ok": est.ok,
             "omega_n": est.omega_n, "same_twice": est.omega_n == est2.omega_n}
@@ -156,8 +168,9 @@ def m_fit_inproc(quick: bool, forward: str, csv: str) -> dict:
 
 def m_bayes(quick: bool) -> dict:
     from plate_env.env import PlateRotationEnv
-    from plate_env.episode import run_episode
     from plate_env_agents import make_agent
+
+    run_episode = attr("plate_env.env.episode", "plate_env.episode", "run_episode")
 
     env = PlateRotationEnv(physics="atlas")
     agent = make_agent("bayes")

@@ -20,7 +20,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_speed import overlay, tree_path  # noqa: E402
+from bench_speed import attr, overlay, tree_path  # noqa: E402
 from same_numbers import diffs  # noqa: E402
 
 
@@ -28,8 +28,9 @@ def episodes(n: int) -> dict:
     import numpy as np
 
     from plate_env.env import PlateRotationEnv
-    from plate_env.episode import run_episode
     from plate_env_agents import make_agent
+
+    run_episode = attr("plate_env.env.episode", "plate_env.episode", "run_episode")
 
     def clean(x):
         return json.loads(json.dumps(x, default=lambda o: o.tolist() if hasattr(o, "tolist") else repr(o)))
