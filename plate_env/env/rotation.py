@@ -247,6 +247,7 @@ class PlateRotationEnv(gym.Env):
         self._closed = False
         self._window = None
         self._renderer = None
+        self._posterior = None  # the episode's PosteriorState (method atlas), or why there is none; built lazily
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -271,6 +272,7 @@ class PlateRotationEnv(gym.Env):
         self._sim_s = self._wall_s = 0.0
         self._done = False
         self._last = None
+        self._posterior = None
         return self._obs(), self._info()
 
     def decode_action(self, action) -> tuple[bool, ProbeSpec | None]:
@@ -386,11 +388,19 @@ class PlateRotationEnv(gym.Env):
         return ProbeTable.from_arrays(f, a, w, se, un)
 
     def estimate(self) -> Estimate:
-        """The current omega_n estimate from the probes so far."""
+        """The current omega_n estimate from the probes so far (method atlas: the episode's incremental posterior,
+        :class:`plate_env.identify.posterior_state.PosteriorState`, brought up to date with the probes not in it)."""
         from plate_env.identify import identify
 
         if not self._rows:
             return Estimate(ok=False, method=self.method, reason="no probes")
+        if self.method == "atlas":
+            state = self.posterior_state()
+            if isinstance(state, str):
+                return Estimate(ok=False, method=self.method, reason=state)
+            if state.n_probes < len(self._rows):
+                state.add_table(self.table(), start=state.n_probes)
+            return state.estimate()
         try:
             if self.calibration is not None:
                 return identify(self.table(), calibration=self.calibration, known=self.known_inputs())
@@ -398,6 +408,21 @@ class PlateRotationEnv(gym.Env):
                             known=self.known_inputs())
         except ValueError as exc:
             return Estimate(ok=False, method=self.method, reason=str(exc))
+
+    def posterior_state(self):
+        """The episode's :class:`~plate_env.identify.posterior_state.PosteriorState` on the shipped forward model of
+        this env's physics, conditioned on the episode's known inputs (probes are added by :meth:`estimate`), or the
+        reason there is none (a str)."""
+        if self._posterior is None:
+            from plate_env.identify.forward import load_forward_model
+            from plate_env.identify.posterior_state import PosteriorState
+
+            try:
+                self._posterior = PosteriorState(load_forward_model(f"{self.source}/{self.model}",
+                                                                    self.known_inputs()))
+            except ValueError as exc:
+                self._posterior = str(exc)
+        return self._posterior
 
     def known_inputs(self) -> KnownInputs:
         """What a lab would know of this episode's set-up: B_p and the disc's mass and diameter (weighed and
@@ -461,6 +486,7 @@ class PlateRotationEnv(gym.Env):
         state["physics"] = None
         state["_window"] = None
         state["_renderer"] = None
+        state["_posterior"] = None  # rebuilt from the probes when needed
         return state
 
     def __setstate__(self, state):

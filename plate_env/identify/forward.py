@@ -34,6 +34,7 @@ PAD_SIGMAS = 3.0
 PAD_MAX_LOG = math.log(1000.0)
 
 
+@functools.lru_cache(maxsize=64)
 def pad_sigmas(nu: float) -> float:
     """How many discrepancy scales the grid reaches beyond the models' range for a discrepancy with ``nu`` degrees
     of freedom (inf: normal)."""

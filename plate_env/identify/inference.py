@@ -25,8 +25,9 @@ amplitudes, one-sided data, curves without a peak; probes outside a member's atl
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -92,11 +93,22 @@ def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
 
 
 def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
-    from scipy.interpolate import CubicSpline
+    from scipy.interpolate import CubicSpline, PPoly
 
-    ff, ww, aa = np.meshgrid(atlas.f_hz, w, a, indexing="ij")
-    mean, spread, pu = atlas.predict(ff, a_p_deg, ww, aa)
-    interps = [CubicSpline(atlas.f_hz, arr, axis=0) for arr in (mean, spread, pu)]
+    from plate_env.core.cache import cached_arrays, content_key
+
+    def build() -> dict[str, np.ndarray]:
+        ff, ww, aa = np.meshgrid(atlas.f_hz, w, a, indexing="ij")
+        arrays = atlas.predict(ff, a_p_deg, ww, aa)
+        return {name: CubicSpline(atlas.f_hz, arr, axis=0).c for name, arr in zip(RESPONSE, arrays, strict=True)}
+
+    key = content_key("response", atlas.f_hz, atlas.a_p_deg, atlas.omega_n, atlas.alpha, atlas.mean, atlas.spread,
+                      atlas.p_unstable, float(a_p_deg), np.asarray(w, float), np.asarray(a, float))
+    coef = cached_arrays("response", key, build, mmap=True,
+                         note=f"computing the {atlas.physics}/{atlas.model} atlas's response at A_p = {a_p_deg:g} deg "
+                              f"on a {len(w)} x {len(a)} posterior grid")
+    x = np.asarray(atlas.f_hz, float)
+    interps = [PPoly.construct_fast(coef[name], x, True, 0) for name in RESPONSE]  # CubicSpline's own polynomials
     inside = _covered(atlas, w, a)
 
     def at(f_hz: float):
@@ -106,10 +118,15 @@ def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     return at, inside
 
 
+#: The atlas quantities a member's response gives (mean, spread, instability share).
+RESPONSE = ("mean", "spread", "p_unstable")
+
+
 def member_response(member: Member, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     """``(f_hz -> (mean, spread, p_unstable)), inside``: a member's atlas on the grid ``w`` x ``a`` at one amplitude
     as cubic splines along f_p (exact at the atlas's nodes; built once per atlas, amplitude and grid, kept on the
-    atlas), and the mask of grid points inside its omega_n and alpha ranges."""
+    atlas, their coefficients in the disk cache of :mod:`plate_env.core.cache`, keyed by the atlas's arrays, the
+    amplitude and the grid), and the mask of grid points inside its omega_n and alpha ranges."""
     key = ("response", abs(float(a_p_deg)), float(w[0]), float(w[-1]), len(w), float(a[0]), float(a[-1]), len(a))
     return member.atlas.cached(key, lambda: _response(member.atlas, abs(float(a_p_deg)), w, a))
 
@@ -167,12 +184,22 @@ def _smooth_log_omega(prob: np.ndarray, sigma_steps: float, nu: float = math.inf
     if math.isinf(nu):
         return gaussian_filter1d(prob, sigma_steps, axis=0, mode="constant", cval=0.0, truncate=5.0)
     from scipy.signal import fftconvolve
-    from scipy.stats import t
 
     half = min(int(math.ceil(sigma_steps * 40)), prob.shape[0])
-    kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
-    kernel = (kernel / kernel.sum()).reshape((-1,) + (1,) * (prob.ndim - 1))
+    kernel = _t_kernel(half, sigma_steps, nu).reshape((-1,) + (1,) * (prob.ndim - 1))
     return np.maximum(fftconvolve(prob, kernel, mode="same", axes=0), 0.0)  # zero beyond the grid, as above
+
+
+@functools.lru_cache(maxsize=64)
+def _t_kernel(half: int, sigma_steps: float, nu: float) -> np.ndarray:
+    """The normalised Student-t kernel of :func:`_smooth_log_omega` on ``2 half + 1`` grid steps (read-only: it is
+    shared by every call with these arguments)."""
+    from scipy.stats import t
+
+    kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
+    kernel = kernel / kernel.sum()
+    kernel.flags.writeable = False
+    return kernel
 
 
 def _log_evidence(ll: np.ndarray, inside: np.ndarray, sigma_steps: float, nu: float = math.inf,
@@ -320,17 +347,25 @@ def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:
     False) when the posterior piles against the edge of the identifiable range; no estimate when a probe lies
     outside every member's atlas (it is named, not dropped), when the probes fail the predictive check
     (:func:`predictive_check`: data the model cannot explain) or when alpha piles against the edge of the
-    friction angles the model covers (:meth:`Posterior.alpha_edge`). The estimate carries its check."""
-    n_un = int(table.unstable.sum())
-    base = {"method": "atlas", "n_probes": len(table), "n_unstable": n_un, "forward": fm.name}
-    if len(table) == 0:
-        return Estimate(ok=False, reason="no probes", **base)
+    friction angles the model covers (:meth:`Posterior.alpha_edge`). The estimate carries its check. From scratch;
+    :class:`plate_env.identify.posterior_state.PosteriorState` gives the same estimate probe by probe."""
     orphans = sorted({reason for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)
                       if all((reason := member_domain(m, float(f), float(amp))) is not None for m in fm.members)})
+    return atlas_estimate(fm, table, orphans, lambda: posterior(fm, table))
+
+
+def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
+                   make_posterior: Callable[[], Posterior]) -> Estimate:
+    """The estimate of :func:`identify_atlas` from the probes (counted, and read by the predictive check), the
+    reasons of probes no member describes (``orphans``: then no estimate) and the posterior (``make_posterior()``,
+    called only when it is needed)."""
+    base = {"method": "atlas", "n_probes": len(table), "n_unstable": int(table.unstable.sum()), "forward": fm.name}
+    if len(table) == 0:
+        return Estimate(ok=False, reason="no probes", **base)
     if orphans:  # probes no member describes are not dropped silently
         return Estimate(ok=False, reason="; ".join(orphans) + f": leave those probes out or use a forward model "
                         f"that describes them (not {fm.name!r})", **base)
-    post = posterior(fm, table)
+    post = make_posterior()
     om, al = post.omega(), post.alpha_marginal()
     check = predictive_check(fm, table, post)
     fields = dict(omega_n=om.value, omega_n_stderr=om.stderr, omega_n_ci68=om.ci68, omega_n_ci95=om.ci95,
