@@ -1,7 +1,7 @@
 """Probing agents: the paper's grid sweep, a coarse-to-fine heuristic, Bayesian design, a trained PPO policy.
 
 Installed as ``plate_env_agents`` (the folder is ``agents/``). They follow the protocol of
-:mod:`plate_env.protocol`; :func:`load_agent` also loads an agent of your own from a file or a Stable-Baselines3
+:mod:`plate_env.env.protocol`; :func:`load_agent` also loads an agent of your own from a file or a Stable-Baselines3
 model, by the specs ``plate-env bench --agent`` takes.
 """
 
@@ -13,30 +13,25 @@ import importlib.util
 import sys
 from pathlib import Path
 
+from plate_env.core.registry import Registry
 from plate_env.env.protocol import Agent, Probe, ProbeContext, check_agent
 
-AGENT_NAMES = ("grid", "coarse_to_fine", "bayes", "ppo")
+#: The shipped agents, by name (the one list: the command line and :func:`load_agent` read it).
+AGENTS = Registry("agent", {"grid": "plate_env_agents.grid:GridAgent",
+                            "coarse_to_fine": "plate_env_agents.coarse_to_fine:CoarseToFineAgent",
+                            "bayes": "plate_env_agents.bayes:BayesAgent", "ppo": "plate_env_agents.ppo:PPOAgent"})
+AGENT_NAMES = AGENTS.names
 
 
 def make_agent(name: str, **options) -> Agent:
-    """Create a shipped agent by name; options go to its constructor."""
-    if name == "grid":
-        from plate_env_agents.grid import GridAgent
-
-        return GridAgent(**options)
-    if name == "coarse_to_fine":
-        from plate_env_agents.coarse_to_fine import CoarseToFineAgent
-
-        return CoarseToFineAgent(**options)
-    if name == "bayes":
-        from plate_env_agents.bayes import BayesAgent
-
-        return BayesAgent(**options)
-    if name == "ppo":
-        from plate_env_agents.ppo import PPOAgent
-
-        return PPOAgent(**options)
-    raise ValueError(f"unknown agent {name!r}; choose one of {AGENT_NAMES}")
+    """Create a shipped agent by name (:data:`AGENTS`); options go to its constructor. A spec :func:`load_agent`
+    takes (``sb3:model.zip``, ``path/to/file.py:MyAgent``, ``grid:n=30``) is loaded by it (without further
+    options)."""
+    if isinstance(name, str) and ":" in name:
+        if options:
+            raise ValueError(f"make_agent({name!r}, ...): a spec carries its own options (name:key=value,...)")
+        return load_agent(name)
+    return AGENTS.load(name)(**options)
 
 
 def _value(text: str):
@@ -69,14 +64,20 @@ def load_file_agent(path: str | Path, class_name: str):
         sys.modules[module_name] = module
         try:
             spec.loader.exec_module(module)
-        except Exception:
+        except BaseException as exc:  # noqa: BLE001 - a user's file: SyntaxError, ImportError, sys.exit, anything
             del sys.modules[module_name]
-            raise
+            if isinstance(exc, KeyboardInterrupt):
+                raise
+            raise ValueError(f"agent file {str(path)!r} cannot be imported: {type(exc).__name__}: {exc}") from None
     cls = getattr(module, class_name, None)
     if not isinstance(cls, type):
         found = sorted(k for k, v in vars(module).items() if isinstance(v, type) and hasattr(v, "next_probe"))
         raise ValueError(f"agent file {str(path)!r} has no class {class_name!r} (agent classes there: {found})")
-    return cls()
+    try:
+        return cls()
+    except Exception as exc:  # noqa: BLE001 - a user's constructor: arguments it needs, anything it raises
+        raise ValueError(f"agent {class_name!r} from {str(path)!r} cannot be made without arguments: "
+                         f"{type(exc).__name__}: {exc}") from None
 
 
 def load_agent(spec: str):
@@ -88,7 +89,7 @@ def load_agent(spec: str):
     * ``sb3:model.zip`` or ``sb3:a2c:model.zip``: a Stable-Baselines3 policy trained on PlateRotation-v0
       (:class:`plate_env_agents.ppo.PPOAgent`; algorithm PPO unless named).
 
-    The agent is checked against the protocol (:func:`plate_env.protocol.check_agent`); a bad spec is a ValueError
+    The agent is checked against the protocol (:func:`plate_env.env.protocol.check_agent`); a bad spec is a ValueError
     naming it."""
     if not isinstance(spec, str) or not spec:
         raise ValueError(f"agent spec {spec!r}: give a name, file.py:Class or sb3:model.zip")
@@ -108,11 +109,14 @@ def load_agent(spec: str):
             if agent is None:
                 raise ValueError(f"agent {spec!r}: a file agent is path/to/file.py:ClassName")
         elif head in AGENT_NAMES:
-            agent = make_agent(head, **_options(tail, spec))
+            try:
+                agent = make_agent(head, **_options(tail, spec))
+            except (TypeError, ValueError) as exc:  # an unknown option, a value of the wrong type or range
+                raise ValueError(f"agent {spec!r}: {exc}") from None
         else:
             raise ValueError(f"unknown agent {spec!r}; choose one of {AGENT_NAMES} (options: name:key=value,...), "
                              "path/to/file.py:ClassName or sb3:model.zip")
     return check_agent(agent, where=f"agent {spec!r}")
 
 
-__all__ = ["AGENT_NAMES", "Agent", "Probe", "ProbeContext", "load_agent", "load_file_agent", "make_agent"]
+__all__ = ["AGENTS", "AGENT_NAMES", "Agent", "Probe", "ProbeContext", "load_agent", "load_file_agent", "make_agent"]

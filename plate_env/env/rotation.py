@@ -14,7 +14,7 @@ import numpy as np
 from gymnasium import spaces
 
 from plate_env.core import checks
-from plate_env.core.motion import B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
+from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import ObjectPrior, ObjectSpec
 from plate_env.core.probe import (
     MIN_PROBE_FREQ_HZ,
@@ -24,18 +24,20 @@ from plate_env.core.probe import (
     ProbeSpec,
 )
 from plate_env.core.probe_table import ProbeTable
+from plate_env.core.setup import B_P_RANGE_M, FREQ_RANGE_HZ, PAPER_SETUP
+from plate_env.env.codec import ACTION_SIZE, Codec
+from plate_env.identify.api import METHODS
 from plate_env.identify.estimate import Estimate
 from plate_env.physics import PHYSICS_NAMES, make_physics
 from plate_env.physics.camera import camera_omega_b
 from plate_env.physics.interface import refuse_early
 from plate_env.surrogate.conditioning import KnownInputs
 
-N_FEATURES = 7
 #: The probe budget of an episode when none is given: the one default of the env, the CLI, the suites and the
 #: shipped policy (the observation's length, 7 * max_probes + 2, depends on it).
 DEFAULT_MAX_PROBES = 30
 #: Mass of the hidden object before ``mass_variation``, kg (the paper's cheese slice).
-MASS_KG = ObjectSpec().mass
+MASS_KG = PAPER_SETUP.mass
 #: Keys ``reset(options=...)`` accepts: the hidden object's omega_n (rad/s), alpha (rad), mass (kg).
 RESET_OPTIONS = ("omega_n", "alpha", "mass")
 #: The constructor option that decides each quantity of the probes a backend may refuse (ProbeRefused.quantity).
@@ -136,6 +138,7 @@ class PlateRotationEnv(gym.Env):
     | ``camera_fps`` | 30 | camera frame rate, Hz |
     | ``angle_noise_deg`` | 0.5 | camera angle noise (sd), deg |
     | ``cost_per_sim_s`` | 0.005 | reward cost per simulated second |
+    | ``calibration`` | None | a lab calibration (CAL.json, ``"paper"``): the estimate reads the probes through it |
     | ``error_cap`` | 1 | largest error charged |
     | ``no_estimate_penalty`` | 1 | reward when no estimate can be made |
     | ``render_mode`` | None | ``rgb_array`` or ``human`` |
@@ -154,7 +157,7 @@ class PlateRotationEnv(gym.Env):
 
     ``gym.make_vec("PlateRotation-v0", num_envs=8, vectorization_mode="vector_entry_point", physics="atlas")``:
     one batched physics call per step for all sub-environments (Gymnasium's next-step autoreset);
-    ``plate_env.sb3.make_sb3_vec_env(n_envs=8, physics="atlas")``: the same as a Stable-Baselines3 ``VecEnv``.
+    ``plate_env.env.sb3.make_sb3_vec_env(n_envs=8, physics="atlas")``: the same as a Stable-Baselines3 ``VecEnv``.
 
     ## Version History
 
@@ -172,16 +175,16 @@ class PlateRotationEnv(gym.Env):
                  omega_n_range_pi: tuple[float, float] = ObjectPrior.omega_n_range_pi,
                  alpha_range_deg: tuple[float, float] = ObjectPrior.alpha_range_deg,
                  mass_variation: float = 0.0, f_band_hz: tuple[float, float] = (10.0, 40.0),
-                 amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = 3.0,
+                 amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = PAPER_SETUP.b_p_mm,
                  max_probes: int = DEFAULT_MAX_PROBES,
                  max_sim_s: float | None = None, measure_range_s: tuple[float, float] = (0.25, 2.0),
                  settle_s: float = 0.5, camera_fps: float = 30.0, angle_noise_deg: float = 0.5,
                  cost_per_sim_s: float = 0.005, error_cap: float = 1.0, no_estimate_penalty: float = 1.0,
-                 render_mode: str | None = None) -> None:
+                 render_mode: str | None = None, calibration=None) -> None:
         super().__init__()
         # every option checked (a ValueError naming it) before the physics is built
         render_mode = checks.one_of("render_mode", render_mode, (None, *self.metadata["render_modes"]))
-        method = checks.one_of("method", method, ("atlas", "lorentz"))
+        method = checks.one_of("method", method, METHODS)
         omega_n_range_pi = checks.pair("omega_n_range_pi", omega_n_range_pi, 0.1, 300.0, "pi rad/s")
         alpha_range_deg = checks.pair("alpha_range_deg", alpha_range_deg, 1.0, 89.0, "deg")
         mass_variation = checks.real("mass_variation", mass_variation, 0.0, 1.0, open_hi=True)
@@ -199,6 +202,7 @@ class PlateRotationEnv(gym.Env):
         error_cap = checks.real("error_cap", error_cap, 0.0, 1e3, open_lo=True)
         no_estimate_penalty = checks.real("no_estimate_penalty", no_estimate_penalty, 0.0, 1e3)
         physics = checks.one_of("physics", physics, PHYSICS_NAMES)
+        self.calibration = _calibration(calibration, amplitudes_deg, b_p_mm)
         if physics_options is not None and not isinstance(physics_options, dict):
             raise ValueError(f"physics_options = {physics_options!r} must be a dict of backend options or None")
         self.physics_name = physics
@@ -229,9 +233,10 @@ class PlateRotationEnv(gym.Env):
         objects = [ObjectSpec(omega_n=math.pi * w, alpha=math.radians(a), mass=m)
                    for w in (lo, hi) for a in alpha_range_deg for m in sorted(set(masses))]
         self._refuse_unanswerable(objects, "option")
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
-        self.observation_space = spaces.Box(-10.0, 10.0, shape=(N_FEATURES * self.max_probes + 2,),
-                                            dtype=np.float32)
+        #: The observation/action layout (plate_env.env.codec), shared with agents that act from observations.
+        self.codec = Codec(self.f_band_hz, self.amplitudes_deg, self.measure_range_s, self.max_probes)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(ACTION_SIZE,), dtype=np.float32)
+        self.observation_space = spaces.Box(-10.0, 10.0, shape=(self.codec.obs_dim,), dtype=np.float32)
         self._obj: ObjectSpec | None = None
         self._rows: list[tuple[float, float, float, float, bool, float]] = []
         self._results: list[ProbeResult] = []
@@ -242,6 +247,7 @@ class PlateRotationEnv(gym.Env):
         self._closed = False
         self._window = None
         self._renderer = None
+        self._posterior = None  # the episode's PosteriorState (method atlas), or why there is none; built lazily
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -266,10 +272,23 @@ class PlateRotationEnv(gym.Env):
         self._sim_s = self._wall_s = 0.0
         self._done = False
         self._last = None
+        self._posterior = None
         return self._obs(), self._info()
 
     def decode_action(self, action) -> tuple[bool, ProbeSpec | None]:
-        """Check an action and turn it into (stop, probe). Raises ValueError naming a bad value."""
+        """Check an action and turn it into (stop, probe). Raises ValueError naming a bad value (before any random
+        draw: the placement of the probe is drawn only for a valid action)."""
+        a = self.check_action(action)
+        if a[3] > 0 and self._rows:
+            return True, None
+        f, a_p, window = self.codec.decode(a)
+        motion = PlateMotion.from_paper(f, a_p, self.b_p_mm)
+        spec = ProbeSpec(self._obj, motion, settle_s=self.settle_s, measure_s=window, record_trace=True)
+        return False, spec.perturbed(self.np_random)
+
+    def check_action(self, action) -> np.ndarray:
+        """The action as 4 floats in [-1, 1], or ValueError naming the bad value. Pure: no state changes, no random
+        draw (a vector env checks every sub-env's action with it before any sub-env draws)."""
         try:
             a = np.asarray(action)
             if a.dtype.kind not in "fiu":  # bool, complex, strings, objects: not actions, even if castable
@@ -283,15 +302,7 @@ class PlateRotationEnv(gym.Env):
             raise ValueError(f"action {a.tolist()} contains NaN or inf; allowed: finite values in [-1, 1]")
         if np.any(np.abs(a) > 1.0 + 1e-6):
             raise ValueError(f"action {a.tolist()} is outside the allowed range [-1, 1]")
-        a = np.clip(a, -1.0, 1.0)
-        if a[3] > 0 and self._rows:
-            return True, None
-        f = self.f_band_hz[0] + (a[0] + 1) / 2 * (self.f_band_hz[1] - self.f_band_hz[0])
-        k = min(int((a[1] + 1) / 2 * len(self.amplitudes_deg)), len(self.amplitudes_deg) - 1)
-        window = self.measure_range_s[0] + (a[2] + 1) / 2 * (self.measure_range_s[1] - self.measure_range_s[0])
-        motion = PlateMotion.from_paper(float(f), self.amplitudes_deg[k], self.b_p_mm)
-        spec = ProbeSpec(self._obj, motion, settle_s=self.settle_s, measure_s=float(window), record_trace=True)
-        return False, spec.perturbed(self.np_random)
+        return np.clip(a, -1.0, 1.0)
 
     def encode_action(self, f_p_hz: float | None = None, a_p_deg: float | None = None,
                       measure_s: float | None = None, stop: bool = False) -> np.ndarray:
@@ -299,18 +310,8 @@ class PlateRotationEnv(gym.Env):
         ``measure_s`` (s), or that stops. Values are clipped to the band and window range."""
         if stop:
             return np.array([0.0, 0.0, 0.0, 1.0], dtype=np.float32)
-        f_lo, f_hi = self.f_band_hz
-        m_lo, m_hi = self.measure_range_s
-        f = 2 * (np.clip(f_p_hz, f_lo, f_hi) - f_lo) / (f_hi - f_lo) - 1
-        if a_p_deg is None:
-            a_p_deg = self.amplitudes_deg[0]
-        if not any(abs(a_p_deg - a) < 1e-9 for a in self.amplitudes_deg):
-            raise ValueError(f"A_p = {a_p_deg!r} deg is not one of this env's amplitudes {self.amplitudes_deg}")
-        k = min(range(len(self.amplitudes_deg)), key=lambda i: abs(self.amplitudes_deg[i] - a_p_deg))
-        amp = (2 * k + 1) / len(self.amplitudes_deg) - 1
-        window = 1.0 if measure_s is None else measure_s
-        m = 2 * (np.clip(window, m_lo, m_hi) - m_lo) / (m_hi - m_lo) - 1
-        return np.array([f, amp, m, -1.0], dtype=np.float32)
+        return self.codec.encode(f_p_hz, self.amplitudes_deg[0] if a_p_deg is None else a_p_deg,
+                                 1.0 if measure_s is None else measure_s)
 
     def step(self, action):
         stop, spec = self.prepare(action)
@@ -319,10 +320,15 @@ class PlateRotationEnv(gym.Env):
 
     def prepare(self, action) -> tuple[bool, ProbeSpec | None]:
         """First half of a step: validate the action, decide stop or the probe to run (for batched vector envs)."""
+        self.check_step(action)
+        return self.decode_action(action)
+
+    def check_step(self, action) -> None:
+        """Refuse a step before anything happens: a closed env, an episode not reset or over, a bad action."""
         self._check_open()
         if self._obj is None or self._done:
             raise RuntimeError("call reset() before step() (the episode is over)")
-        return self.decode_action(action)
+        self.check_action(action)
 
     def finish(self, result: ProbeResult | None):
         """Second half of a step: record the probe (or stop), compute reward, termination and info."""
@@ -382,16 +388,41 @@ class PlateRotationEnv(gym.Env):
         return ProbeTable.from_arrays(f, a, w, se, un)
 
     def estimate(self) -> Estimate:
-        """The current omega_n estimate from the probes so far."""
+        """The current omega_n estimate from the probes so far (method atlas: the episode's incremental posterior,
+        :class:`plate_env.identify.posterior_state.PosteriorState`, brought up to date with the probes not in it)."""
         from plate_env.identify import identify
 
         if not self._rows:
             return Estimate(ok=False, method=self.method, reason="no probes")
+        if self.method == "atlas":
+            state = self.posterior_state()
+            if isinstance(state, str):
+                return Estimate(ok=False, method=self.method, reason=state)
+            if state.n_probes < len(self._rows):
+                state.add_table(self.table(), start=state.n_probes)
+            return state.estimate()
         try:
+            if self.calibration is not None:
+                return identify(self.table(), calibration=self.calibration, known=self.known_inputs())
             return identify(self.table(), method=self.method, physics=self.source, model=self.model,
                             known=self.known_inputs())
         except ValueError as exc:
             return Estimate(ok=False, method=self.method, reason=str(exc))
+
+    def posterior_state(self):
+        """The episode's :class:`~plate_env.identify.posterior_state.PosteriorState` on the shipped forward model of
+        this env's physics, conditioned on the episode's known inputs (probes are added by :meth:`estimate`), or the
+        reason there is none (a str)."""
+        if self._posterior is None:
+            from plate_env.identify.forward import load_forward_model
+            from plate_env.identify.posterior_state import PosteriorState
+
+            try:
+                self._posterior = PosteriorState(load_forward_model(f"{self.source}/{self.model}",
+                                                                    self.known_inputs()))
+            except ValueError as exc:
+                self._posterior = str(exc)
+        return self._posterior
 
     def known_inputs(self) -> KnownInputs:
         """What a lab would know of this episode's set-up: B_p and the disc's mass and diameter (weighed and
@@ -401,19 +432,8 @@ class PlateRotationEnv(gym.Env):
         return KnownInputs(b_p=self.b_p_mm * 1e-3, mass=self._obj.mass, diameter=self._obj.diameter)
 
     def _obs(self) -> np.ndarray:
-        obs = np.zeros(self.observation_space.shape, dtype=np.float32)
-        f_lo, f_hi = self.f_band_hz
-        m_lo, m_hi = self.measure_range_s
-        n_amp = len(self.amplitudes_deg)
-        for i, (f, a, w, se, un, win) in enumerate(self._rows[: self.max_probes]):
-            k = self.amplitudes_deg.index(min(self.amplitudes_deg, key=lambda x: abs(x - a)))
-            obs[N_FEATURES * i: N_FEATURES * (i + 1)] = (
-                2 * (f - f_lo) / (f_hi - f_lo) - 1, (2 * k + 1) / n_amp - 1 if n_amp > 1 else 0.0,
-                np.clip(w / 1000.0, -10, 10), np.clip(se / 1000.0, 0, 10), float(un),
-                2 * (win - m_lo) / (m_hi - m_lo) - 1, 1.0)
-        obs[-2] = 1.0 - len(self._rows) / self.max_probes
-        obs[-1] = 1.0 - self._sim_s / self.max_sim_s if self.max_sim_s else 1.0
-        return np.clip(obs, -10.0, 10.0)
+        sim_left = 1.0 - self._sim_s / self.max_sim_s if self.max_sim_s else 1.0
+        return self.codec.observation(self._rows, 1.0 - len(self._rows) / self.max_probes, sim_left)
 
     def _info(self) -> dict[str, Any]:
         info: dict[str, Any] = {"omega_n_true": self._obj.omega_n if self._obj else None,
@@ -466,6 +486,7 @@ class PlateRotationEnv(gym.Env):
         state["physics"] = None
         state["_window"] = None
         state["_renderer"] = None
+        state["_posterior"] = None  # rebuilt from the probes when needed
         return state
 
     def __setstate__(self, state):
@@ -497,3 +518,19 @@ def _amplitudes(values) -> tuple[float, ...]:
     if 0.0 in amps or len(set(amps)) != len(amps):
         raise ValueError(f"amplitudes_deg = {values!r}: amplitudes must be distinct and non-zero")
     return amps
+
+
+def _calibration(calibration, amplitudes_deg: tuple[float, ...], b_p_mm: float):
+    """The env's lab calibration (None: the estimate's own forward model), checked against the amplitudes and
+    B_p the episodes use (ValueError naming the mismatch)."""
+    if calibration is None:
+        return None
+    from plate_env.identify import lab_calibration_file as lcf
+
+    cal = calibration if isinstance(calibration, lcf.LabCalibration) else lcf.load(calibration)
+    if tuple(float(a) for a in amplitudes_deg) != (cal.a_p_deg,):
+        raise ValueError(f"calibration holds for A_p = {cal.a_p_deg:g} deg only: set amplitudes_deg=({cal.a_p_deg:g},) "
+                         f"(got {tuple(amplitudes_deg)})")
+    if abs(b_p_mm - cal.known.b_p * 1e3) > 0.02 * cal.known.b_p * 1e3:
+        raise ValueError(f"calibration holds for B_p = {cal.known.b_p * 1e3:g} mm, the env's b_p_mm is {b_p_mm:g}")
+    return cal

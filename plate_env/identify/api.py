@@ -1,7 +1,7 @@
 """From probes to omega_n_hat (and alpha_hat) with uncertainty, by the paper's Lorentzian method or the atlas.
 
-Dependencies run one way: this module uses :mod:`plate_env.inference` (the atlas method) and both build the
-:class:`~plate_env.estimate.Estimate` of :mod:`plate_env.estimate`, which imports neither.
+Dependencies run one way: this module uses :mod:`plate_env.identify.inference` (the atlas method) and both build the
+:class:`~plate_env.identify.estimate.Estimate` of :mod:`plate_env.identify.estimate`, which imports neither.
 """
 
 from __future__ import annotations
@@ -20,7 +20,8 @@ from plate_env.identify.forward import ForwardModel, load_forward_model
 from plate_env.identify.inference import GAUSS_HERMITE, identify_atlas
 from plate_env.surrogate.conditioning import KnownInputs
 
-METHODS = ("lorentz", "atlas")
+#: The identification methods: ``"atlas"``, a forward model's posterior; ``"lorentz"``, the paper's Eqs. 9-10.
+METHODS = ("atlas", "lorentz")
 
 
 def _table(probes: Sequence[ProbeResult] | ProbeTable) -> ProbeTable:
@@ -111,16 +112,28 @@ def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = 
 
 def identify(probes: Sequence[ProbeResult] | ProbeTable, method: str = "atlas", physics: str = "tilelink",
              model: str = "pointmass", forward: ForwardModel | str | None = None, known: KnownInputs | None = None,
-             **options) -> Estimate:
+             calibration=None, **options) -> Estimate:
     """Estimate omega_n (and alpha) from probes at any plate amplitudes.
 
-    ``method="atlas"`` (model-based, the default): the posterior of a forward model (:mod:`plate_env.inference`):
-    ``forward`` (a :class:`~plate_env.forward.ForwardModel` or a shipped name such as ``"lab"``), else the model
-    that made the data, ``"<physics>/<model>"``, conditioned on the known inputs (``known``, else those of the
-    probes when they are :class:`ProbeResult`, else the paper's set-up). ``method="lorentz"``: the paper's Eq. (9)
-    fit per amplitude and Eq. (10) calibration of ``physics``/``model`` (``physics="paper"``: the paper's
-    coefficients).
+    ``method="atlas"`` (model-based, the default): the posterior of a forward model
+    (:mod:`~plate_env.identify.inference`): ``forward`` (a :class:`~.forward.ForwardModel` or a shipped name such as
+    ``"lab"``), else the model that made the data, ``"<physics>/<model>"``, conditioned on the known inputs (``known``,
+    else those of the probes when they are :class:`ProbeResult`, else the paper's set-up). ``method="lorentz"``: the
+    paper's Eq. (9) fit per amplitude and Eq. (10) calibration of ``physics``/``model`` (``physics="paper"``: the
+    paper's coefficients). ``calibration`` (a :class:`~.lab_calibration_file.LabCalibration`, a CAL.json path or
+    ``"paper"``): read the probes through what a lab's reference discs taught (``plate-env calibrate``); the data
+    must match its amplitude and set-up.
     """
+    if calibration is not None:
+        from plate_env.identify import lab_calibration_file as lcf
+
+        if method != "atlas" or forward is not None or options:
+            raise ValueError("identify(calibration=...) reads the probes through the calibration's own members: "
+                             "give no method, forward or options with it")
+        cal = calibration if isinstance(calibration, lcf.LabCalibration) else lcf.load(calibration)
+        if known is None and not isinstance(probes, ProbeTable):
+            known = KnownInputs.from_specs(r.spec for r in probes)
+        return lcf.identify_calibrated(_table(probes), cal, known)
     if method not in METHODS:
         raise ValueError(f"unknown identification method {method!r}; choose one of {METHODS}")
     table = _table(probes)

@@ -5,7 +5,7 @@ the lab knows (plate amplitude, B_p, the disc's mass and diameter: :class:`Known
 against live probes, and a *coherent discrepancy* ``sigma_eps`` (the scale of log omega_n by which the truth may
 differ from what the members' curves match) with, across models, an *offset* between the data's model and the
 members, estimated by leaving objects or whole models out, never guessed.
-:mod:`plate_env.inference` turns a forward model and probes into a posterior.
+:mod:`plate_env.identify.inference` turns a forward model and probes into a posterior.
 
 Shipped forward models (``plate_env/data/forward_models.json``, written by ``experiments/forward_models.py``):
 ``"<physics>/<model>"`` for data known to come from that simulator, and ``"lab"`` for data of unknown origin (every
@@ -22,7 +22,7 @@ import numpy as np
 
 from plate_env.surrogate.atlas import Atlas
 from plate_env.surrogate.catalog import read_catalog
-from plate_env.surrogate.conditioning import KnownInputs, condition
+from plate_env.surrogate.conditioning import BUILD_HINT, KnownInputs, condition
 
 POOLINGS = ("evidence", "fixed")
 #: The posterior grid reaches this many discrepancies (sigma_eps, log omega) beyond the members' omega_n range
@@ -34,6 +34,7 @@ PAD_SIGMAS = 3.0
 PAD_MAX_LOG = math.log(1000.0)
 
 
+@functools.lru_cache(maxsize=64)
 def pad_sigmas(nu: float) -> float:
     """How many discrepancy scales the grid reaches beyond the models' range for a discrepancy with ``nu`` degrees
     of freedom (inf: normal)."""
@@ -87,7 +88,7 @@ class ForwardModel:
     Student-t with ``eps_nu`` degrees of freedom: across models the errors are heavy-tailed), and how members are
     pooled.
 
-    Across models the discrepancy has two levels (:func:`plate_env.inference.family_discrepancy`): an *offset*
+    Across models the discrepancy has two levels (:func:`plate_env.identify.inference.family_discrepancy`): an *offset*
     between the data's model and the members (``offset_sigma``, Student-t with ``offset_nu`` degrees of freedom:
     the number of models it was estimated from, less one), the same for every object, and the object-level scatter
     around it (``sigma_eps``, ``eps_nu``); the posterior is smoothed by both in turn (their sum)."""
@@ -181,7 +182,10 @@ def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardMo
             sigma = atlas.provenance["sigma_model_deg_s"]
         members.append(Member(atlas, float(sigma), float(m.get("weight", 1.0)), float(m.get("blur", 0.0))))
     if not members:
-        raise ValueError(f"forward model {name!r} has no member for these known inputs: {'; '.join(left_out)}")
+        # members of one physics fail for the same reason: each reason once, the hint once
+        reasons = dict.fromkeys(r.removesuffix(f"; {BUILD_HINT}") for r in left_out)
+        raise ValueError(f"forward model {name!r} has no member for these known inputs: {'; '.join(reasons)}; "
+                         f"{BUILD_HINT}")
     return ForwardModel(name=name, members=tuple(members), sigma_eps=float(entry["sigma_eps"]),
                         eps_nu=float(entry.get("eps_nu", math.inf)),
                         offset_sigma=float(entry.get("offset_sigma", 0.0)),

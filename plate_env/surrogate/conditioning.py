@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from plate_env.core.setup import DIAMETER_RANGE_M, KNOWN_B_P_RANGE_M, MASS_RANGE_KG, PAPER_SETUP, in_range
 from plate_env.surrogate.atlas import Atlas
 
 
@@ -19,14 +20,14 @@ class KnownInputs:
     A forward model is conditioned on them: its atlases must have been built at this B_p and diameter, and at
     masses that bracket this one (interpolated in log mass between the two nearest)."""
 
-    b_p: float = 0.003
-    mass: float = 0.0136
-    diameter: float = 0.080
+    b_p: float = PAPER_SETUP.b_p
+    mass: float = PAPER_SETUP.mass
+    diameter: float = PAPER_SETUP.diameter
 
     def __post_init__(self) -> None:
-        for name, lo, hi in (("b_p", 1e-4, 0.05), ("mass", 1e-4, 1.0), ("diameter", 0.01, 0.5)):
+        for name, (lo, hi) in (("b_p", KNOWN_B_P_RANGE_M), ("mass", MASS_RANGE_KG), ("diameter", DIAMETER_RANGE_M)):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= abs(value) <= hi):
+            if not in_range(abs(value) if name == "b_p" and isinstance(value, (int, float)) else value, lo, hi):
                 raise ValueError(f"KnownInputs {name} = {value!r} is outside the allowed range [{lo:g}, {hi:g}] (SI)")
 
     @classmethod
@@ -48,6 +49,8 @@ def atlas_inputs(atlas: Atlas) -> KnownInputs:
     return KnownInputs(**atlas.fixed())
 
 
+#: How to make an atlas that is missing (said once per message).
+BUILD_HINT = "build one for these inputs with experiments/build_atlas.py"
 #: Relative tolerance when matching a lab's B_p, diameter or mass to an atlas's.
 INPUT_RTOL = 0.02
 
@@ -66,8 +69,7 @@ def condition(atlases: Sequence[Atlas], known: KnownInputs) -> Atlas:
     if not ok:
         have = sorted({(round(k.b_p * 1e3, 3), round(k.diameter * 1e3, 1)) for k in ins})
         raise ValueError(f"no {label} atlas for B_p = {abs(known.b_p) * 1e3:g} mm, diameter = "
-                         f"{known.diameter * 1e3:g} mm (built: (B_p mm, diameter mm) {have}); build one with "
-                         "experiments/build_atlas.py")
+                         f"{known.diameter * 1e3:g} mm (built: (B_p mm, diameter mm) {have}); {BUILD_HINT}")
     ok.sort(key=lambda a: atlas_inputs(a).mass)
     masses = np.array([atlas_inputs(a).mass for a in ok])
     for a, m in zip(ok, masses, strict=True):
@@ -79,8 +81,7 @@ def condition(atlases: Sequence[Atlas], known: KnownInputs) -> Atlas:
                                                                       f"{INPUT_RTOL:.0%})"))
     if not (masses[0] < known.mass < masses[-1]):
         raise ValueError(f"no {label} atlas covers a mass of {known.mass * 1e3:g} g (built: "
-                         f"{[float(round(m * 1e3, 2)) for m in masses]} g); build one at that mass with "
-                         "experiments/build_atlas.py")
+                         f"{[float(round(m * 1e3, 2)) for m in masses]} g); {BUILD_HINT}")
     j = int(np.searchsorted(masses, known.mass))
     lo, hi = ok[j - 1], ok[j]
     for name in ("f_hz", "a_p_deg", "alpha"):
