@@ -241,14 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
     f = sub.add_parser("fit", help="fit a lab sweep (CSV) and estimate omega_n")
     f.add_argument("csv", help="CSV with columns f_p_hz, omega_b_deg_s[, stderr_deg_s, a_p_deg, unstable]")
     f.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees")
-    f.add_argument("--bp", type=_arg(checks.real, *(round(x * 1e3, 9) for x in KNOWN_B_P_RANGE_M), unit="mm"),
-                   default=None, help=f"atlas method: plate linear amplitude B_p, mm (known input; default "
-                   f"{PAPER_SETUP.b_p_mm:g})")
-    f.add_argument("--mass-g", type=_arg(checks.real, *MASS_RANGE_G, unit="g"), default=None,
-                   help=f"atlas method: the disc's mass, grams (known input; default {PAPER_SETUP.mass_g:g})")
-    f.add_argument("--diameter-mm", type=_arg(checks.real, *(round(x * 1e3, 9) for x in DIAMETER_RANGE_M), unit="mm"),
-                   default=None, help=f"atlas method: the disc's diameter, mm (known input; default "
-                   f"{PAPER_SETUP.diameter_mm:g})")
+    _add_known_inputs(f, "atlas method: ")
     f.add_argument("--method", default="atlas", choices=METHODS,
                    help="atlas: a forward model's posterior (default); lorentz: the paper's Eqs. 9-10")
     f.add_argument("--forward", default=None, help="atlas method: the forward model, 'lab' (data of unknown "
@@ -558,14 +551,24 @@ def _fit_options(args: argparse.Namespace) -> None:
                            f"{', '.join(sources + ['paper'])}")
 
 
+def _add_known_inputs(p: argparse.ArgumentParser, what: str, mass_default: str = "") -> None:
+    """``--bp``, ``--mass-g``, ``--diameter-mm``: what the lab knows, in the allowed ranges of
+    :mod:`plate_env.core.setup`; default None (the command fills in :data:`PAPER_SETUP`'s values)."""
+    p.add_argument("--bp", type=_arg(checks.real, *(round(x * 1e3, 9) for x in KNOWN_B_P_RANGE_M), unit="mm"),
+                   default=None, help=f"{what}plate linear amplitude B_p, mm (known input; default "
+                   f"{PAPER_SETUP.b_p_mm:g})")
+    p.add_argument("--mass-g", type=_arg(checks.real, *MASS_RANGE_G, unit="g"), default=None,
+                   help=f"{what}the disc's mass, grams (known input; default {mass_default}{PAPER_SETUP.mass_g:g})")
+    p.add_argument("--diameter-mm", type=_arg(checks.real, *(round(x * 1e3, 9) for x in DIAMETER_RANGE_M), unit="mm"),
+                   default=None, help=f"{what}the disc's diameter, mm (known input; default "
+                   f"{PAPER_SETUP.diameter_mm:g})")
+
+
 def _add_calibrate(sub) -> None:
     c = sub.add_parser("calibrate", help="learn a lab calibration from reference discs of known omega_n")
     c.add_argument("refs", help="CSV: the fit columns plus object and omega_n_rad_s (optional mass_g per object)")
     c.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees")
-    c.add_argument("--bp", type=_arg(checks.real, 0.1, 50.0, unit="mm"), default=3.0, help="B_p, mm")
-    c.add_argument("--mass-g", type=_arg(checks.real, 0.1, 1000.0, unit="g"), default=None,
-                   help="the discs' mass, g (default: the file's mass_g, else 13.6)")
-    c.add_argument("--diameter-mm", type=_arg(checks.real, 10.0, 500.0, unit="mm"), default=80.0, help="mm")
+    _add_known_inputs(c, "", mass_default="the file's mass_g, else ")
     c.add_argument("--forward", default="lab", help="the forward model whose members read the sweeps")
     c.add_argument("--out", required=True, help="the calibration file to write (CAL.json)")
 
@@ -582,11 +585,13 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     given = {m for m in masses if m is not None}
     if len(given) > 1:
         raise CliError(f"the references have different masses {sorted(given)} g: one calibration holds for one mass")
-    mass_g = args.mass_g if args.mass_g is not None else (given.pop() if given else 13.6)
+    mass_g = args.mass_g if args.mass_g is not None else (given.pop() if given else PAPER_SETUP.mass_g)
+    bp_mm = args.bp if args.bp is not None else PAPER_SETUP.b_p_mm
+    diameter_mm = args.diameter_mm if args.diameter_mm is not None else PAPER_SETUP.diameter_mm
     amps = sorted({float(a) for t in tables for a in t.a_p_deg})
     if len(amps) != 1:
         raise CliError(f"the references are at A_p {amps} deg: one calibration holds for one amplitude")
-    known = KnownInputs(b_p=args.bp * 1e-3, mass=mass_g * 1e-3, diameter=args.diameter_mm * 1e-3)
+    known = KnownInputs(b_p=bp_mm * 1e-3, mass=mass_g * 1e-3, diameter=diameter_mm * 1e-3)
     cal = lcf.calibrate(tables, omega_n, objects, amps[0], known, forward=args.forward)
     lcf.save(cal, args.out)
     s = cal.posterior.summary()

@@ -109,6 +109,8 @@ def test_atlas_domain_follows_its_provenance():
     (dict(alpha_range_deg=(60.0, 30.0)), "alpha_range_deg"),
     (dict(measure_range_s=(0.5,)), "measure_range_s"),
     (dict(camera_fps=True), "camera_fps"),
+    (dict(calibration=3), "calibration"),
+    (dict(calibration="paper", amplitudes_deg=(12.0,)), "calibration"),  # the paper calibration is at 3 deg
 ])
 def test_env_options_refused_at_construction_naming_them(kwargs, name):
     with pytest.raises(ValueError, match=name):

@@ -8,6 +8,7 @@ the longest functions).
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -241,7 +242,9 @@ def test_no_function_longer_than_the_limit():
     assert lengths[0][0] > 50  # the walk measured real functions
     assert [f for f in lengths if f[0] > MAX_FUNCTION_LINES] == []
     kernels = sorted(set(function_lengths(kernels=True)) - set(lengths), reverse=True)
-    assert len(kernels) >= 10 and all("_kernels.py:" in k or "kernels.py:" in k for _, k in kernels)
+    # numba kernels live in the kernel modules (kernels.py, rigid_kernels.py, kernels_v2.py) or in experiments
+    assert len(kernels) >= 10 and all(re.search(r"(^|/|_)kernels(_v\d+)?\.py:", k) or k.startswith("experiments/")
+                                      for _, k in kernels)
     assert kernels[0][1].endswith("pointmass_probe")  # the exemption is the numba kernels, the longest among them
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from plate_env.build.atlas_grid import AtlasGrid
-from plate_env.cli import build_parser, main
+from plate_env.cli import _fit_options, build_parser, main
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import PRESETS, ObjectSpec
 from plate_env.core.setup import DIAMETER_RANGE_M, MASS_RANGE_KG, PAPER_SETUP
@@ -39,7 +39,11 @@ def test_the_paper_setup_is_the_default_everywhere():
     env.reset(seed=0)
     assert env.b_p_mm == 3.0 and env.known_inputs() == KnownInputs()
     env.close()
+    for command in (["fit", "x.csv"], ["calibrate", "refs.csv", "--out", "cal.json"]):
+        args = build_parser().parse_args(command)
+        assert (args.bp, args.mass_g, args.diameter_mm) == (None, None, None)  # not given: filled in by the command
     fit = build_parser().parse_args(["fit", "x.csv"])
+    _fit_options(fit)
     assert (fit.bp, fit.mass_g, fit.diameter_mm) == (3.0, 13.6, 80.0)
 
 

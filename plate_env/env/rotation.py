@@ -7,6 +7,7 @@ The environment's documentation, in Gymnasium's layout, is :class:`PlateRotation
 from __future__ import annotations
 
 import math
+import os
 from typing import Any
 
 import gymnasium as gym
@@ -527,6 +528,8 @@ def _calibration(calibration, amplitudes_deg: tuple[float, ...], b_p_mm: float):
         return None
     from plate_env.identify import lab_calibration_file as lcf
 
+    if not isinstance(calibration, (lcf.LabCalibration, str, os.PathLike)):
+        raise ValueError(f"calibration={calibration!r}: give a LabCalibration, a CAL.json path or 'paper'")
     cal = calibration if isinstance(calibration, lcf.LabCalibration) else lcf.load(calibration)
     if tuple(float(a) for a in amplitudes_deg) != (cal.a_p_deg,):
         raise ValueError(f"calibration holds for A_p = {cal.a_p_deg:g} deg only: set amplitudes_deg=({cal.a_p_deg:g},) "
