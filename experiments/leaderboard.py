@@ -6,10 +6,10 @@ Runs every agent on every episode of the suite through plate_env.benchmark (fini
 experiments/cache/bench_<suite>.jsonl, so a killed run resumes and a rerun only plays what changed: a record names
 the suite, the agent and the code that decided its outcome), then writes experiments/results/leaderboard_<suite>.md
 (the ranked table, every metric per budget with 95 % bootstrap intervals over objects, paired differences against
-the leader), .json and .png. ``--readme`` also replaces the README's agent table (between the leaderboard markers)
-with this one. Agents: the shipped ones (grid: the paper's sweep and Lorentzian fit; the same sweep read by the atlas
-posterior; coarse_to_fine; bayes; ppo), the PPO trained from the README's snippet if its model exists, and the
-README's example third-party agent, each by the spec ``plate-env bench --agent`` takes.
+the leader), .json and .png. ``--readme`` also re-renders the README's and docs' tables from the results
+(experiments/readme_tables.py). Agents: the shipped ones (grid: the paper's sweep and Lorentzian fit; the same
+sweep read by the atlas posterior; coarse_to_fine; bayes; ppo), the PPO trained from the README's snippet if its
+model exists, and the README's example third-party agent, each by the spec ``plate-env bench --agent`` takes.
 """
 
 from __future__ import annotations
@@ -31,7 +31,6 @@ RESULTS = Path("experiments/results")
 README_PPO = "experiments/results/models/readme_ppo.zip"
 EXAMPLE_AGENT = "examples/sweep_agent.py:SweepAgent"
 SHIPPED = ("grid", "grid:method=atlas", "coarse_to_fine", "bayes", "ppo")
-MARKERS = ("<!-- leaderboard:start -->", "<!-- leaderboard:end -->")
 
 
 def default_agents() -> list[str]:
@@ -41,15 +40,6 @@ def default_agents() -> list[str]:
     return out + [EXAMPLE_AGENT]
 
 
-def splice_readme(table: str, suite: str, path: Path = Path("README.md")) -> None:
-    """Replace the README's text between the leaderboard markers with ``table``."""
-    text = path.read_text()
-    start, end = (text.index(m) for m in MARKERS)
-    block = (f"{MARKERS[0]}\n<!-- written by `python experiments/leaderboard.py --suite {suite} --readme`; do not edit "
-             f"by hand -->\n{table}\n")
-    path.write_text(text[:start] + block + text[end:])
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--suite", default="tilelink-v0")
@@ -57,7 +47,7 @@ def main() -> None:
     ap.add_argument("--cache", default=None, help="default experiments/cache/bench_<suite>.jsonl")
     ap.add_argument("--out", default=None, help="results stem (default experiments/results/leaderboard_<suite>)")
     ap.add_argument("--chunk", type=int, default=2)
-    ap.add_argument("--readme", action="store_true", help="replace the README's agent table")
+    ap.add_argument("--readme", action="store_true", help="re-render the README's and docs' tables")
     add_executor_argument(ap)
     args = ap.parse_args()
     suite = load_suite(args.suite)
@@ -85,9 +75,9 @@ def main() -> None:
     print(table, flush=True)
     benchmark.plot_curves(b["summaries"], str(stem.with_suffix(".png")))
     if args.readme:
-        short = benchmark.leaderboard_markdown(b["summaries"], b["paired"], b["leader"], detail=False,
-                                               note=note + f" Every metric per budget: `{stem.with_suffix('.md')}`.")
-        splice_readme(short, suite.name)
+        import readme_tables  # experiments/ is on sys.path when this script runs
+
+        readme_tables.main([])
 
 
 def _load() -> str:
