@@ -161,3 +161,15 @@ def test_generator_renders_every_table():
         assert "|---|" in readme_tables.render(name), name
     with pytest.raises(KeyError):
         readme_tables.render("no_such_table")
+
+
+def test_docs_python_blocks_compile():
+    """The docs pages' Python examples are at least valid Python (the README's are run above)."""
+    pages = sorted((ROOT / "docs").rglob("*.md"))
+    found = 0
+    for page in pages:
+        for m in FENCE.finditer(page.read_text()):
+            if m["lang"] == "python":
+                compile(m["body"], f"{page.name} block", "exec")
+                found += 1
+    assert found >= 2
