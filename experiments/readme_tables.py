@@ -179,8 +179,8 @@ def _leaderboard(suite: str, full: bool) -> str:
         if full:
             cells += [_stat(at[b]["median_error"], 100, 1) for b in sorted(at)[:-1]]
         cells += [_stat(last["median_error"], 100, 1), _stat(last["p90_error"], 100, 1),
-                  f"{last['coverage68']['value'] * 100:.0f} / {last['coverage95']['value'] * 100:.0f}",
-                  _stat(last["no_estimate"], 100, 0, interval=False), f"{last['probes_mean']:.1f}"]
+                  " / ".join(_stat(last[c], 100, 0, interval=full) for c in ("coverage68", "coverage95")),
+                  _stat(last["no_estimate"], 100, 0, interval=full), f"{last['probes_mean']:.1f}"]
         if full:
             cells.append(f"{a['seconds_per_decision']['value']:.2g}")
         rows.append(cells)
@@ -192,7 +192,8 @@ def _leaderboard(suite: str, full: bool) -> str:
              "no estimate (%)", "probes"]
     if full:
         head.append("wall s per decision")
-    return _table(head, rows)
+    caption = f"Suite `{suite}` ({d['agents'][0]['n']} objects; sha256 {d['suite_sha256'][:12]}).\n\n" if full else ""
+    return caption + _table(head, rows)
 
 
 def _paired(suite: str) -> str:
