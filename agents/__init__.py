@@ -13,8 +13,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
-from plate_env.protocol import check_agent
-from plate_env_agents.base import Agent, Probe, ProbeContext
+from plate_env.env.protocol import Agent, Probe, ProbeContext, check_agent
 
 AGENT_NAMES = ("grid", "coarse_to_fine", "bayes", "ppo")
 

@@ -28,9 +28,11 @@ import math
 
 import numpy as np
 
-from plate_env import checks
-from plate_env.forward import ForwardModel, load_forward_model
-from plate_env.inference import (
+from plate_env.core import checks
+from plate_env.core.probe_table import ProbeTable
+from plate_env.env.protocol import Agent, Probe
+from plate_env.identify.forward import ForwardModel, load_forward_model
+from plate_env.identify.inference import (
     blurred,
     log_student,
     member_coverage,
@@ -40,8 +42,6 @@ from plate_env.inference import (
     probe_log_likelihood,
     smoothed_p,
 )
-from plate_env.probes import ProbeTable
-from plate_env_agents.base import Agent, Probe
 
 #: The agent's own blur (sd of log omega_n), added in quadrature to each member's: an adaptive design puts its
 #: probes where the atlas predicts the sharpest change (instability edges, the rising flank), exactly where its

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from plate_env.fitting import first_hump_mask
-from plate_env.probes import ProbeTable
-from plate_env_agents.base import Agent, Probe
+from plate_env.core.probe_table import ProbeTable
+from plate_env.env.protocol import Agent, Probe
+from plate_env.identify.fitting import first_hump_mask
 
 
 class CoarseToFineAgent(Agent):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from plate_env.probes import ProbeTable
-from plate_env_agents.base import Agent, Probe
+from plate_env.core.probe_table import ProbeTable
+from plate_env.env.protocol import Agent, Probe
 
 
 class GridAgent(Agent):

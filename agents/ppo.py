@@ -37,9 +37,9 @@ from pathlib import Path
 
 import numpy as np
 
-from plate_env.env import N_FEATURES
-from plate_env.probes import ProbeTable
-from plate_env_agents.base import Agent, ProbeContext
+from plate_env.core.probe_table import ProbeTable
+from plate_env.env.protocol import Agent, ProbeContext
+from plate_env.env.rotation import N_FEATURES
 
 #: The model shipped with the package.
 DEFAULT_MODEL = Path(__file__).parent / "models" / "ppo_plate.zip"

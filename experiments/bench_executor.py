@@ -30,8 +30,8 @@ import time
 from pathlib import Path
 
 import plate_env as pe
-from plate_env.executor import BackendSpec, make_executor
-from plate_env.sweeps import run_cached
+from plate_env.run.executor import BackendSpec, make_executor
+from plate_env.run.sweeps import run_cached
 
 OUT = Path(__file__).resolve().parent / "results" / "bench_executor.md"
 CHEESE = pe.ObjectSpec.from_paper(10.0, 36.9)

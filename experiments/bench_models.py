@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 import plate_env as pe
-from plate_env.fitting import fit_lorentzian
-from plate_env.physics.base import ProbeSpec, Status
+from plate_env.core.probe import ProbeSpec, Status
+from plate_env.identify.fitting import fit_lorentzian
 from plate_env.physics.tilelink import rigid_kernels as rk
 from plate_env.physics.tilelink.params import DEFAULT_DT, P_RECEVERY
 

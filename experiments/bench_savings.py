@@ -39,8 +39,8 @@ from pathlib import Path
 import numpy as np
 
 import plate_env as pe
-from plate_env import benchmarks as bm
-from plate_env.physics.base import ProbeResult, ProbeSpec
+from plate_env.build import eval_sets as bm
+from plate_env.core.probe import ProbeResult, ProbeSpec
 from plate_env.physics.tilelink.params import DEFAULT_RECORD_INTERVAL_S
 
 SCRIPT = "experiments/bench_savings.py"

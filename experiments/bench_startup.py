@@ -24,8 +24,8 @@ import time, json
 t0 = time.perf_counter()
 import numpy as np
 from plate_env_agents import make_agent
-from plate_env.env import PlateRotationEnv
-from plate_env.protocol import ProbeContext
+from plate_env.env.rotation import PlateRotationEnv
+from plate_env.env.protocol import ProbeContext
 t1 = time.perf_counter()
 agent = make_agent("ppo")
 if {force_sb3}:
@@ -45,7 +45,7 @@ print(json.dumps({{"imports": t1 - t0, "make_agent": t2 - t1, "env": t3 - t2, "f
 PYBULLET_CODE = """
 import time, json, math
 import numpy as np
-from plate_env.env import PlateRotationEnv
+from plate_env.env.rotation import PlateRotationEnv
 from plate_env.physics.pybullet_sheet import calibrate, scene
 t0 = time.perf_counter()
 env = PlateRotationEnv(physics="pybullet", amplitudes_deg=(3.0,), f_band_hz=(10.0, 26.0), settle_s=0.3,

@@ -32,11 +32,11 @@ from pathlib import Path
 import numpy as np
 
 import plate_env as pe
-from plate_env import benchmarks as bm
-from plate_env.camera import camera_omega_b
+from plate_env.build import eval_sets as bm
+from plate_env.core.probe_table import ProbeTable
 from plate_env.identify import identify
+from plate_env.physics.camera import camera_omega_b
 from plate_env.plotting import new_figure, save_figure
-from plate_env.probes import ProbeTable
 
 SCRIPT = "experiments/bench_time_vs_error.py"
 A_P_DEG = 3.0

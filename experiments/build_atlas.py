@@ -45,15 +45,15 @@ import time
 import numpy as np
 
 import plate_env as pe
-from plate_env import benchmarks as bm
-from plate_env.atlas import FILL_SPREAD, atlas_file, atlas_from_repeats
-from plate_env.atlas_grid import AtlasGrid, result_arrays, run_grid
-from plate_env.executor import BackendSpec, add_executor_argument, make_executor
-from plate_env.inference import fit_sigma_model
-from plate_env.nuisance import Nuisance
-from plate_env.physics.base import PLACEMENT_STD_M
-from plate_env.reporting import median_p90
-from plate_env.sweeps import run_cached
+from plate_env.bench.reporting import median_p90
+from plate_env.build import eval_sets as bm
+from plate_env.build.atlas_grid import AtlasGrid, result_arrays, run_grid
+from plate_env.core.probe import PLACEMENT_STD_M
+from plate_env.identify.inference import fit_sigma_model
+from plate_env.physics.nuisance import Nuisance
+from plate_env.run.executor import BackendSpec, add_executor_argument, make_executor
+from plate_env.run.sweeps import run_cached
+from plate_env.surrogate.atlas import FILL_SPREAD, atlas_file, atlas_from_repeats
 
 #: Named grids.
 GRIDS = {

@@ -18,8 +18,8 @@ import math
 import numpy as np
 
 import plate_env as pe
-from plate_env import benchmarks as bm
-from plate_env.calibration import (
+from plate_env.build import eval_sets as bm
+from plate_env.identify.calibration import (
     DATA_FILE,
     fit_calibration,
     linear_fit,
@@ -27,10 +27,10 @@ from plate_env.calibration import (
     paper_calibration,
     save_calibrations,
 )
-from plate_env.executor import BackendSpec, add_executor_argument, make_executor
-from plate_env.fitting import DEFAULT_DROP, DEFAULT_FLOOR, fit_results
+from plate_env.identify.fitting import DEFAULT_DROP, DEFAULT_FLOOR, fit_results
 from plate_env.plotting import new_figure, save_figure
-from plate_env.sweeps import run_cached
+from plate_env.run.executor import BackendSpec, add_executor_argument, make_executor
+from plate_env.run.sweeps import run_cached
 
 RULES = [("all", 0.05, 0.0), ("first_hump", 0.05, 0.0), ("first_hump", 0.05, 0.2), ("first_hump", 0.05, 0.4),
          ("first_hump", 0.10, 0.4), ("first_hump", 0.05, 0.6)]

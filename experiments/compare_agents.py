@@ -22,11 +22,11 @@ import gymnasium as gym
 import numpy as np
 
 import plate_env  # noqa: F401 - registers the env
-from plate_env.objects import ObjectPrior
+from plate_env.bench.reporting import median_p90
+from plate_env.core.objects import ObjectPrior
+from plate_env.env.episode import run_episode
 from plate_env.plotting import new_figure, save_figure
-from plate_env.reporting import median_p90
 from plate_env_agents import make_agent
-from plate_env_agents.runner import run_episode
 
 
 def configurations(quick: bool) -> list[tuple[str, str, dict]]:

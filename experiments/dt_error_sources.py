@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 import plate_env as pe
-from plate_env.physics.base import SLIP_LIMIT_M, ProbeSpec, Status
+from plate_env.core.probe import SLIP_LIMIT_M, ProbeSpec, Status
 from plate_env.physics.tilelink import contact, params, rigid
 from plate_env.physics.tilelink import rigid_kernels as rk
 from plate_env.physics.tilelink.backend import result_from_arrays

@@ -23,10 +23,10 @@ import gymnasium as gym
 import numpy as np
 
 import plate_env  # noqa: F401 - registers the env
-from plate_env.objects import ObjectPrior
-from plate_env.reporting import median_p90
+from plate_env.bench.reporting import median_p90
+from plate_env.core.objects import ObjectPrior
+from plate_env.env.episode import run_episode
 from plate_env_agents import make_agent
-from plate_env_agents.runner import run_episode
 
 NOTES = """## Training variants (same 50 live tile-link objects, seed 0; coarse_to_fine there: 6.2 % / 32.1 %, 16.8 s)
 

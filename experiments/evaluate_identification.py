@@ -16,14 +16,14 @@ import math
 
 import numpy as np
 
-from plate_env import benchmarks as bm
-from plate_env.calibration import paper_calibration
-from plate_env.executor import BackendSpec, add_executor_argument
+from plate_env.bench.reporting import median_p90
+from plate_env.build import eval_sets as bm
+from plate_env.core.probe_table import ProbeTable
 from plate_env.identify import identify
+from plate_env.identify.calibration import paper_calibration
 from plate_env.plotting import new_figure, save_figure
-from plate_env.probes import ProbeTable
-from plate_env.reporting import median_p90
-from plate_env.sweeps import run_cached
+from plate_env.run.executor import BackendSpec, add_executor_argument
+from plate_env.run.sweeps import run_cached
 
 
 def stats(pairs):

@@ -19,14 +19,14 @@ import math
 import numpy as np
 
 import plate_env as pe
-from plate_env import benchmarks as bm
-from plate_env.atlas import Atlas, load_atlas
-from plate_env.executor import BackendSpec, add_executor_argument
-from plate_env.forward import ForwardModel, Member
+from plate_env.bench.reporting import median_p90
+from plate_env.build import eval_sets as bm
+from plate_env.core.probe_table import ProbeTable
 from plate_env.identify import identify
-from plate_env.probes import ProbeTable
-from plate_env.reporting import median_p90
-from plate_env.sweeps import run_cached
+from plate_env.identify.forward import ForwardModel, Member
+from plate_env.run.executor import BackendSpec, add_executor_argument
+from plate_env.run.sweeps import run_cached
+from plate_env.surrogate.atlas import Atlas, load_atlas
 
 #: The pybullet atlas's model error scored by default, deg/s (the grid's own leave-one-omega_n-out scale, below).
 SIGMA_MODEL = 15.0

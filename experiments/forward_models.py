@@ -27,17 +27,17 @@ from pathlib import Path
 
 import numpy as np
 
-from plate_env.benchmarks import EvalSet, run_eval_set
-from plate_env.executor import BackendSpec, add_executor_argument
-from plate_env.forward import ForwardModel, Member, load_forward_model
-from plate_env.inference import (
+from plate_env.bench.scoring import Scores, discrepancies, score
+from plate_env.build.eval_sets import EvalSet, run_eval_set
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.forward import ForwardModel, Member, load_forward_model
+from plate_env.identify.inference import (
     family_discrepancy,
     fit_discrepancy,
     fit_discrepancy_exact,
     identify_atlas,
 )
-from plate_env.probes import ProbeTable
-from plate_env.scoring import Scores, discrepancies, score
+from plate_env.run.executor import BackendSpec, add_executor_argument
 
 RESULTS = Path("experiments/results")
 REGISTRY = Path("plate_env/data/forward_models.json")
@@ -197,10 +197,10 @@ def episodes(args, fm: ForwardModel, seed: int) -> list[dict]:
     episodes, with their probes, are kept in experiments/cache)."""
     import gymnasium as gym
 
-    from plate_env import benchmarks as bm
-    from plate_env.sweeps import open_for_append, read_records
+    from plate_env.build import eval_sets as bm
+    from plate_env.env.episode import run_episode
+    from plate_env.run.sweeps import open_for_append, read_records
     from plate_env_agents import make_agent
-    from plate_env_agents.runner import run_episode
 
     cache = Path(f"experiments/cache/forward_models_bayes_s{seed}.jsonl")
     done = {d["i"]: d for d in read_records(cache) if "i" in d}
@@ -245,7 +245,7 @@ FAMILIES = {
 def member(name: str) -> Member:
     """A shipped atlas as a member with its held-out model error (provenance). No blur: full sweeps are calibrated
     without it (the within stage); the bayes agent adds its own design blur (agents/bayes.py DESIGN_BLUR)."""
-    from plate_env.atlas import load_atlas_file
+    from plate_env.surrogate.atlas import load_atlas_file
 
     atlas = load_atlas_file(name)
     return Member(atlas, float(atlas.provenance["sigma_model_deg_s"]))
@@ -260,7 +260,7 @@ def family_model(families: list[str], sigma_eps: float = 0.0, nu: float = math.i
 def described(fm: ForwardModel, table: ProbeTable) -> ProbeTable:
     """The probes of ``table`` some member of ``fm`` describes (a model reaching only 10-26 Hz is shown the sweep's
     10-26 Hz; the others would refuse the estimate)."""
-    from plate_env.inference import member_domain
+    from plate_env.identify.inference import member_domain
 
     return table.subset(np.array([any(member_domain(m, float(f), float(a)) is None for m in fm.members)
                                   for f, a in zip(table.f_p_hz, table.a_p_deg, strict=True)], dtype=bool))
@@ -328,8 +328,8 @@ def stage_sensitivity(args) -> None:
     """One nuisance at a time at each end of its prior band (the others nominal): the same 24 prior objects swept
     at 3 deg, identified by the nominal point-mass model without a discrepancy term. Says which unknown moves
     omega_n_hat, and so which ones the forward model must carry as members rather than in sigma_eps."""
-    import plate_env.nuisance as nz
-    from plate_env.sweeps import run_cached
+    import plate_env.physics.nuisance as nz
+    from plate_env.run.sweeps import run_cached
 
     rng = np.random.default_rng(0)
     truth = [o.omega_n for o in SENSITIVITY.objects()]
@@ -434,9 +434,9 @@ def stage_paper(args) -> None:
     model, each three times with random placements, identified with their mass given, by the model that made the
     data and by the lab model."""
     import plate_env as pe
-    from plate_env import benchmarks as bm
-    from plate_env.forward import KnownInputs
-    from plate_env.sweeps import run_cached
+    from plate_env.build import eval_sets as bm
+    from plate_env.run.sweeps import run_cached
+    from plate_env.surrogate.conditioning import KnownInputs
 
     lines = ["# The paper's three objects at 12 deg, mass given", "",
              "Sweeps 10-40 Hz (1 Hz) at A_p = 12 deg (and with a 3 deg sweep added), B_p = 3 mm, on the point-mass "
@@ -481,9 +481,9 @@ def stage_lorentz(args) -> None:
     """The paper's method across models: Eq. (10) lines fitted to each family's first-hump f0 at 3 deg, the pooled
     line (its residual spread includes the models' disagreement) shipped as the ``lab`` calibration, and each
     family left out in turn (line from the other two) to test the Lorentzian intervals."""
-    from plate_env.calibration import fit_calibration, load_calibrations, save_calibrations
-    from plate_env.fitting import fit_lorentzian
     from plate_env.identify import identify_lorentz
+    from plate_env.identify.calibration import fit_calibration, load_calibrations, save_calibrations
+    from plate_env.identify.fitting import fit_lorentzian
 
     rng = np.random.default_rng(0)
     fits, data = {}, {}
@@ -552,7 +552,7 @@ def _entry(members: list[list[str]], sigma_eps: float, provenance: dict, nu: flo
 
 def stage_ship(args) -> None:
     """Write plate_env/data/forward_models.json from the measured numbers of the other stages."""
-    from plate_env.atlas import load_atlas_file
+    from plate_env.surrogate.atlas import load_atlas_file
 
     within = json.loads((RESULTS / "forward_models_within.json").read_text())
     lomo = json.loads((RESULTS / "forward_models_lomo.json").read_text())

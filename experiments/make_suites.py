@@ -14,8 +14,8 @@ import json
 import math
 import sys
 
-from plate_env.objects import ObjectPrior
-from plate_env.suites import content_hash, suite_dir
+from plate_env.bench.suites import content_hash, suite_dir
+from plate_env.core.objects import ObjectPrior
 
 #: Probe settings of the tile-link suites: the CLI's identify (and the shipped policy's training) settings.
 TILELINK_ENV = {"method": "atlas", "f_band_hz": [10.0, 40.0], "amplitudes_deg": [3.0, 12.0],

@@ -56,7 +56,7 @@ MIN_ACCEPTED = 100
 # --------------------------------------------------------------------------------------------------- simulation
 def prior_bounds() -> tuple[np.ndarray, np.ndarray]:
     """(low, high) of theta = (log omega_n [rad/s], alpha [deg]) under the identification prior."""
-    from plate_env.benchmarks import PRIOR_ALPHA_DEG, PRIOR_OMEGA_PI
+    from plate_env.build.eval_sets import PRIOR_ALPHA_DEG, PRIOR_OMEGA_PI
 
     lo = np.array([math.log(PRIOR_OMEGA_PI[0] * math.pi), PRIOR_ALPHA_DEG[0]])
     hi = np.array([math.log(PRIOR_OMEGA_PI[1] * math.pi), PRIOR_ALPHA_DEG[1]])
@@ -103,7 +103,7 @@ def encode(table) -> np.ndarray:
 def check_physics(atlases: list, names: list[str], rng: np.random.Generator) -> dict:
     """Run a few sweeps through the atlas physics itself: it answers from the same atlas the vectorised draws use
     (so the two give the same distribution); returns its time per probe."""
-    from plate_env import benchmarks as bm
+    from plate_env.build import eval_sets as bm
     from plate_env.physics import make_physics
 
     out = {}
@@ -125,9 +125,9 @@ def check_physics(atlases: list, names: list[str], rng: np.random.Generator) -> 
 def emulated_tables(atlases: list, names: list[str], n: int, rng: np.random.Generator) -> tuple[list, list, list]:
     """``n`` prior objects swept (placed) through the atlas physics itself, each from one member drawn uniformly:
     held-out data from the networks' training distribution. Returns truths, tables and members."""
-    from plate_env import benchmarks as bm
+    from plate_env.build import eval_sets as bm
+    from plate_env.core.probe_table import ProbeTable
     from plate_env.physics import make_physics
-    from plate_env.probes import ProbeTable
 
     phys = [make_physics("atlas", source="tilelink", model="pointmass") if name == "atlas_tilelink_pointmass.npz"
             else make_physics("atlas", atlas=atlas) for atlas, name in zip(atlases, names, strict=True)]
@@ -188,7 +188,7 @@ def npe_estimates(posterior, tables: list, seed: int) -> tuple[list, float, list
     fewer than MIN_ACCEPTED of MAX_DRAWS land inside the prior); median seconds; accepted shares."""
     import torch
 
-    from plate_env.estimate import Estimate
+    from plate_env.identify.estimate import Estimate
 
     torch.manual_seed(seed)
     out, secs, shares = [], [], []
@@ -213,7 +213,7 @@ def npe_estimates(posterior, tables: list, seed: int) -> tuple[list, float, list
 
 
 def atlas_estimates(fm, tables: list) -> tuple[list, float, None]:
-    from plate_env.inference import identify_atlas
+    from plate_env.identify.inference import identify_atlas
 
     out, secs = [], []
     for t in tables:
@@ -236,7 +236,7 @@ def row(label: str, s, secs: float) -> str:
 
 def scored(ests: dict, labels: dict, truth: list, rng) -> tuple[list[str], dict, list[str]]:
     """Table rows, numbers and notes (NPE draws inside the prior) for one data set's methods."""
-    from plate_env.scoring import score
+    from plate_env.bench.scoring import score
 
     rows, numbers, notes = [], {}, []
     for k, (e, secs, shares) in ests.items():
@@ -253,7 +253,7 @@ def scored(ests: dict, labels: dict, truth: list, rng) -> tuple[list[str], dict,
 
 
 def paired(label_a: str, a: list, label_b: str, b: list, truth: list, rng) -> tuple[str, dict]:
-    from plate_env.scoring import paired_difference
+    from plate_env.bench.scoring import paired_difference
 
     ea = [e.relative_error(w) for e, w in zip(a, truth, strict=True)]
     eb = [e.relative_error(w) for e, w in zip(b, truth, strict=True)]
@@ -279,9 +279,9 @@ def main() -> None:
     torch.set_num_threads(1)
     import forward_models as fmx
 
-    from plate_env.atlas import load_atlas_file
-    from plate_env.benchmarks import run_eval_set
-    from plate_env.forward import ForwardModel, load_forward_model
+    from plate_env.build.eval_sets import run_eval_set
+    from plate_env.identify.forward import ForwardModel, load_forward_model
+    from plate_env.surrogate.atlas import load_atlas_file
     rng = np.random.default_rng(args.seed)
     names = fmx.FAMILIES["pointmass"]
     atlases = [load_atlas_file(n) for n in names]
@@ -385,7 +385,7 @@ def main() -> None:
         f"- 9-member mixture: simulated in {nf['simulate_s']:.1f} s, trained in {nf['train_s']:.0f} s "
         f"({nf['epochs']} epochs)", "",
         f"Per object: {N_SAMPLES} posterior samples, median omega_n, equal-tailed 68 %/95 % intervals. Scores: "
-        "plate_env.scoring.score, 95 % bootstrap intervals over objects in brackets. Wall time per object: the "
+        "plate_env.bench.scoring.score, 95 % bootstrap intervals over objects in brackets. Wall time per object: the "
         "median over objects (atlas: identify_atlas; NPE: encoding + sampling; training not included).", "",
         f"## Within the model: live tilelink point mass, test set of experiments/forward_models.py ({fmx.TEST.n} "
         f"objects, seed {fmx.TEST.seed}, 3 deg sweeps)", "", *HEAD, *within_rows, "", txt_w, "",

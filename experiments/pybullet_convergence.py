@@ -33,9 +33,9 @@ from pathlib import Path
 import numpy as np
 
 import plate_env as pe
-from plate_env import benchmarks as bm
-from plate_env.executor import BackendSpec, add_executor_argument, make_executor
-from plate_env.sweeps import backend_tag, load_cache, run_cached, spec_key
+from plate_env.build import eval_sets as bm
+from plate_env.run.executor import BackendSpec, add_executor_argument, make_executor
+from plate_env.run.sweeps import backend_tag, load_cache, run_cached, spec_key
 
 ROOT = Path(__file__).resolve().parent
 OMEGAS_PI = (7.0, 10.0, 17.0, 23.0)

@@ -29,14 +29,14 @@ from pathlib import Path
 import numpy as np
 
 import plate_env as pe
-from plate_env import benchmarks as bm
-from plate_env.executor import BackendSpec, add_executor_argument, make_executor
-from plate_env.fitting import LorentzFit, fit_results, lorentzian
+from plate_env.build import eval_sets as bm
+from plate_env.core.probe import ProbeResult
+from plate_env.core.probe_table import ProbeTable
 from plate_env.identify import identify
-from plate_env.physics.base import ProbeResult
+from plate_env.identify.fitting import LorentzFit, fit_results, lorentzian
 from plate_env.plotting import new_figure, save_figure
-from plate_env.probes import ProbeTable
-from plate_env.sweeps import run_cached
+from plate_env.run.executor import BackendSpec, add_executor_argument, make_executor
+from plate_env.run.sweeps import run_cached
 
 SCRIPT = "experiments/reproduce_paper.py"
 FREQS_HZ = bm.SWEEP_F_HZ

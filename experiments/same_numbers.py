@@ -1,4 +1,5 @@
-"""Compare two leaderboard JSONs (experiments/leaderboard.py) field by field, wall times aside.
+"""Compare two leaderboard JSONs (``plate-env bench --json``, or the JSON experiments/leaderboard.py wrote before it
+was folded into the CLI) field by field, wall times aside.
 
     python experiments/same_numbers.py experiments/results/leaderboard_tilelink-v0.json \
         experiments/results/leaderboard_tilelink-v0_process2.json

@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 import plate_env as pe
-from plate_env.env import PlateRotationEnv
-from plate_env.physics.base import NON_FINITE, REASONS, RUNAWAY, ProbeResult
+from plate_env.core.probe import NON_FINITE, REASONS, RUNAWAY, ProbeResult
+from plate_env.env.rotation import PlateRotationEnv
 from plate_env.plotting import new_figure, save_figure
 
 SCRIPT = "experiments/stress.py"

@@ -14,7 +14,7 @@ import numpy as np
 
 import plate_env as pe
 from plate_env.cli import parse_freqs
-from plate_env.fitting import first_hump_mask, fit_results
+from plate_env.identify.fitting import first_hump_mask, fit_results
 from plate_env.plotting import new_figure, save_figure
 
 

@@ -3,7 +3,7 @@
     python experiments/train_readme_ppo.py [--timesteps 100000] [--out experiments/results/models/readme_ppo.zip]
 
 Writes the model and, beside it, a JSON with the steps, wall seconds, load average and versions. The leaderboard
-(experiments/leaderboard.py) evaluates it beside the shipped agents as ``sb3:<model>``.
+(``plate-env bench --agent ... sb3:<model>``) evaluates it beside the shipped agents.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ def main() -> None:
     # --- the README's snippet ---
     from stable_baselines3 import PPO
 
-    from plate_env.sb3 import make_sb3_vec_env
+    from plate_env.env.sb3 import make_sb3_vec_env
 
     model = PPO("MlpPolicy", make_sb3_vec_env(n_envs=8, physics="atlas", seed=0), seed=0, device="cpu")
     model.learn(args.timesteps)

@@ -32,7 +32,7 @@ import torch
 import yaml
 
 import plate_env  # noqa: F401 - registers the env
-from plate_env.sb3 import make_sb3_vec_env
+from plate_env.env.sb3 import make_sb3_vec_env
 from plate_env_agents.ppo import export_policy
 
 ENV_ID = "PlateRotation-v0"

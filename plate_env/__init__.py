@@ -1,13 +1,66 @@
 """plate-env: read a thin deformable object's bending stiffness from how fast it turns on a vibrating plate.
 
 Light to import: numba, pybullet, matplotlib and torch load only when the code that needs them runs.
+
+The package is layered, each layer importing only the ones below it: :mod:`plate_env.core` ->
+:mod:`plate_env.surrogate` -> :mod:`plate_env.physics` -> :mod:`plate_env.identify` -> :mod:`plate_env.run` ->
+:mod:`plate_env.env` -> :mod:`plate_env.bench` -> :mod:`plate_env.build`, with the command line and plots at the
+edge.
 """
 
-from plate_env.motion import PlateMotion
-from plate_env.objects import PRESETS, ObjectSpec, preset
+from __future__ import annotations
+
+import importlib
+import sys
+import warnings
+
+from plate_env.core.motion import PlateMotion
+from plate_env.core.objects import PRESETS, ObjectSpec, preset
 from plate_env.physics import PHYSICS_NAMES, ProbeResult, ProbeSpec, make_physics
 
 __version__ = "0.1.0"
+
+#: The flat layout's module paths, which still import (with a DeprecationWarning naming the new path): old path ->
+#: the module that now holds it (``plate_env.physics.base``'s ``Physics`` protocol is in
+#: ``plate_env.physics.interface``). The project's own code imports the new paths (tests/test_code_health.py).
+MOVED_MODULES = {
+    "plate_env.objects": "plate_env.core.objects", "plate_env.motion": "plate_env.core.motion",
+    "plate_env.units": "plate_env.core.units", "plate_env.checks": "plate_env.core.checks",
+    "plate_env.probes": "plate_env.core.probe_table", "plate_env.physics.base": "plate_env.core.probe",
+    "plate_env.atlas": "plate_env.surrogate.atlas", "plate_env.measure": "plate_env.physics.measure",
+    "plate_env.camera": "plate_env.physics.camera", "plate_env.nuisance": "plate_env.physics.nuisance",
+    "plate_env.fitting": "plate_env.identify.fitting", "plate_env.calibration": "plate_env.identify.calibration",
+    "plate_env.inference": "plate_env.identify.inference", "plate_env.estimate": "plate_env.identify.estimate",
+    "plate_env.forward": "plate_env.identify.forward", "plate_env.executor": "plate_env.run.executor",
+    "plate_env.sweeps": "plate_env.run.sweeps", "plate_env.vector": "plate_env.env.vector",
+    "plate_env.sb3": "plate_env.env.sb3", "plate_env.render": "plate_env.env.render",
+    "plate_env.episode": "plate_env.env.episode", "plate_env.protocol": "plate_env.env.protocol",
+    "plate_env.benchmark": "plate_env.bench", "plate_env.suites": "plate_env.bench.suites",
+    "plate_env.scoring": "plate_env.bench.scoring", "plate_env.reporting": "plate_env.bench.reporting",
+    "plate_env.benchmarks": "plate_env.build.eval_sets", "plate_env.atlas_grid": "plate_env.build.atlas_grid"
+}
+
+
+class _MovedModuleFinder:
+    """Imports an old module path (:data:`MOVED_MODULES`) as its new module, with a DeprecationWarning naming it (a
+    meta path finder and loader, :pep:`451`)."""
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname not in MOVED_MODULES:
+            return None
+        from importlib.machinery import ModuleSpec
+
+        return ModuleSpec(fullname, self)
+
+    def create_module(self, spec):
+        new = MOVED_MODULES[spec.name]
+        warnings.warn(f"{spec.name} moved to {new}: import {new} instead", DeprecationWarning, stacklevel=2)
+        module = importlib.import_module(new)
+        self._spec = module.__spec__
+        return module
+
+    def exec_module(self, module) -> None:
+        module.__spec__ = self._spec  # the import system set the old name's spec on the new module: restore it
 
 
 def _register() -> None:
@@ -16,9 +69,18 @@ def _register() -> None:
     for env_id in ("PlateRotation-v0", "plate_env/PlateRotation-v0"):
         if env_id not in registry:
             register(id=env_id, entry_point="plate_env.env:PlateRotationEnv",
-                     vector_entry_point="plate_env.vector:PlateRotationVectorEnv")
+                     vector_entry_point="plate_env.env.vector:PlateRotationVectorEnv")
 
 
+def __getattr__(name: str):
+    """``plate_env.objects`` and the other old submodule attributes: the moved module, with a DeprecationWarning."""
+    if f"plate_env.{name}" in MOVED_MODULES:
+        return importlib.import_module(f"plate_env.{name}")
+    raise AttributeError(f"module 'plate_env' has no attribute {name!r}")
+
+
+if not any(isinstance(f, _MovedModuleFinder) for f in sys.meta_path):
+    sys.meta_path.append(_MovedModuleFinder())
 _register()
 
 __all__ = ["PHYSICS_NAMES", "PRESETS", "ObjectSpec", "PlateMotion", "ProbeResult", "ProbeSpec", "__version__",

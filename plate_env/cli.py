@@ -15,14 +15,15 @@ from pathlib import Path
 
 import numpy as np
 
-from plate_env import checks
-from plate_env.env import DEFAULT_MAX_PROBES
-from plate_env.executor import BackendSpec, add_executor_argument, make_executor
-from plate_env.motion import AMP_RANGE_RAD, B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
-from plate_env.objects import ObjectSpec, preset
+from plate_env.core import checks
+from plate_env.core.motion import AMP_RANGE_RAD, B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
+from plate_env.core.objects import ObjectSpec, preset
+from plate_env.core.probe import MIN_PROBE_FREQ_HZ, WINDOW_RANGE_S
+from plate_env.core.units import format_omega_pi, parse_omega_n
+from plate_env.env.rotation import DEFAULT_MAX_PROBES
 from plate_env.physics import PHYSICS_NAMES, ProbeSpec, make_physics
-from plate_env.physics.base import MIN_PROBE_FREQ_HZ, WINDOW_RANGE_S, refuse_early
-from plate_env.units import format_omega_pi, parse_omega_n
+from plate_env.physics.interface import refuse_early
+from plate_env.run.executor import BackendSpec, add_executor_argument, make_executor
 
 #: Most probes one sweep may ask for.
 MAX_SWEEP_PROBES = 2000
@@ -250,11 +251,26 @@ def _add_bench(sub) -> None:
                    f"{BENCH_CACHE_DIR}/<suite>.jsonl)")
     b.add_argument("--no-cache", action="store_true", help="keep no episodes on disk")
     b.add_argument("--chunk", type=_arg(checks.integer, 1, 1000), default=2, help="episodes per task")
-    b.add_argument("--markdown", default=None, help="also write the leaderboard to this markdown file")
+    b.add_argument("--markdown", default=None, help="also write the leaderboard, under a title and the suite's "
+                   "description, to this markdown file (what experiments/leaderboard.py wrote)")
     b.add_argument("--plot", default=None, help="write the error curves (after the results are printed)")
     b.add_argument("--no-progress", action="store_true", help="no progress bar")
     b.add_argument("--json", action="store_true", help="print one JSON document")
     add_executor_argument(b)
+
+
+def _bench_note(args: argparse.Namespace, suite: str) -> str:
+    """How to regenerate a leaderboard (the command, the cache it resumes from) and the machine's load."""
+    import shlex
+
+    cmd = ["plate-env", "bench", "--suite", suite, "--agent", *args.agent]
+    cmd += ["--limit", str(args.limit)] * (args.limit is not None) + ["--budgets", args.budgets] * bool(args.budgets)
+    try:
+        load = Path("/proc/loadavg").read_text().split()[0]
+    except OSError:
+        load = "?"
+    return (f"Regenerate: `{shlex.join(cmd)}` (finished episodes are kept in the cache, a rerun resumes). Wall "
+            f"seconds per decision were measured at load {load}, noisy.")
 
 
 def _parse_budgets(text: str | None) -> list[float] | None:
@@ -269,9 +285,9 @@ def _parse_budgets(text: str | None) -> list[float] | None:
 def _cmd_bench(args: argparse.Namespace) -> int:
     import functools
 
-    from plate_env import benchmark
-    from plate_env.executor import check_executor_name, default_local
-    from plate_env.suites import load_suite
+    from plate_env.bench import runner as benchmark
+    from plate_env.bench.suites import load_suite
+    from plate_env.run.executor import check_executor_name, default_local
 
     # the seam: the CLI is the application layer, the only module of plate_env that imports the agents
     from plate_env_agents import load_agent
@@ -299,7 +315,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                   file=sys.stderr)
             return 130
     b = benchmark.board(runs, budgets)
-    text = benchmark.leaderboard_markdown(b["summaries"], b["paired"], b["leader"])
+    text = benchmark.leaderboard_markdown(b["summaries"], b["paired"], b["leader"], note=_bench_note(args, suite.name))
+    if args.markdown:
+        text = f"# Leaderboard: {suite.name}\n\n{suite.description}\n\n{text}"
     if args.json:
         print(json.dumps({"suite": suite.name, "suite_sha256": suite.sha256, "budgets_s": list(budgets),
                           **benchmark.board_to_dict(b)}), flush=True)
@@ -308,7 +326,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.markdown:
         Path(args.markdown).write_text(text)
     if plot is not None:
-        benchmark.plot_curves(b["summaries"], str(plot))
+        from plate_env.plotting import plot_curves
+
+        plot_curves(b["summaries"], str(plot))
         _say_plot(args, plot)
     return 0
 
@@ -348,7 +368,7 @@ def _print_sweep(args: argparse.Namespace, obj: ObjectSpec, results: list, inter
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from plate_env.sweeps import SweepInterrupted, run_cached
+    from plate_env.run.sweeps import SweepInterrupted, run_cached
 
     obj = _object(args)
     freqs = parse_freqs(args.freqs)
@@ -409,9 +429,10 @@ def _fit_report(est, table) -> list[str]:
 
 
 def _cmd_fit(args: argparse.Namespace) -> int:
-    from plate_env.forward import KnownInputs, forward_model_names
+    from plate_env.core.probe_table import read_lab_csv
     from plate_env.identify import identify
-    from plate_env.probes import read_lab_csv
+    from plate_env.surrogate.catalog import forward_model_names
+    from plate_env.surrogate.conditioning import KnownInputs
 
     plot = plot_path(args.plot) if args.plot else None
     known = KnownInputs(b_p=args.bp * 1e-3, mass=args.mass_g * 1e-3, diameter=args.diameter_mm * 1e-3)
@@ -448,10 +469,11 @@ def _cmd_fit(args: argparse.Namespace) -> int:
 def _cmd_identify(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
+    from plate_env.env.episode import run_episode
+
     # the seam: the CLI is the application layer, the only module of plate_env that imports the agents
     # (tests/test_code_health.py keeps it so); the library core below it does not
     from plate_env_agents import make_agent
-    from plate_env_agents.runner import run_episode
 
     if args.target is not None and args.agent != "bayes":
         raise CliError(f"--target applies to --agent bayes only (its stopping rule), not to --agent {args.agent}")

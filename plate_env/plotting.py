@@ -11,10 +11,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from plate_env.physics.base import ProbeResult
+from plate_env.core.probe import ProbeResult
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+
+    from plate_env.bench.runner import AgentSummary
 
 
 def new_figure(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float] | None = None,
@@ -84,3 +86,36 @@ def plot_fit(table, est, path: str) -> None:
     ax2.grid(alpha=0.3)
     ax2.legend(fontsize=7)
     save_figure(fig, path, dpi=100)
+
+
+def plot_curves(summaries: Sequence[AgentSummary], path: str) -> None:
+    """A benchmark's curves (:func:`plate_env.bench.runner.board`'s summaries): median (solid) and 90th-percentile
+    (dashed) error against the probing budget, one colour per agent."""
+    import math
+
+    import numpy as np
+
+    from plate_env.bench.runner import rank
+
+    fig, ax = new_figure(figsize=(10.5, 4.8))
+    for i, s in enumerate(rank(summaries)):
+        colour = f"C{i % 10}"
+        x = np.asarray(s.curve_s)
+        ax.plot(x, 100 * np.asarray(s.curve_median), "-", color=colour,
+                label=f"{s.label} (area {100 * s.area.value:.1f} %)")
+        ax.plot(x, 100 * np.asarray(s.curve_p90), "--", color=colour, lw=0.8)
+        bx = [b.budget_s for b in s.budgets]
+        med = [b.scores.median_error for b in s.budgets]
+        ok = [j for j, m in enumerate(med) if math.isfinite(m.value) and math.isfinite(m.hi)]
+        ax.errorbar([bx[j] for j in ok], [100 * med[j].value for j in ok],
+                    yerr=[[100 * (med[j].value - med[j].lo) for j in ok],
+                          [100 * (med[j].hi - med[j].value) for j in ok]],
+                    fmt="o", color=colour, ms=4, capsize=3)
+    ax.set_yscale("log")
+    ax.set_ylim(0.5, 110)
+    ax.set_xlabel("probing budget, simulated seconds")
+    ax.set_ylabel("relative error of omega_n_hat [%] (capped at 100)")
+    ax.set_title(f"{summaries[0].suite}: median (solid, 95 % CI at the budgets) and p90 (dashed)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # outside: the curves fill the axes
+    save_figure(fig, path, dpi=110)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import plate_env as pe
-from plate_env.atlas import Atlas, atlas_from_repeats
-from plate_env.fitting import lorentzian
+from plate_env.identify.fitting import lorentzian
+from plate_env.surrogate.atlas import Atlas, atlas_from_repeats
 
 
 @pytest.fixture(scope="session")

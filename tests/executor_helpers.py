@@ -10,7 +10,7 @@ import threading
 import time
 
 import plate_env as pe
-from plate_env.executor import BackendSpec
+from plate_env.run.executor import BackendSpec
 
 POINTMASS = BackendSpec.of("tilelink")
 

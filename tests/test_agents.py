@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import plate_env  # noqa: F401
-from plate_env.atlas import atlas_from_repeats
-from plate_env.fitting import lorentzian
+from plate_env.env.episode import run_episode
+from plate_env.identify.fitting import lorentzian
+from plate_env.surrogate.atlas import atlas_from_repeats
 from plate_env_agents import make_agent
-from plate_env_agents.runner import run_episode
 
 TRUTH = {"omega_n": 12 * math.pi, "alpha": 0.7}
 
@@ -77,14 +77,14 @@ def test_bayes_posterior_narrows_and_contains_truth_on_synthetic_lorentzian_data
     env = gym.make("PlateRotation-v0", physics="atlas", physics_options={"atlas": atlas, "source": "toy",
                                                                         "model": "toy"},
                    amplitudes_deg=(3.0,), max_probes=10)
-    from plate_env.forward import ForwardModel, Member
+    from plate_env.identify.forward import ForwardModel, Member
 
     agent = make_agent("bayes", forward=ForwardModel("toy", (Member(atlas, 5.0),)), target_rel=0.0)
     truth = 14 * math.pi
     widths = []
     e = env.unwrapped
     obs, _ = env.reset(seed=3, options={"omega_n": truth, "alpha": math.radians(45)})
-    from plate_env_agents.base import ProbeContext
+    from plate_env.env.protocol import ProbeContext
 
     agent.reset(ProbeContext.from_env(env), np.random.default_rng(3))
     widths.append(agent.relative_std())  # the prior's: log-uniform over the atlas's 2pi-40pi
@@ -105,8 +105,8 @@ def test_bayes_estimate_uses_its_design_discrepancy_and_stops_on_what_the_probes
     no probe can reduce), and the episode's estimate comes from its design model: its blur, the discrepancy
     calibrated for this forward model (DESIGN_DISCREPANCY, or one given) in place of the model's own, the offset
     between models kept."""
-    from plate_env.forward import ForwardModel, Member
-    from plate_env.inference import identify_atlas
+    from plate_env.identify.forward import ForwardModel, Member
+    from plate_env.identify.inference import identify_atlas
     from plate_env_agents.bayes import DESIGN_DISCREPANCY
 
     atlas = _lorentz_atlas()

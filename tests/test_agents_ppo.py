@@ -13,10 +13,10 @@ import plate_env  # noqa: F401 - registers the env
 
 pytest.importorskip("stable_baselines3")
 
+from plate_env.env.episode import run_episode  # noqa: E402
+from plate_env.env.protocol import ProbeContext  # noqa: E402
 from plate_env_agents import make_agent  # noqa: E402
-from plate_env_agents.base import ProbeContext  # noqa: E402
 from plate_env_agents.ppo import DEFAULT_MODEL  # noqa: E402
-from plate_env_agents.runner import run_episode  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -7,9 +7,9 @@ import pickle
 import numpy as np
 import pytest
 
-from plate_env.atlas import Atlas
-from plate_env.forward import Member
-from plate_env.inference import member_response
+from plate_env.identify.forward import Member
+from plate_env.identify.inference import member_response
+from plate_env.surrogate.atlas import Atlas
 
 
 def test_interpolators_are_cached_per_instance_not_shared(toy_atlas):
@@ -70,7 +70,7 @@ def test_mass_interpolation_between_atlases_on_different_omega_nodes(toy_atlas):
     import dataclasses
     import math
 
-    from plate_env.forward import KnownInputs, condition
+    from plate_env.surrogate.conditioning import KnownInputs, condition
 
     coarse = dataclasses.replace(toy_atlas(1.0), provenance={"mass_g": 8.0})
     base = toy_atlas(2.0)
@@ -94,8 +94,9 @@ def test_mass_interpolation_between_atlases_on_different_omega_nodes(toy_atlas):
 def test_a_shipped_forward_model_between_masses_is_conditioned_once_per_inputs():
     """An interpolated atlas is a new instance (its interpolators are built on it): loading the same forward model
     at the same known inputs again reuses it, and other inputs get their own."""
-    from plate_env.atlas import load_atlas_file
-    from plate_env.forward import KnownInputs, load_forward_model
+    from plate_env.identify.forward import load_forward_model
+    from plate_env.surrogate.atlas import load_atlas_file
+    from plate_env.surrogate.conditioning import KnownInputs
 
     a = load_forward_model("tilelink/pointmass", KnownInputs(mass=0.011)).members[0].atlas
     b = load_forward_model("tilelink/pointmass", KnownInputs(mass=0.011)).members[0].atlas

@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from plate_env.atlas_grid import AtlasGrid, grid_probes, result_arrays, run_grid
-from plate_env.executor import BackendSpec
-from plate_env.sweeps import load_cache
+from plate_env.build.atlas_grid import AtlasGrid, grid_probes, result_arrays, run_grid
+from plate_env.run.executor import BackendSpec
+from plate_env.run.sweeps import load_cache
 
 SMALL = {"f_p_hz": "14:18:2", "a_p_deg": [3], "omega_n_pi": [10, 17], "alpha_deg": [40], "settle_s": 0.2,
          "measure_s": 0.3}

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import plate_env as pe
-from plate_env.atlas import load_atlas
-from plate_env.env import PlateRotationEnv
-from plate_env.physics.base import ProbeSpec
+from plate_env.core.probe import ProbeSpec
+from plate_env.env.rotation import PlateRotationEnv
+from plate_env.surrogate.atlas import load_atlas
 
 PROBE = np.array([0.0, -1.0, 0.0, -1.0], np.float32)
 
@@ -32,8 +32,8 @@ ALPHA_RANGE = f"{math.degrees(_ATLAS.alpha[0]):.4g}-{math.degrees(_ATLAS.alpha[-
 
 def _built_masses() -> str:
     """The masses of the shipped point-mass atlases along the mass axis, as the refusal names them."""
-    from plate_env.atlas import load_atlas_file
-    from plate_env.forward import registry_member_atlases
+    from plate_env.surrogate.atlas import load_atlas_file
+    from plate_env.surrogate.catalog import registry_member_atlases
 
     files = registry_member_atlases("tilelink/pointmass")[0]
     return str(sorted(float(round(load_atlas_file(f).fixed()["mass"] * 1e3, 2)) for f in files)) + " g"
@@ -70,7 +70,7 @@ def test_atlas_physics_answers_inside_and_flips_sign_with_b_p():
 def test_atlas_domain_follows_its_provenance():
     atlas = load_atlas("tilelink", "pointmass")
     assert atlas.fixed() == pytest.approx({"b_p": 0.003, "mass": 0.0136, "diameter": 0.08})  # shipped values
-    heavy = pe.atlas.Atlas(**{**{f: getattr(atlas, f) for f in ("physics", "model", "f_hz", "a_p_deg", "omega_n",
+    heavy = type(atlas)(**{**{f: getattr(atlas, f) for f in ("physics", "model", "f_hz", "a_p_deg", "omega_n",
                                                                   "alpha", "mean", "spread", "p_unstable",
                                                                   "n_repeats")},
                               "provenance": {**atlas.provenance, "mass_g": 39.5, "b_p_mm": 2.0}})
@@ -126,10 +126,10 @@ def test_every_constructor_argument_has_a_refusal_case():
 
 
 def test_max_probes_has_one_default_everywhere():
+    from plate_env.bench.suites import load_suite
     from plate_env.cli import build_parser
-    from plate_env.env import DEFAULT_MAX_PROBES
-    from plate_env.protocol import ProbeContext  # noqa: F401 - the agents read the env's budget through it
-    from plate_env.suites import load_suite
+    from plate_env.env.protocol import ProbeContext  # noqa: F401 - the agents read the env's budget through it
+    from plate_env.env.rotation import DEFAULT_MAX_PROBES
 
     assert PlateRotationEnv(physics="atlas").max_probes == DEFAULT_MAX_PROBES == 30
     args = build_parser().parse_args(["identify"])
@@ -264,7 +264,7 @@ def test_cli_sweep_interrupted_prints_the_finished_probes(json_out, monkeypatch,
     import json
 
     import plate_env.cli as cli
-    from plate_env.executor import InProcessExecutor
+    from plate_env.run.executor import InProcessExecutor
 
     monkeypatch.setattr(cli, "make_executor", lambda name, backend: InProcessExecutor(Interrupting(backend.build(), 3)))
     argv = ["sweep", "--physics", "atlas", "--omega-n", "10pi", "--freqs", "10:40:0.5", "--no-progress"]
@@ -300,7 +300,7 @@ def test_cli_plot_path_checked_before_any_work(argv, plot, message, tmp_path, mo
         raise AssertionError("work started before --plot was checked")
 
     monkeypatch.setattr(cli, "make_physics", no_work)
-    monkeypatch.setattr("plate_env.executor.make_physics", no_work)
+    monkeypatch.setattr("plate_env.run.executor.make_physics", no_work)
     monkeypatch.setattr("plate_env.identify.identify", no_work)
     monkeypatch.setattr("gymnasium.make", no_work)
     code, out, err = run_cli([str(lab) if a == "LAB" else a for a in argv] + ["--amp", "3"] * (argv[0] == "fit")
@@ -353,7 +353,7 @@ class Counting:
 def test_cached_sweep_after_a_torn_last_line_keeps_every_record_valid(tmp_path):
     import json
 
-    from plate_env.sweeps import load_cache, run_cached
+    from plate_env.run.sweeps import load_cache, run_cached
 
     specs = [spec(f_p_hz=float(f)) for f in range(10, 20)]
     cache = tmp_path / "sweep.jsonl"
@@ -376,7 +376,7 @@ def lab_rows(amps=(3.0,), f=range(12, 36)) -> str:
 
 
 def test_csv_with_a_utf8_byte_order_mark_is_read(tmp_path):
-    from plate_env.probes import read_lab_csv
+    from plate_env.core.probe_table import read_lab_csv
 
     path = tmp_path / "excel.csv"
     path.write_bytes(("f_p_hz,omega_b_deg_s,a_p_deg\r\n" + lab_rows()).encode("utf-8-sig"))  # Excel "CSV UTF-8"
@@ -386,7 +386,7 @@ def test_csv_with_a_utf8_byte_order_mark_is_read(tmp_path):
 
 @pytest.mark.parametrize("cell", ["-3", "0", "0.0", "46"])
 def test_csv_amplitude_outside_0_45_refused_naming_line_and_column(cell, tmp_path):
-    from plate_env.probes import CsvError, read_lab_csv
+    from plate_env.core.probe_table import CsvError, read_lab_csv
 
     path = tmp_path / "lab.csv"
     path.write_text(f"f_p_hz,omega_b_deg_s,a_p_deg\n20,300,3\n21,310,{cell}\n")
@@ -402,7 +402,7 @@ def test_fit_amp_option_must_be_a_positive_magnitude(tmp_path, capsys):
 
 
 def test_csv_duplicated_column_refused_naming_it(tmp_path):
-    from plate_env.probes import CsvError, read_lab_csv
+    from plate_env.core.probe_table import CsvError, read_lab_csv
 
     path = tmp_path / "lab.csv"
     path.write_text("f_p_hz,omega_b_deg_s,f_p_hz\n20,300,20\n")
@@ -411,8 +411,8 @@ def test_csv_duplicated_column_refused_naming_it(tmp_path):
 
 
 def test_mixed_amplitudes_without_a_calibration_are_not_dropped_silently(tmp_path, capsys):
+    from plate_env.core.probe_table import read_lab_csv
     from plate_env.identify import identify
-    from plate_env.probes import read_lab_csv
 
     path = tmp_path / "lab.csv"
     path.write_text("f_p_hz,omega_b_deg_s,a_p_deg\n" + lab_rows(amps=(3.0, 7.0)))
@@ -425,8 +425,8 @@ def test_mixed_amplitudes_without_a_calibration_are_not_dropped_silently(tmp_pat
 
 
 def test_negative_plate_amplitude_probes_identify_like_positive_ones():
+    from plate_env.core.probe_table import ProbeTable
     from plate_env.identify import identify
-    from plate_env.probes import ProbeTable
 
     physics = pe.make_physics("atlas")
     freqs = np.arange(12.0, 36.0, 1.0)
@@ -440,7 +440,7 @@ def test_negative_plate_amplitude_probes_identify_like_positive_ones():
 def test_cli_identify_interrupted_with_json_prints_the_finished_probes(monkeypatch, capsys):
     import json
 
-    import plate_env.env as env_module
+    import plate_env.env.rotation as env_module
 
     real = env_module.make_physics
     monkeypatch.setattr(env_module, "make_physics", lambda name, **kw: Interrupting(real(name, **kw), 4))

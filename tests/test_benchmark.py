@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plate_env import benchmark
+from plate_env.bench import runner as benchmark
+from plate_env.bench.suites import load_suite
 from plate_env.cli import main
-from plate_env.episode import estimate_of, run_episode
-from plate_env.protocol import Agent, Probe
-from plate_env.suites import load_suite
+from plate_env.env.episode import estimate_of, run_episode
+from plate_env.env.protocol import Agent, Probe
 from plate_env_agents import load_agent
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from plate_env.calibration import (
+from plate_env.identify.calibration import (
     Calibration,
     fit_calibration,
     get_calibration,

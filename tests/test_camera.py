@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import plate_env as pe
-from plate_env.camera import camera_omega_b
-from plate_env.physics.base import ProbeResult, ProbeSpec, YawTrace
+from plate_env.core.probe import ProbeResult, ProbeSpec, YawTrace
+from plate_env.physics.camera import camera_omega_b
 
 
 def _result(rate_deg_s: float, a_p_deg: float = 3.0, b_p_mm: float = 3.0, trace: bool = True,

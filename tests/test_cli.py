@@ -15,11 +15,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import plate_env  # noqa: F401
-from plate_env.calibration import (
+from plate_env.cli import main
+from plate_env.identify.calibration import (
     paper_calibration,
 )
-from plate_env.cli import main
-from plate_env.fitting import lorentzian
+from plate_env.identify.fitting import lorentzian
 
 
 def test_probe_json_round_trip(capsys):

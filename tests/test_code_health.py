@@ -1,7 +1,8 @@
-"""Design rules checked on the source text (ast, no imports): dependencies one way, one home per fact, short
-functions, no process-wide settings changed by the library.
+"""Design rules checked on the source text (ast, no imports): dependencies one way down the layers, one home per
+fact, short functions, no process-wide settings changed by the library.
 
-``python tests/test_code_health.py`` prints the report these tests check (import cycles, the longest functions).
+``python tests/test_code_health.py`` prints the report these tests check (import cycles, imports that go up a layer,
+the longest functions).
 """
 
 from __future__ import annotations
@@ -20,11 +21,39 @@ MAX_FUNCTION_LINES = 150
 AGENTS_SEAM = {"plate_env.cli"}
 AGENTS_PACKAGE = "plate_env_agents"
 
+#: The layers, lowest first: a module may import modules of its own layer and of the layers below, never above.
+#: A module belongs to the layer of the longest prefix that names it. This is the one place the order is written
+#: (experiments/layer_crossings.py reads it).
+LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("core", ("plate_env.core",)),
+    ("surrogate", ("plate_env.surrogate",)),
+    ("physics", ("plate_env.physics",)),
+    ("identify", ("plate_env.identify",)),
+    ("run", ("plate_env.run",)),
+    ("env", ("plate_env.env",)),
+    ("agents", (AGENTS_PACKAGE,)),
+    ("bench", ("plate_env.bench",)),
+    ("build", ("plate_env.build",)),
+    ("edge", ("plate_env", "plate_env.cli", "plate_env.plotting", "plate_env.__main__")),
+)
+
+
+def layer_of(module: str) -> int | None:
+    """The index in :data:`LAYERS` of ``module``'s layer (longest matching prefix), None outside the project."""
+    best, rank = -1, None
+    for i, (_, prefixes) in enumerate(LAYERS):
+        for p in prefixes:
+            if (module == p or module.startswith(p + ".")) and len(p) > best:
+                best, rank = len(p), i
+    return rank
+
 
 def _module_name(path: Path) -> str:
     parts = list(path.relative_to(ROOT).with_suffix("").parts)
     if parts[-1] == "__init__":
         parts = parts[:-1]
+    if parts[0] == "agents":  # the folder agents/ installs as plate_env_agents
+        parts[0] = AGENTS_PACKAGE
     return ".".join(parts)
 
 
@@ -54,12 +83,24 @@ def _imports(name: str, path: Path, tree: ast.Module, modules: set[str] = frozen
     return found
 
 
-def import_graph() -> dict[str, set[str]]:
-    """plate_env module -> the plate_env modules it imports. Explicit imports only: the parent packages'
-    ``__init__`` that Python runs on the way to a submodule are not edges."""
-    src = _sources(PACKAGE)
+def import_graph(*folders: str) -> dict[str, set[str]]:
+    """Module -> the modules of the project it imports (plate_env by default; ``"agents"`` adds the shipped
+    agents). Explicit imports only: the parent packages' ``__init__`` that Python runs on the way to a submodule
+    are not edges."""
+    src = _sources(*(folders or (PACKAGE,)))
     return {name: {m for m in _imports(name, path, tree, set(src)) if m in src and m != name}
             for name, (path, tree) in src.items()}
+
+
+def upward_imports(graph: dict[str, set[str]]) -> list[str]:
+    """Every import from a module to one of a higher layer, as "importer -> imported (layer -> layer)"."""
+    out = []
+    for name, deps in sorted(graph.items()):
+        for dep in sorted(deps):
+            lo, hi = layer_of(name), layer_of(dep)
+            if lo is not None and hi is not None and hi > lo:
+                out.append(f"{name} -> {dep} ({LAYERS[lo][0]} -> {LAYERS[hi][0]})")
+    return out
 
 
 def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
@@ -116,8 +157,50 @@ def test_no_import_cycle_in_the_library():
 
 def test_cycle_finder_finds_a_planted_cycle():
     graph = import_graph()
-    graph["plate_env.estimate"] = graph["plate_env.estimate"] | {"plate_env.identify"}
-    assert any({"plate_env.estimate", "plate_env.identify"} <= set(c) for c in cycles(graph))
+    graph["plate_env.identify.estimate"] = graph["plate_env.identify.estimate"] | {"plate_env.identify.api"}
+    assert any({"plate_env.identify.estimate", "plate_env.identify.api"} <= set(c) for c in cycles(graph))
+
+
+def test_every_module_has_a_layer():
+    graph = import_graph(PACKAGE, "agents")
+    assert {layer_of(m) for m in graph} == set(range(len(LAYERS)))  # every layer holds a module
+    assert [m for m in graph if layer_of(m) is None] == []
+    assert layer_of("plate_env.identify.api") == 3 and layer_of("plate_env.cli") == len(LAYERS) - 1
+    assert layer_of("plate_env") == len(LAYERS) - 1 and layer_of("numpy") is None
+
+
+def test_imports_go_one_way_down_the_layers():
+    graph = import_graph(PACKAGE, "agents")
+    assert sum(len(d) for d in graph.values()) > 100  # the walk found the imports, the agents' too
+    assert cycles(graph) == []
+    assert upward_imports(graph) == []
+
+
+def test_the_layer_check_finds_a_planted_upward_import():
+    graph = import_graph(PACKAGE, "agents")
+    graph["plate_env.core.objects"] = graph["plate_env.core.objects"] | {"plate_env.physics.nuisance"}
+    graph["plate_env.env.rotation"] = graph["plate_env.env.rotation"] | {"plate_env_agents.bayes"}
+    assert upward_imports(graph) == ["plate_env.core.objects -> plate_env.physics.nuisance (core -> physics)",
+                                     "plate_env.env.rotation -> plate_env_agents.bayes (env -> agents)"]
+
+
+def _moved_modules() -> dict[str, str]:
+    tree = ast.parse((ROOT / PACKAGE / "__init__.py").read_text())
+    for node in tree.body:
+        if isinstance(node, ast.AnnAssign | ast.Assign) and "MOVED_MODULES" in ast.unparse(node).split("=")[0]:
+            return ast.literal_eval(node.value)
+    raise AssertionError("plate_env/__init__.py has no MOVED_MODULES")
+
+
+def test_the_project_imports_no_old_module_path():
+    """The flat layout's paths still import for users (plate_env.MOVED_MODULES, with a warning); the project's own
+    code, tests and experiments use the new ones."""
+    moved = _moved_modules()
+    assert len(moved) > 20 and all(layer_of(new) is not None for new in moved.values())
+    old = []
+    for name, (path, tree) in _sources(PACKAGE, "agents", "experiments", "tests", "examples").items():
+        old += sorted({f"{path.relative_to(ROOT)}: {m}" for m in _imports(name, path, tree) if m in moved})
+    assert old == []
 
 
 def test_the_core_does_not_import_the_agents():
@@ -159,6 +242,7 @@ def test_no_function_longer_than_the_limit():
 
 if __name__ == "__main__":
     print("import cycles in plate_env:", cycles(import_graph()) or "none")
+    print("imports up a layer:", upward_imports(import_graph(PACKAGE, "agents")) or "none")
     print(f"longest functions (limit {MAX_FUNCTION_LINES} lines):")
     for n, where in function_lengths()[:8]:
         print(f"  {n:4d}  {where}")

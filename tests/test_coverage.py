@@ -12,11 +12,11 @@ import math
 import numpy as np
 import pytest
 
-from plate_env.benchmarks import SWEEP_F_HZ, placed_sweeps, prior_objects
-from plate_env.forward import load_forward_model
-from plate_env.inference import identify_atlas
+from plate_env.build.eval_sets import SWEEP_F_HZ, placed_sweeps, prior_objects
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.forward import load_forward_model
+from plate_env.identify.inference import identify_atlas
 from plate_env.physics import make_physics
-from plate_env.probes import ProbeTable
 
 
 def _coverage(n: int, seed: int, f_hz=SWEEP_F_HZ) -> tuple[float, float, float]:

@@ -28,8 +28,8 @@ HERE = Path(__file__).resolve()
 def measure() -> dict:
     """Digests of the traces and a seeded env episode (run in this process or, via ``_run``, in another)."""
     import plate_env as pe
-    from plate_env.env import PlateRotationEnv
-    from plate_env.physics.base import ProbeSpec
+    from plate_env.core.probe import ProbeSpec
+    from plate_env.env.rotation import PlateRotationEnv
 
     def digest(results) -> str:
         return hashlib.sha256(b"".join(r.trace.yaw.tobytes() + r.trace.centre_u.tobytes() + r.trace.centre_v.tobytes()

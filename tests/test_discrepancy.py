@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from plate_env.forward import PAD_MAX_LOG, ForwardModel, Member
-from plate_env.inference import (
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.forward import PAD_MAX_LOG, ForwardModel, Member
+from plate_env.identify.inference import (
     family_discrepancy,
     fit_discrepancy,
     fit_discrepancy_exact,
     identify_atlas,
     truth_log_density,
 )
-from plate_env.probes import ProbeTable
 
 
 def _sweep(atlas, w, a, f, rng, sigma=5.0):
@@ -186,8 +186,8 @@ def test_a_line_pooled_over_models_keeps_their_lines_and_its_interval_holds_on_a
     random (slope and intercept), a pooled line from two, the third's objects read through it. Its intervals (the
     scatter about each model's own line plus the offset between models, Student-t with one degree of freedom) hold
     the truth at least at their rates over 300 draws; the pooled residual alone (one normal) does not."""
-    from plate_env.calibration import fit_calibration
     from plate_env.identify import offset_intervals
+    from plate_env.identify.calibration import fit_calibration
 
     rng = np.random.default_rng(21)
     hits, naive = [], []

@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import plate_env  # noqa: F401 - registers the environment
-from plate_env.env import PlateRotationEnv
+from plate_env.env.rotation import PlateRotationEnv
 
 FAST = {"tilelink": dict(max_probes=4), "atlas": dict(max_probes=6),
         "pybullet": dict(max_probes=2, settle_s=0.1, measure_range_s=(0.1, 0.2), method="lorentz",
@@ -77,7 +77,7 @@ def test_same_seed_same_episode(physics):
 
 
 def test_reset_draws_the_hidden_object_from_the_object_prior():
-    from plate_env.objects import ObjectPrior
+    from plate_env.core.objects import ObjectPrior
 
     env = PlateRotationEnv(physics="atlas", omega_n_range_pi=(5.0, 20.0), alpha_range_deg=(35.0, 50.0))
     for seed in (0, 9):

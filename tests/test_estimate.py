@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from plate_env.estimate import Estimate, Posterior, marginal
+from plate_env.identify.estimate import Estimate, Posterior, marginal
 
 
 def test_marginal_quantiles_by_hand():

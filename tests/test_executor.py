@@ -20,7 +20,8 @@ from executor_helpers import (
     short_specs,
 )
 
-from plate_env.executor import (
+from plate_env.physics.tilelink.contact import PAPER_CONTACT
+from plate_env.run.executor import (
     WORKER_ENV,
     BackendSpec,
     InProcessExecutor,
@@ -28,9 +29,8 @@ from plate_env.executor import (
     default_local,
     make_executor,
 )
-from plate_env.executor import _env as executor_env
-from plate_env.physics.tilelink.contact import PAPER_CONTACT
-from plate_env.sweeps import load_cache, run_cached
+from plate_env.run.executor import _env as executor_env
+from plate_env.run.sweeps import load_cache, run_cached
 
 
 def test_backend_spec_is_a_hashable_picklable_description():

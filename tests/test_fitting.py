@@ -11,8 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import plate_env as pe
-from plate_env.fitting import DEFAULT_DROP, RISE_STEP, first_hump_mask, fit_lorentzian, fit_results, lorentzian
-from plate_env.physics.base import ProbeResult, ProbeSpec
+from plate_env.core.probe import ProbeResult, ProbeSpec
+from plate_env.identify.fitting import DEFAULT_DROP, RISE_STEP, first_hump_mask, fit_lorentzian, fit_results, lorentzian
 
 
 def _mask(y, unstable=(), f=None):
@@ -242,7 +242,7 @@ def test_slips_past_the_top_end_the_hump():
 
 
 def test_curve_by_frequency_pools_repeats():
-    from plate_env.fitting import curve_by_frequency
+    from plate_env.identify.fitting import curve_by_frequency
 
     f = np.array([10.0, 11.0, 10.0, 12.0, 11.0])
     w = np.array([1.0, 5.0, 3.0, 7.0, 0.0])

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import plate_env as pe
-from plate_env.motion import plate_state
-from plate_env.units import parse_omega_n
+from plate_env.core.motion import plate_state
+from plate_env.core.units import parse_omega_n
 
 
 def test_import_is_light():
@@ -51,7 +51,7 @@ def test_object_spec_rejects_bad_values(field, value):
 
 
 def test_object_prior_is_seeded_log_uniform_and_draws_two_numbers_an_object():
-    prior = pe.objects.ObjectPrior()
+    prior = pe.core.objects.ObjectPrior()
     objs = prior.sample(400, seed=3)
     assert objs == prior.sample(400, seed=3) and objs != prior.sample(400, seed=4)
     w = np.array([o[0] for o in objs]) / math.pi

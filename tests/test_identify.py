@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from plate_env.atlas import load_atlas
-from plate_env.calibration import (
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify import identify
+from plate_env.identify.calibration import (
     paper_calibration,
 )
-from plate_env.fitting import lorentzian
-from plate_env.identify import identify
-from plate_env.probes import ProbeTable
+from plate_env.identify.fitting import lorentzian
+from plate_env.surrogate.atlas import load_atlas
 
 
 def test_identify_lorentz_combines_amplitudes_by_inverse_variance():

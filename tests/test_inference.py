@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from plate_env.forward import ForwardModel, Member
-from plate_env.inference import (
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.forward import ForwardModel, Member
+from plate_env.identify.inference import (
     NU,
     blurred,
     fit_sigma_eps,
@@ -24,7 +25,6 @@ from plate_env.inference import (
     posterior,
     smoothed_p,
 )
-from plate_env.probes import ProbeTable
 
 N_OMEGA, N_ALPHA = 41, 7
 SIGMA = 5.0
@@ -153,7 +153,7 @@ def test_ten_thousand_probes_do_not_collapse_the_posterior_below_its_grid(toy_at
     fm = _fm(atlas)
     est = identify_atlas(ProbeTable.from_arrays(f, 3.0, y, np.full(f.size, 5.0)), fm)
     assert est.omega_n_ci95[0] <= est.omega_n_ci68[0] <= est.omega_n <= est.omega_n_ci68[1] <= est.omega_n_ci95[1]
-    from plate_env.inference import N_OMEGA as n_default
+    from plate_env.identify.inference import N_OMEGA as n_default
 
     w, _ = fm.grid(n_default, 31)
     step = math.log(w[1] / w[0])
@@ -182,7 +182,7 @@ def test_a_discrepancy_lets_the_posterior_reach_beyond_the_range_without_making_
     """With sigma_eps the truth may lie outside the models' range by the discrepancy: the grid reaches PAD_SIGMAS
     of it beyond each end (no mass lost at the edge), and an object well inside the range, near its top, stays an
     estimate: the edge rule reads the models' own posterior, not the one widened by the discrepancy."""
-    from plate_env.forward import PAD_SIGMAS
+    from plate_env.identify.forward import PAD_SIGMAS
 
     atlas = toy_atlas()  # omega_n 2pi-40pi
     fm = _fm(atlas, sigma_eps=0.3)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from plate_env.measure import N_BLOCKS, measure_omega_b, period_yaws, rate_from_boundaries
+from plate_env.physics.measure import N_BLOCKS, measure_omega_b, period_yaws, rate_from_boundaries
 
 
 def _trace(yaw_at, t_end: float, fs: float = 1000.0) -> tuple[np.ndarray, np.ndarray]:

@@ -42,7 +42,7 @@ def test_installed_names_and_lazy_heavy_imports(tmp_path):
             "assert importlib.util.find_spec('agents') is None\n"
             "a = plate_env_agents.make_agent('ppo')\n"
             "from plate_env.env import PlateRotationEnv\n"
-            "from plate_env.protocol import ProbeContext\n"
+            "from plate_env.env.protocol import ProbeContext\n"
             "env = PlateRotationEnv(physics='atlas')\n"
             "obs, _ = env.reset(seed=0)\n"
             "a.reset(ProbeContext.from_env(env), np.random.default_rng(0))\n"
@@ -66,7 +66,7 @@ def test_a_regular_wheel_holds_the_agents_under_their_namespace(tmp_path):
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],
                    check=True)
     code = ("import importlib.util, plate_env_agents\n"
-            "from plate_env.benchmark import evaluate\n"
+            "from plate_env.bench import evaluate\n"
             "assert importlib.util.find_spec('agents') is None\n"
             "run = evaluate(plate_env_agents.load_agent('ppo'), 'atlas-v0', limit=1)\n"
             f"print(plate_env_agents.__file__.startswith({str(target)!r}), "
@@ -75,3 +75,27 @@ def test_a_regular_wheel_holds_the_agents_under_their_namespace(tmp_path):
                           env={**os.environ, "PYTHONPATH": str(target)})
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["True", "numpy"]  # the installed copy, its package data, no source tree
+
+
+def test_the_old_benchmark_path_imports_the_bench_layer_with_a_warning():
+    """``from plate_env.benchmark import evaluate`` (the README's path before the layers) still works, warning with
+    the new path; a module path that never existed is still an ImportError."""
+    code = ("import warnings\n"
+            "warnings.simplefilter('error', DeprecationWarning)\n"
+            "try:\n"
+            "    from plate_env.benchmark import evaluate\n"
+            "except DeprecationWarning as w:\n"
+            "    print('warned:', w)\n"
+            "warnings.simplefilter('ignore', DeprecationWarning)\n"
+            "from plate_env.benchmark import evaluate\n"
+            "import plate_env.bench, plate_env.benchmark\n"
+            "print(evaluate is plate_env.bench.evaluate, plate_env.benchmark is plate_env.bench,\n"
+            "      plate_env.bench.__spec__.name)\n"
+            "try:\n"
+            "    import plate_env.no_such_module\n"
+            "except ModuleNotFoundError:\n"
+            "    print('missing')\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == ["warned: plate_env.benchmark moved to plate_env.bench: import plate_env.bench "
+                                        "instead", "True True plate_env.bench", "missing"]

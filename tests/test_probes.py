@@ -7,7 +7,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from plate_env.probes import CsvError, ProbeTable, read_lab_csv
+from plate_env.core.probe_table import CsvError, ProbeTable, read_lab_csv
 
 FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                         HealthCheck.too_slow])
@@ -81,7 +81,7 @@ def test_csv_reader_binary_file(tmp_path):
 
 
 def test_rows_round_trip_and_concat_keeps_every_column_in_order():
-    from plate_env.probes import ProbeTable
+    from plate_env.core.probe_table import ProbeTable
 
     a = ProbeTable.from_arrays([10.0, 11.0], 3.0, [100.0, 0.0], [1.0, 0.0], [False, True])
     b = ProbeTable.from_arrays([12.0], 12.0, [50.0], [2.0], [False])

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import plate_env as pe
-from plate_env.physics.base import REASONS, ProbeSpec
+from plate_env.core.probe import REASONS, ProbeSpec
 from plate_env.physics.pybullet_sheet import PyBulletPhysics, SheetConfig
 from plate_env.physics.pybullet_sheet.calibrate import calibrated_k, ringdown_omega_n
 from plate_env.physics.pybullet_sheet.mesh import make_sheet
@@ -128,7 +128,7 @@ def test_probe_placement_is_honoured() -> None:
 
 
 def test_env_repeats_on_pybullet_are_placed_at_random() -> None:
-    from plate_env.env import PlateRotationEnv
+    from plate_env.env.rotation import PlateRotationEnv
 
     env = PlateRotationEnv(physics="pybullet", method="lorentz", max_probes=3, settle_s=0.1,
                            measure_range_s=(0.1, 0.3), physics_options=dict(n_layer=30, k_elastic=100.0))

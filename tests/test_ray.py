@@ -21,8 +21,8 @@ from executor_helpers import (  # noqa: E402
     short_specs,
 )
 
-from plate_env.executor import BackendSpec, InProcessExecutor, RayExecutor  # noqa: E402
-from plate_env.sweeps import load_cache, run_cached  # noqa: E402
+from plate_env.run.executor import BackendSpec, InProcessExecutor, RayExecutor  # noqa: E402
+from plate_env.run.sweeps import load_cache, run_cached  # noqa: E402
 
 pytestmark = pytest.mark.ray
 
@@ -111,7 +111,7 @@ def test_a_worker_s_error_reaches_the_caller(ray_executor):
 def test_ray_workers_run_with_one_blas_and_numba_thread(ray_executor):
     import ray
 
-    from plate_env.executor import WORKER_ENV
+    from plate_env.run.executor import WORKER_ENV
 
     @ray.remote(num_cpus=1)
     def env(keys):

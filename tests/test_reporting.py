@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from plate_env.reporting import median_p90
+from plate_env.bench.reporting import median_p90
 
 
 def test_median_p90_matches_numpy_and_refuses_no_values():
@@ -39,8 +39,8 @@ print(path.stat().st_size > 500, open_figures == [], matplotlib.get_backend() ==
 def test_a_bound_counts_for_95_percent_coverage_only_when_it_holds():
     """A bound (an answer at the edge of the identifiable range) is a 95 % statement: it covers the truth when
     the truth lies on its side; it never counts as an estimate (error inf, no 68 % interval)."""
-    from plate_env.estimate import Estimate
-    from plate_env.scoring import per_object
+    from plate_env.bench.scoring import per_object
+    from plate_env.identify.estimate import Estimate
 
     above = Estimate(ok=False, method="atlas", reason="edge", bound=("above", 100.0))
     below = Estimate(ok=False, method="atlas", reason="edge", bound=("below", 10.0))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import plate_env as pe
-from plate_env.physics.base import ProbeSpec, Status
+from plate_env.core.probe import ProbeSpec, Status
 from plate_env.physics.tilelink import rigid
 from plate_env.physics.tilelink import rigid_kernels as rk
 from plate_env.physics.tilelink.backend import result_from_arrays
@@ -107,7 +107,7 @@ def test_dt_convergence_three_frequencies():
 def test_first_hump_rises_with_omega_n(model):
     """The protocol of experiments/bench_models.py (14-34 Hz step 1, default windows, the package's first-hump
     fit), so this test and the reported table measure the same thing."""
-    from plate_env.fitting import fit_lorentzian
+    from plate_env.identify.fitting import fit_lorentzian
 
     freqs = np.arange(14.0, 35.0, 1.0)
     physics = pe.make_physics("tilelink", model=model)

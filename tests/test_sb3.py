@@ -18,8 +18,8 @@ from stable_baselines3.common.env_checker import check_env  # noqa: E402
 from stable_baselines3.common.evaluation import evaluate_policy  # noqa: E402
 from stable_baselines3.common.vec_env import DummyVecEnv, VecCheckNan, VecMonitor  # noqa: E402
 
-from plate_env.env import PlateRotationEnv  # noqa: E402
-from plate_env.sb3 import PlateRotationSB3VecEnv, make_sb3_vec_env  # noqa: E402
+from plate_env.env.rotation import PlateRotationEnv  # noqa: E402
+from plate_env.env.sb3 import PlateRotationSB3VecEnv, make_sb3_vec_env  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

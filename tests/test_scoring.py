@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from plate_env.scoring import bootstrap, paired_difference, score
+from plate_env.bench.scoring import bootstrap, paired_difference, score
 
 REPS = 300
 #: 95 % intervals over REPS independent samples: the binomial 99.9 % band of the coverage around 0.95 is about
@@ -78,7 +78,7 @@ def test_bootstrap_refuses_no_objects():
 
 
 def test_quantiles_with_no_estimates_are_inf_or_an_estimate_never_nan():
-    from plate_env.scoring import _percentile
+    from plate_env.bench.scoring import _percentile
 
     x = np.array([0.01, 0.02, math.inf, math.inf])
     assert _percentile(x, 100 / 3) == 0.02  # exactly on an order statistic (numpy: 0 * inf = NaN)

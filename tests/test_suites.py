@@ -10,7 +10,15 @@ from pathlib import Path
 
 import pytest
 
-from plate_env.suites import PINNED, content_hash, load_suite, load_suite_file, parse_suite, suite_dir, suite_names
+from plate_env.bench.suites import (
+    PINNED,
+    content_hash,
+    load_suite,
+    load_suite_file,
+    parse_suite,
+    suite_dir,
+    suite_names,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -30,7 +38,7 @@ def test_shipped_suites_load_and_every_one_is_pinned():
 
 
 def test_suite_envs_build_with_the_env_default_probe_budget():
-    from plate_env.env import DEFAULT_MAX_PROBES
+    from plate_env.env.rotation import DEFAULT_MAX_PROBES
 
     for name in ("atlas-v0", "tilelink-v0"):
         env = load_suite(name).make_env()

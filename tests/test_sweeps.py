@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 
 import plate_env as pe
-from plate_env.physics.base import ProbeResult, ProbeSpec
+from plate_env.core.probe import ProbeResult, ProbeSpec
 from plate_env.physics.tilelink.params import DEFAULT_RECORD_INTERVAL_S, P_RECEVERY
-from plate_env.sweeps import backend_tag, load_cache, run_cached
+from plate_env.run.sweeps import backend_tag, load_cache, run_cached
 
 
 class FakeTileLink:

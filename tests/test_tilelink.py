@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import plate_env as pe
-from plate_env.physics.base import REASONS, ProbeResult
+from plate_env.core.probe import REASONS, ProbeResult
 from plate_env.physics.tilelink.geometry import disc_geometry
 from plate_env.physics.tilelink.pointmass import build_params, modal
 
@@ -87,7 +87,7 @@ def test_huge_dt_is_reported_unstable_with_a_reason_not_nan(cheese):
 
 
 def test_injected_nan_is_reported_non_finite(tilelink, cheese):
-    from plate_env.physics.base import Status
+    from plate_env.core.probe import Status
     from plate_env.physics.tilelink.backend import _ainv, _pointmass_params, result_from_arrays
     from plate_env.physics.tilelink.params import P_KB
 
@@ -111,7 +111,7 @@ def test_bad_time_step_rejected():
 
 
 def test_first_hump_peak_in_band_and_not_falling_with_omega_n(tilelink):
-    from plate_env.fitting import first_hump_mask
+    from plate_env.identify.fitting import first_hump_mask
 
     freqs = np.arange(14.0, 35.0, 1.0)
     peaks = []

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from plate_env.physics.base import Physics, ProbeResult, ProbeSpec, YawTrace
+from plate_env.core.probe import ProbeResult, ProbeSpec, YawTrace
+from plate_env.physics.interface import Physics
 
 PHYSICS_NAMES = ("tilelink", "pybullet", "atlas")
 

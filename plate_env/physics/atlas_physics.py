@@ -17,8 +17,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from plate_env.atlas import Atlas, load_atlas
-from plate_env.physics.base import SLIPPED, ProbeRefused, ProbeResult, ProbeSpec, YawTrace, check_probes
+from plate_env.core.probe import SLIPPED, ProbeRefused, ProbeResult, ProbeSpec, YawTrace, check_probes
+from plate_env.surrogate.atlas import Atlas, load_atlas
 
 
 def probe_point(spec: ProbeSpec) -> dict[str, float]:
@@ -31,8 +31,8 @@ def probe_point(spec: ProbeSpec) -> dict[str, float]:
 def known_input_atlases(source: str, model: str, atlas: Atlas) -> list[Atlas]:
     """The atlases of ``source``/``model`` along the known inputs: those of the shipped forward model's first member
     that include ``atlas`` (its mass axis), else ``[atlas]``."""
-    from plate_env.atlas import load_atlas_file
-    from plate_env.forward import registry_member_atlases
+    from plate_env.surrogate.atlas import load_atlas_file
+    from plate_env.surrogate.catalog import registry_member_atlases
 
     for names in registry_member_atlases(f"{source}/{model}"):
         family = [load_atlas_file(n) for n in names]
@@ -103,7 +103,7 @@ class AtlasPhysics:
     def atlas_for(self, spec: ProbeSpec) -> Atlas:
         """The atlas conditioned on the probe's known inputs (B_p, mass, diameter: interpolated in log mass between
         the atlases that bracket it), or the plain atlas when none is built for them (then :meth:`check` refuses)."""
-        from plate_env.forward import KnownInputs, condition
+        from plate_env.surrogate.conditioning import KnownInputs, condition
 
         key = (abs(spec.motion.b_p), spec.obj.mass, spec.obj.diameter)
         if key not in self._conditioned:

@@ -7,15 +7,15 @@ import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 
-from plate_env.physics.base import (
+from plate_env.core.probe import (
     NON_FINITE,
     SLIP_LIMIT_M,
     ProbeResult,
     ProbeSpec,
     check_probes,
     check_step_counts,
-    warn_above_stable_dt,
 )
+from plate_env.physics.interface import warn_above_stable_dt
 from plate_env.physics.pybullet_sheet.scene import Client, SheetConfig, SheetScene
 
 #: Largest time step measured stable over the whole omega_n range, s (33pi runs away at 8e-4 s).

@@ -30,7 +30,7 @@ from importlib import resources
 
 import numpy as np
 
-from plate_env.objects import ObjectSpec
+from plate_env.core.objects import ObjectSpec
 from plate_env.physics.pybullet_sheet.scene import Client, SheetConfig, SheetScene
 
 #: Stiffness grid (N/m) of the stored calibration table.

@@ -22,10 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plate_env.measure import measure_omega_b
-from plate_env.motion import plate_state
-from plate_env.objects import ObjectSpec
-from plate_env.physics.base import (
+from plate_env.core.motion import plate_state
+from plate_env.core.objects import ObjectSpec
+from plate_env.core.probe import (
     FOLDED,
     LEFT_PLATE,
     NON_FINITE,
@@ -37,6 +36,7 @@ from plate_env.physics.base import (
     ProbeSpec,
     YawTrace,
 )
+from plate_env.physics.measure import measure_omega_b
 from plate_env.physics.pybullet_sheet.mesh import SheetMesh, make_sheet, write_temp_vtk
 
 GRAVITY = 9.81  #: m/s^2

@@ -9,9 +9,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from plate_env.measure import measure_omega_b
-from plate_env.objects import ObjectSpec
-from plate_env.physics.base import (
+from plate_env.core.objects import ObjectSpec
+from plate_env.core.probe import (
     SLIP_LIMIT_M,
     ProbeResult,
     ProbeSpec,
@@ -19,8 +18,9 @@ from plate_env.physics.base import (
     YawTrace,
     check_probes,
     check_step_counts,
-    warn_above_stable_dt,
 )
+from plate_env.physics.interface import warn_above_stable_dt
+from plate_env.physics.measure import measure_omega_b
 from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
 from plate_env.physics.tilelink.params import (
     DEFAULT_DT,

@@ -20,8 +20,8 @@ import math
 import numba
 import numpy as np
 
-from plate_env.motion import plate_state as _plate_state_py
-from plate_env.physics.base import Status
+from plate_env.core.motion import plate_state as _plate_state_py
+from plate_env.core.probe import Status
 from plate_env.physics.tilelink.contact import damped_normal_force as _damped_normal_force_py
 from plate_env.physics.tilelink.contact import friction_scale as _friction_scale_py
 from plate_env.physics.tilelink.contact import spring_force as _spring_force_py

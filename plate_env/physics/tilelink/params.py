@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from plate_env.physics.base import ProbeSpec
+from plate_env.core.probe import ProbeSpec
 from plate_env.physics.tilelink import contact
 
 (P_MASS, P_KB, P_KIN, P_CIN, P_MUS, P_MUK, P_DT, P_FREQ, P_AMP, P_BP, P_RAMP, P_VLIM, P_SLIP, P_KC, P_CC,

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plate_env.objects import ObjectSpec
+from plate_env.core.objects import ObjectSpec
 from plate_env.physics.tilelink.geometry import DiscGeometry, disc_geometry, second_difference_operator
 from plate_env.physics.tilelink.modal import ModalResult, modal_analysis
 

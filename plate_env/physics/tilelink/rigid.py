@@ -29,7 +29,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from plate_env.objects import ObjectSpec
+from plate_env.core.objects import ObjectSpec
 from plate_env.physics.tilelink.geometry import DiscGeometry, disc_geometry
 from plate_env.physics.tilelink.modal import ModalResult, modal_analysis
 

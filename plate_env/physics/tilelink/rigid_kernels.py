@@ -36,7 +36,7 @@ from functools import lru_cache
 import numba
 import numpy as np
 
-from plate_env.physics.base import SLIP_LIMIT_M, ProbeSpec, Status
+from plate_env.core.probe import SLIP_LIMIT_M, ProbeSpec, Status
 from plate_env.physics.tilelink import contact
 from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
 from plate_env.physics.tilelink.kernels import (

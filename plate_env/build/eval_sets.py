@@ -9,9 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plate_env.motion import PlateMotion
-from plate_env.objects import ObjectPrior, ObjectSpec
-from plate_env.physics.base import ProbeSpec
+from plate_env.core.motion import PlateMotion
+from plate_env.core.objects import ObjectPrior, ObjectSpec
+from plate_env.core.probe import ProbeSpec
 
 #: Objects the Eq. (10) calibration is fitted on (omega_n in pi rad/s, alpha in degrees).
 CALIBRATION_OMEGAS_PI = (3.5, 5.0, 7.0, 10.0, 13.0, 17.0, 23.0, 28.0, 33.0)
@@ -112,7 +112,7 @@ class EvalSet:
         """Each object's :class:`plate_env.nuisance.Nuisance` (None without ``nuisance``)."""
         if not self.nuisance:
             return None
-        from plate_env.nuisance import PRIOR
+        from plate_env.physics.nuisance import PRIOR
 
         rng = np.random.default_rng(self.seed + 2)
         return [PRIOR.draw(rng) for _ in range(self.n)]
@@ -132,8 +132,8 @@ def run_eval_set(es: EvalSet, backend_of, executor=None, progress: bool = False)
 
     ``backend_of(nuisance)`` gives the :class:`plate_env.executor.BackendSpec` for an object's nuisance draw (None
     for a set without nuisances); objects sharing a backend run as one batch."""
-    from plate_env.probes import ProbeTable
-    from plate_env.sweeps import run_cached
+    from plate_env.core.probe_table import ProbeTable
+    from plate_env.run.sweeps import run_cached
 
     nuis = es.nuisances() or [None] * es.n
     m = len(es.f_hz)

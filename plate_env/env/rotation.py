@@ -13,22 +13,22 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from plate_env import checks
-from plate_env.camera import camera_omega_b
-from plate_env.estimate import Estimate
-from plate_env.forward import KnownInputs
-from plate_env.motion import B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
-from plate_env.objects import ObjectPrior, ObjectSpec
-from plate_env.physics import PHYSICS_NAMES, make_physics
-from plate_env.physics.base import (
+from plate_env.core import checks
+from plate_env.core.motion import B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
+from plate_env.core.objects import ObjectPrior, ObjectSpec
+from plate_env.core.probe import (
     MIN_PROBE_FREQ_HZ,
     WINDOW_RANGE_S,
     ProbeRefused,
     ProbeResult,
     ProbeSpec,
-    refuse_early,
 )
-from plate_env.probes import ProbeTable
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.estimate import Estimate
+from plate_env.physics import PHYSICS_NAMES, make_physics
+from plate_env.physics.camera import camera_omega_b
+from plate_env.physics.interface import refuse_early
+from plate_env.surrogate.conditioning import KnownInputs
 
 N_FEATURES = 7
 #: The probe budget of an episode when none is given: the one default of the env, the CLI, the suites and the
@@ -431,18 +431,18 @@ class PlateRotationEnv(gym.Env):
         if self.render_mode is None:
             return None
         if self.physics_name == "pybullet":
-            from plate_env.render import PyBulletRenderer
+            from plate_env.env.render import PyBulletRenderer
 
             if self._renderer is None:
                 self._renderer = PyBulletRenderer()
             frame = self._renderer.draw(self._last, self._obj)
         else:
-            from plate_env.render import draw_scene
+            from plate_env.env.render import draw_scene
 
             frame = draw_scene(self._last, self._obj)
         if self.render_mode == "rgb_array":
             return frame
-        from plate_env.render import show
+        from plate_env.env.render import show
 
         self._window = show(frame, self._window)
         return None
@@ -456,7 +456,7 @@ class PlateRotationEnv(gym.Env):
             self._renderer.close()
             self._renderer = None
         if self._window is not None:
-            from plate_env.render import close_window
+            from plate_env.env.render import close_window
 
             close_window(self._window)
             self._window = None

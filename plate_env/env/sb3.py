@@ -1,7 +1,7 @@
 """PlateRotation-v0 as a Stable-Baselines3 ``VecEnv``: one batched physics call per step for all sub-environments.
 
     from stable_baselines3 import PPO
-    from plate_env.sb3 import make_sb3_vec_env
+    from plate_env.env.sb3 import make_sb3_vec_env
 
     model = PPO("MlpPolicy", make_sb3_vec_env(n_envs=8, physics="atlas", seed=0), seed=0)
     model.learn(100_000)
@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
-from plate_env import checks
-from plate_env.vector import PlateRotationVectorEnv
+from plate_env.core import checks
+from plate_env.env.vector import PlateRotationVectorEnv
 
 
 class PlateRotationSB3VecEnv(VecEnv):

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from plate_env.fitting import LorentzFit
+from plate_env.identify.fitting import LorentzFit
 
 #: Share of the posterior allowed in an edge zone of the identifiable range before the answer becomes a bound.
 EDGE_MASS = 0.05

@@ -10,9 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from plate_env.estimate import Estimate
-from plate_env.probes import ProbeTable
-from plate_env.protocol import Probe, ProbeContext
+from plate_env.core.probe_table import ProbeTable
+from plate_env.env.protocol import Probe, ProbeContext
+from plate_env.identify.estimate import Estimate
 
 
 @dataclass(frozen=True)

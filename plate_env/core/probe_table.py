@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from plate_env.physics.base import ProbeResult
+from plate_env.core.probe import ProbeResult
 
 
 @dataclass(frozen=True)

@@ -31,10 +31,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from plate_env.atlas import Atlas
-from plate_env.estimate import Estimate, Posterior
-from plate_env.forward import ForwardModel, Member
-from plate_env.probes import ProbeTable
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.estimate import Estimate, Posterior
+from plate_env.identify.forward import ForwardModel, Member
+from plate_env.surrogate.atlas import Atlas
 
 #: Degrees of freedom of the Student-t likelihood of a stable probe.
 NU = 4.0
@@ -358,7 +358,7 @@ def truth_log_density(post: Posterior, omega_true: float, sigma: float, nu: floa
     (``post.model_omega``, before any discrepancy) is smoothed by a discrepancy of scale ``sigma`` (at least
     ``STEP_FLOOR`` grid steps) and ``nu`` degrees of freedom, as :func:`pool` applies it; the grid is padded as
     :meth:`ForwardModel.grid` pads it. -690 (1e-300) beyond the padded grid."""
-    from plate_env.forward import pad_log
+    from plate_env.identify.forward import pad_log
 
     lw = np.log(post.omega_n)
     step = float(lw[1] - lw[0])

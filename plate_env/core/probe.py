@@ -1,4 +1,5 @@
-"""The one small interface every physics backend implements, and the values that cross it."""
+"""The values that cross the physics interface (:mod:`plate_env.physics.interface`): what a probe is
+(:class:`ProbeSpec`), what it returns (:class:`ProbeResult`, :class:`Status`), and the checks every probe passes."""
 
 from __future__ import annotations
 
@@ -6,12 +7,11 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from enum import IntEnum
-from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from plate_env.motion import PlateMotion
-from plate_env.objects import ObjectSpec
+from plate_env.core.motion import PlateMotion
+from plate_env.core.objects import ObjectSpec
 
 
 class Status(IntEnum):
@@ -188,17 +188,6 @@ class ProbeRefused(ValueError):
         self.quantity = quantity
 
 
-def refuse_early(physics: Physics, probes: Sequence[ProbeSpec]) -> None:
-    """Raise :class:`ProbeRefused` for the first of ``probes`` that ``physics`` cannot answer, before any work.
-
-    Backends with limits beyond ProbeSpec's own checks (the atlas's domain, a step-count limit) define
-    ``check(probes)``; others accept every valid ProbeSpec.
-    """
-    check = getattr(physics, "check", None)
-    if check is not None:
-        check(probes)
-
-
 def check_step_counts(probes: Sequence[ProbeSpec], dt: float) -> None:
     """Refuse (ProbeRefused, quantity ``steps``) a probe that would take more than :data:`MAX_PROBE_STEPS` steps
     of ``dt`` s."""
@@ -210,15 +199,6 @@ def check_step_counts(probes: Sequence[ProbeSpec], dt: float) -> None:
                                         f"(use a larger dt or shorter windows)")
 
 
-def warn_above_stable_dt(dt: float, limit: float, what: str, source: str) -> None:
-    """Warn (UserWarning naming dt) when ``dt`` exceeds the largest time step measured stable for ``what``."""
-    if dt > limit * (1 + 1e-9):
-        import warnings
-
-        warnings.warn(f"dt = {dt:g} s is above the largest time step measured stable for {what} ({limit:g} s, "
-                      f"{source}): expect probes to end unstable (runaway_energy) because of dt", stacklevel=3)
-
-
 def check_probes(probes: Sequence[ProbeSpec]) -> list[ProbeSpec]:
     """The probes as a list, each checked to be a ProbeSpec (TypeError naming the first that is not)."""
     probes = list(probes)
@@ -226,21 +206,3 @@ def check_probes(probes: Sequence[ProbeSpec]) -> list[ProbeSpec]:
         if not isinstance(s, ProbeSpec):
             raise TypeError(f"probe {i}: expected ProbeSpec, got {type(s).__name__}")
     return probes
-
-
-@runtime_checkable
-class Physics(Protocol):
-    """A physics backend: runs probes, nothing else."""
-
-    name: str
-
-    def run(self, probes: Sequence[ProbeSpec], progress: bool = False) -> list[ProbeResult]:
-        """Simulate every probe (batched where the backend can) and return one result per probe, in order."""
-        ...
-
-    def close(self) -> None:
-        """Release resources (processes, clients). Safe to call twice."""
-        ...
-
-    # Optional: ``check(probes) -> None`` raising ProbeRefused for probes the backend cannot answer (see
-    # refuse_early); ``run`` calls it before any work.

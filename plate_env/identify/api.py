@@ -11,13 +11,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from plate_env.calibration import Calibration, get_calibration
-from plate_env.estimate import Estimate
-from plate_env.fitting import LorentzFit, fit_lorentzian
-from plate_env.forward import ForwardModel, KnownInputs, load_forward_model
-from plate_env.inference import GAUSS_HERMITE, identify_atlas
-from plate_env.physics.base import ProbeResult
-from plate_env.probes import ProbeTable
+from plate_env.core.probe import ProbeResult
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.calibration import Calibration, get_calibration
+from plate_env.identify.estimate import Estimate
+from plate_env.identify.fitting import LorentzFit, fit_lorentzian
+from plate_env.identify.forward import ForwardModel, load_forward_model
+from plate_env.identify.inference import GAUSS_HERMITE, identify_atlas
+from plate_env.surrogate.conditioning import KnownInputs
 
 METHODS = ("lorentz", "atlas")
 

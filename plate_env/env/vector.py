@@ -8,8 +8,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
-from plate_env import checks
-from plate_env.env import PlateRotationEnv
+from plate_env.core import checks
+from plate_env.env.rotation import PlateRotationEnv
 
 
 class PlateRotationVectorEnv(VectorEnv):

@@ -1,6 +1,6 @@
 """The benchmark: an agent on a suite's episodes, scored against simulated probing seconds, with bootstrap intervals.
 
-    from plate_env.benchmark import evaluate
+    from plate_env.bench.runner import evaluate
     run = evaluate(agent, "tilelink-v0")          # an agent following plate_env.protocol, or a factory of one
     print(run.summary().to_markdown())
 
@@ -48,10 +48,10 @@ from pathlib import Path
 
 import numpy as np
 
-from plate_env.estimate import Estimate
-from plate_env.protocol import check_agent
-from plate_env.scoring import Scores, Stat, bootstrap, paired_difference, score
-from plate_env.suites import Suite, load_suite
+from plate_env.bench.scoring import Scores, Stat, bootstrap, paired_difference, score
+from plate_env.bench.suites import Suite, load_suite
+from plate_env.env.protocol import check_agent
+from plate_env.identify.estimate import Estimate
 
 #: Version of the episode record (part of every record's key).
 RECORD_FORMAT = 1
@@ -62,9 +62,9 @@ ERROR_CAP = 1.0
 #: Bootstrap resamples.
 N_BOOT = 2000
 #: Modules of plate_env that do not decide an episode's outcome (left out of the code fingerprint).
-NOT_OUTCOME = {"cli.py", "benchmark.py", "plotting.py", "reporting.py", "scoring.py", "sb3.py", "executor.py",
-               "sweeps.py", "atlas_grid.py", "benchmarks.py", "render.py", "suites.py", "checks.py", "__main__.py",
-               "vector.py"}
+NOT_OUTCOME = {"cli.py", "bench/runner.py", "plotting.py", "bench/reporting.py", "bench/scoring.py", "env/sb3.py",
+               "run/executor.py", "run/sweeps.py", "build/atlas_grid.py", "build/eval_sets.py", "env/render.py",
+               "bench/suites.py", "core/checks.py", "__main__.py", "env/vector.py"}
 
 
 # --------------------------------------------------------------------------------------------- episodes
@@ -127,7 +127,7 @@ def _est_from(d: dict) -> Estimate:
 def play(env, agent, obj, index: int, max_budget_s: float) -> Episode:
     """One episode of ``agent`` on ``env`` hiding suite object ``obj``: the probes until it stops or the budget
     ends, and the agent's estimate after every probe."""
-    from plate_env.episode import estimate_model_of, estimate_of, run_episode
+    from plate_env.env.episode import estimate_model_of, estimate_of, run_episode
 
     res = run_episode(env, agent, seed=obj.seed, options=obj.reset_options(), max_sim_s=max_budget_s)
     t = res.probes
@@ -168,11 +168,11 @@ def code_fingerprint(physics: str) -> str:
     """SHA-256 over the package code that decides an episode's outcome on ``physics``: every module but
     :data:`NOT_OUTCOME` and the other backends (:data:`PHYSICS_FILES`), docstrings left out, and the data files
     (atlases, calibrations, forward models). Computed once per process and physics."""
-    root = Path(__file__).parent
+    root = Path(__file__).parents[1]
     others = [root / f for name, f in PHYSICS_FILES.items() if name != physics]
 
     def outcome(p: Path) -> bool:
-        if p.parent == root and p.name in NOT_OUTCOME:
+        if p.relative_to(root).as_posix() in NOT_OUTCOME:
             return False
         return not any(p == o or o in p.parents for o in others)
 
@@ -257,7 +257,7 @@ class BenchInterrupted(KeyboardInterrupt):
 
 
 def _load_records(path: Path, key: str) -> dict[int, Episode]:
-    from plate_env.sweeps import read_records
+    from plate_env.run.sweeps import read_records
 
     out: dict[int, Episode] = {}
     for d in read_records(path):
@@ -308,8 +308,8 @@ def evaluate(agent, suite: Suite | str, *, label: str | None = None, budgets_s: 
     they finish; a rerun resumes). ``limit``: only the first ``limit`` objects (quick looks; not the suite's result).
     Ctrl-C raises :class:`BenchInterrupted` after the finished episodes are written.
     """
-    from plate_env.executor import BackendSpec, check_executor_name, make_executor
-    from plate_env.sweeps import open_for_append
+    from plate_env.run.executor import BackendSpec, check_executor_name, make_executor
+    from plate_env.run.sweeps import open_for_append
 
     suite = load_suite(suite) if isinstance(suite, str) else suite
     budgets = _check_budgets(suite, budgets_s)
@@ -535,34 +535,6 @@ def leaderboard_markdown(summaries: Sequence[AgentSummary], paired: dict, leader
     return "\n".join(lines) + "\n"
 
 
-def plot_curves(summaries: Sequence[AgentSummary], path: str) -> None:
-    """Median (solid) and 90th-percentile (dashed) error against the probing budget, one colour per agent."""
-    from plate_env.plotting import new_figure, save_figure
-
-    fig, ax = new_figure(figsize=(10.5, 4.8))
-    for i, s in enumerate(rank(summaries)):
-        colour = f"C{i % 10}"
-        x = np.asarray(s.curve_s)
-        ax.plot(x, 100 * np.asarray(s.curve_median), "-", color=colour,
-                label=f"{s.label} (area {100 * s.area.value:.1f} %)")
-        ax.plot(x, 100 * np.asarray(s.curve_p90), "--", color=colour, lw=0.8)
-        bx = [b.budget_s for b in s.budgets]
-        med = [b.scores.median_error for b in s.budgets]
-        ok = [j for j, m in enumerate(med) if math.isfinite(m.value) and math.isfinite(m.hi)]
-        ax.errorbar([bx[j] for j in ok], [100 * med[j].value for j in ok],
-                    yerr=[[100 * (med[j].value - med[j].lo) for j in ok],
-                          [100 * (med[j].hi - med[j].value) for j in ok]],
-                    fmt="o", color=colour, ms=4, capsize=3)
-    ax.set_yscale("log")
-    ax.set_ylim(0.5, 110)
-    ax.set_xlabel("probing budget, simulated seconds")
-    ax.set_ylabel("relative error of omega_n_hat [%] (capped at 100)")
-    ax.set_title(f"{summaries[0].suite}: median (solid, 95 % CI at the budgets) and p90 (dashed)")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # outside: the curves fill the axes
-    save_figure(fig, path, dpi=110)
-
-
 def board(runs: Sequence[AgentRun], budgets_s: Sequence[float] | None = None, seed: int = 0) -> dict:
     """Summaries, the leader and the paired differences of several agents' runs on one suite:
     ``{"summaries": [...], "leader": label, "paired": {...}}``."""
@@ -582,4 +554,4 @@ def board_to_dict(b: dict) -> dict:
 
 
 __all__ = ["AgentRun", "AgentSummary", "BenchInterrupted", "Episode", "board", "board_to_dict", "compare", "evaluate",
-           "leaderboard_markdown", "plot_curves", "summarize"]
+           "leaderboard_markdown", "summarize"]

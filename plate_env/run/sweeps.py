@@ -12,8 +12,9 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from plate_env.executor import BackendSpec, Executor, InProcessExecutor, check_executor_name, make_executor
-from plate_env.physics.base import Physics, ProbeResult, ProbeSpec
+from plate_env.core.probe import ProbeResult, ProbeSpec
+from plate_env.physics.interface import Physics
+from plate_env.run.executor import BackendSpec, Executor, InProcessExecutor, check_executor_name, make_executor
 
 #: Backend settings that change results and so enter the cache key (each where the backend has it).
 TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact", "record_interval_s")

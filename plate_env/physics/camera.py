@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from plate_env.physics.base import ProbeResult
+from plate_env.core.probe import ProbeResult
 
 
 def camera_omega_b(result: ProbeResult, rng: np.random.Generator, fps: float = 30.0,

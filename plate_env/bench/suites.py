@@ -74,7 +74,7 @@ class Suite:
 
     def make_env(self):
         """A fresh PlateRotation-v0 with the suite's settings."""
-        from plate_env.env import PlateRotationEnv
+        from plate_env.env.rotation import PlateRotationEnv
 
         return PlateRotationEnv(**self.env_kwargs)
 
@@ -124,7 +124,7 @@ def check_pinned(suite: Suite, pinned: dict[str, str] | None = None) -> Suite:
     pins = PINNED if pinned is None else pinned
     if suite.name not in pins:
         raise ValueError(f"suite {suite.name!r} has no pinned content hash (known: {sorted(pins)}); a new suite "
-                         f"version is pinned in plate_env.suites.PINNED: {suite.sha256}")
+                         f"version is pinned in plate_env.bench.suites.PINNED: {suite.sha256}")
     if pins[suite.name] != suite.sha256:
         raise ValueError(f"suite {suite.name!r}: its content changed (sha256 {suite.sha256[:12]}..., pinned "
                          f"{pins[suite.name][:12]}...): a changed suite is a new version; save it under the next "

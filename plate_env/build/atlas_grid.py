@@ -23,11 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from plate_env.executor import BackendSpec, Executor
-from plate_env.motion import PlateMotion
-from plate_env.objects import ObjectSpec
-from plate_env.physics.base import ProbeSpec
-from plate_env.sweeps import run_cached
+from plate_env.run.executor import BackendSpec, Executor
+from plate_env.core.motion import PlateMotion
+from plate_env.core.objects import ObjectSpec
+from plate_env.core.probe import ProbeSpec
+from plate_env.run.sweeps import run_cached
 
 
 def _axis(name: str, values) -> tuple[float, ...]:
@@ -140,7 +140,7 @@ def run_grid(backend: BackendSpec, grid: AtlasGrid, repeats: int, seed: int, cac
     if chunk is None:
         in_process = executor in (None, "inprocess") or getattr(executor, "name", "") == "inprocess"
         if executor in (None, "local"):
-            from plate_env.executor import default_local
+            from plate_env.run.executor import default_local
 
             in_process = default_local(backend) == "inprocess"
         chunk = len(grid.f_hz) if sweeps else (128 if in_process else 16)

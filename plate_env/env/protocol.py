@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plate_env.forward import KnownInputs
-from plate_env.probes import ProbeTable
+from plate_env.core.probe_table import ProbeTable
+from plate_env.surrogate.conditioning import KnownInputs
 
 #: The estimators an agent may name as its ``method``.
 AGENT_METHODS = ("atlas", "lorentz")
