@@ -74,6 +74,11 @@ def check_command(argv: list[str]) -> None:
         build_parser().parse_args(argv[1:])  # exits 2 on an unknown subcommand, option or value
         if argv[1] == "fit":
             assert (ROOT / argv[2]).exists(), f"{argv[2]} does not exist"
+            if "--forward" in argv:
+                from plate_env.surrogate.catalog import forward_model_names
+
+                name = argv[argv.index("--forward") + 1]
+                assert name in forward_model_names(), f"--forward {name}: not a shipped forward model"
         for a in argv:
             if re.fullmatch(r"[\w/.-]+\.py:\w+", a):  # a third-party agent file
                 assert (ROOT / a.split(":")[0]).exists(), a
@@ -114,6 +119,8 @@ def test_command_checker_can_fail():
         check_command(["pip", "install", "-c", "constraints.txt", "-e", ".[test,nosuchextra]"])
     with pytest.raises(AssertionError):
         check_command(["python", "experiments/no_such_script.py"])
+    with pytest.raises(AssertionError):
+        check_command(["plate-env", "fit", "examples/cheese_sweep.csv", "--amp", "3", "--forward", "tilelink/nobody"])
 
 
 def test_test_command_is_what_ci_runs():
