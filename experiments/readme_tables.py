@@ -158,14 +158,14 @@ def forward_models_choice() -> str:
     cov = ", ".join(f"{FAMILY[f]} {_stat(s['coverage95'], 1, 2, interval=False)}" for f, s in lomo.items())
     err = ", ".join(f"{FAMILY[f]} {_stat(s['median_error'], 100, 0, ' %', interval=False)}" for f, s in lomo.items())
     wid = ", ".join(f"{FAMILY[f]} {_stat(s['width95'], 100, 0, ' %', interval=False)}" for f, s in lomo.items())
-    rows = [["`tilelink/pointmass`", "data from the point-mass simulator, every value known",
+    rows = [["`tilelink/pointmass`", "data from the point-mass simulator, every value known (study `within`)",
              _stat(within["median_error"], 100, 1, " %", interval=False),
              _stat(within["coverage95"], 1, 2, interval=False), _stat(within["width95"], 100, 0, " %", False)],
-            ["`tilelink/pointmass` family (in `lab`)", "point-mass data, joint and contact values unknown",
+            ["`lab`'s 9 point-mass members alone", "point-mass data, joint and contact values unknown (`nuisance`)",
              _stat(nuis["median_error"], 100, 1, " %", interval=False),
              _stat(nuis["coverage95"], 1, 2, interval=False), _stat(nuis["width95"], 100, 0, " %", False)],
-            ["`lab` (default)", "data of unknown origin: a real plate (each simulator left out in turn)", err, cov,
-             wid]]
+            ["`lab` (default)", "data of unknown origin, a real plate: each simulator left out in turn (`lomo`)",
+             err, cov, wid]]
     return _table(["`--forward`", "for", "median error", "95 % coverage", "median 95 % width"], rows)
 
 
