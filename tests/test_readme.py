@@ -180,3 +180,42 @@ def test_docs_python_blocks_compile():
                 compile(m["body"], f"{page.name} block", "exec")
                 found += 1
     assert found >= 2
+
+
+def _resolves(name: str) -> bool:
+    """``a.b.c`` names a module or an attribute of one."""
+    import importlib
+
+    parts = name.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        try:
+            for attr in parts[i:]:
+                obj = getattr(obj, attr)
+        except AttributeError:
+            return False
+        return True
+    return False
+
+
+def test_named_modules_exist_at_their_current_paths():
+    """Every ``plate_env.x.y`` the README and the docs name resolves, and not through an old path kept for users
+    (docs/layout.md names the old paths on purpose)."""
+    import warnings
+
+    pages = [p for p in readme_tables.pages() if p.name != "layout.md"]
+    names = sorted({m[1] for p in pages for m in re.finditer(r"`(plate_env(?:_agents)?(?:\.\w+)+)", p.read_text())})
+    assert len(names) > 10
+    bad = []
+    for name in names:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            ok = _resolves(name)
+        moved = [str(w.message) for w in caught if "moved to" in str(w.message)]
+        if not ok or moved:
+            bad.append(f"{name}: {moved[0] if moved else 'does not exist'}")
+    assert not bad, bad
+    assert not _resolves("plate_env.no_such_module") and not _resolves("plate_env.env.NoSuchThing")
