@@ -1,7 +1,7 @@
 """Probing agents: the paper's grid sweep, a coarse-to-fine heuristic, Bayesian design, a trained PPO policy.
 
 Installed as ``plate_env_agents`` (the folder is ``agents/``). They follow the protocol of
-:mod:`plate_env.protocol`; :func:`load_agent` also loads an agent of your own from a file or a Stable-Baselines3
+:mod:`plate_env.env.protocol`; :func:`load_agent` also loads an agent of your own from a file or a Stable-Baselines3
 model, by the specs ``plate-env bench --agent`` takes.
 """
 
@@ -13,30 +13,19 @@ import importlib.util
 import sys
 from pathlib import Path
 
+from plate_env.core.registry import Registry
 from plate_env.env.protocol import Agent, Probe, ProbeContext, check_agent
 
-AGENT_NAMES = ("grid", "coarse_to_fine", "bayes", "ppo")
+#: The shipped agents, by name (the one list: the command line and :func:`load_agent` read it).
+AGENTS = Registry("agent", {"grid": "plate_env_agents.grid:GridAgent",
+                            "coarse_to_fine": "plate_env_agents.coarse_to_fine:CoarseToFineAgent",
+                            "bayes": "plate_env_agents.bayes:BayesAgent", "ppo": "plate_env_agents.ppo:PPOAgent"})
+AGENT_NAMES = AGENTS.names
 
 
 def make_agent(name: str, **options) -> Agent:
-    """Create a shipped agent by name; options go to its constructor."""
-    if name == "grid":
-        from plate_env_agents.grid import GridAgent
-
-        return GridAgent(**options)
-    if name == "coarse_to_fine":
-        from plate_env_agents.coarse_to_fine import CoarseToFineAgent
-
-        return CoarseToFineAgent(**options)
-    if name == "bayes":
-        from plate_env_agents.bayes import BayesAgent
-
-        return BayesAgent(**options)
-    if name == "ppo":
-        from plate_env_agents.ppo import PPOAgent
-
-        return PPOAgent(**options)
-    raise ValueError(f"unknown agent {name!r}; choose one of {AGENT_NAMES}")
+    """Create a shipped agent by name (:data:`AGENTS`); options go to its constructor."""
+    return AGENTS.load(name)(**options)
 
 
 def _value(text: str):
@@ -88,7 +77,7 @@ def load_agent(spec: str):
     * ``sb3:model.zip`` or ``sb3:a2c:model.zip``: a Stable-Baselines3 policy trained on PlateRotation-v0
       (:class:`plate_env_agents.ppo.PPOAgent`; algorithm PPO unless named).
 
-    The agent is checked against the protocol (:func:`plate_env.protocol.check_agent`); a bad spec is a ValueError
+    The agent is checked against the protocol (:func:`plate_env.env.protocol.check_agent`); a bad spec is a ValueError
     naming it."""
     if not isinstance(spec, str) or not spec:
         raise ValueError(f"agent spec {spec!r}: give a name, file.py:Class or sb3:model.zip")
@@ -115,4 +104,4 @@ def load_agent(spec: str):
     return check_agent(agent, where=f"agent {spec!r}")
 
 
-__all__ = ["AGENT_NAMES", "Agent", "Probe", "ProbeContext", "load_agent", "load_file_agent", "make_agent"]
+__all__ = ["AGENTS", "AGENT_NAMES", "Agent", "Probe", "ProbeContext", "load_agent", "load_file_agent", "make_agent"]

@@ -1,12 +1,12 @@
 """Sequential Bayesian experimental design on a forward model's posterior over (omega_n, alpha).
 
-After every probe the posterior of the forward model (:mod:`plate_env.forward`: the physics' atlas, its measured
-errors, the coherent discrepancy) is updated. The next probe (f_p, A_p and its measurement window) maximises the
-expected reduction of the posterior variance of log omega_n per simulated second it costs (ramp + settle +
+After every probe the posterior of the forward model (:mod:`~plate_env.identify.forward`: the physics' atlas, its
+measured errors, the coherent discrepancy) is updated. The next probe (f_p, A_p and its measurement window) maximises
+the expected reduction of the posterior variance of log omega_n per simulated second it costs (ramp + settle +
 window). The expectation is a preposterior Monte Carlo over the forward model's own predictive distribution: with
 the predictive instability probability the probe ends unstable (and each member's posterior is reweighted by its
 p), otherwise omega_B ~ mu + sqrt(s^2 + sigma_model^2 + se(T)^2) * Normal(0, 1) at objects drawn from the
-posterior, scored with the same likelihood as the posterior (:func:`plate_env.inference.probe_log_likelihood`),
+posterior, scored with the same likelihood as the posterior (:func:`plate_env.identify.inference.probe_log_likelihood`),
 where se(T) = SE_1S / sqrt(T / 1 s) is the window's own measurement error. Its utility is thus what the forward
 model can predict: an outcome the atlas gives as a coin flip (a smoothed instability share near 1/2, a wide
 spread) carries little expected information, so such probes are not chased. The discrepancy adds the same
@@ -137,7 +137,7 @@ class BayesAgent(Agent):
 
     def posterior(self):
         """What the probes say: the forward model's posterior on the agent's grid, without the discrepancies no
-        probe can reduce (a :class:`plate_env.estimate.Posterior`); the stopping rule reads it."""
+        probe can reduce (a :class:`plate_env.identify.estimate.Posterior`); the stopping rule reads it."""
         return pool(dataclasses.replace(self.fm, sigma_eps=0.0, offset_sigma=0.0), self.omega, self.alpha, self.lls)
 
     def design_eps(self) -> tuple[float, float]:

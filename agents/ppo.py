@@ -38,8 +38,8 @@ from pathlib import Path
 import numpy as np
 
 from plate_env.core.probe_table import ProbeTable
+from plate_env.env.codec import Codec, phys
 from plate_env.env.protocol import Agent, ProbeContext
-from plate_env.env.rotation import N_FEATURES
 
 #: The model shipped with the package.
 DEFAULT_MODEL = Path(__file__).parent / "models" / "ppo_plate.zip"
@@ -118,7 +118,7 @@ class PPOAgent(Agent):
         self._sb3 = None if self._numpy is not None else self._load_sb3()
         self.obs_dim = self._numpy.obs_dim if self._numpy is not None else int(
             self._sb3.observation_space.shape[0])
-        self.n_slots = (self.obs_dim - 2) // N_FEATURES
+        self.n_slots = Codec.slots_of(self.obs_dim)
         meta = self.path.with_suffix(".json")
         self.provenance = json.loads(meta.read_text()) if meta.exists() else {}
         env_kwargs = self.provenance.get("env_kwargs", {})
@@ -126,6 +126,9 @@ class PPOAgent(Agent):
         self.trained_band = tuple(env_kwargs.get("f_band_hz", (10.0, 40.0)))
         self.trained_amps = tuple(env_kwargs.get("amplitudes_deg", (3.0, 12.0)))
         self.trained_windows = tuple(env_kwargs.get("measure_range_s", (0.25, 2.0)))
+        #: The model's observation/action layout (its training settings) and, after reset, the env's.
+        self.codec = Codec(self.trained_band, self.trained_amps, self.trained_windows, self.n_slots)
+        self.env_codec: Codec | None = None
         self._windows: list[float] = []
 
     def _load_sb3(self):
@@ -152,92 +155,24 @@ class PPOAgent(Agent):
     def reset(self, context: ProbeContext, rng: np.random.Generator) -> None:
         super().reset(context, rng)
         self._windows = []
-        self._same = (np.allclose(context.f_band_hz, self.trained_band)
-                      and len(context.amplitudes_deg) == len(self.trained_amps)
-                      and np.allclose(context.amplitudes_deg, self.trained_amps)
-                      and np.allclose(context.measure_range_s, self.trained_windows))
+        self.env_codec = Codec.of(context)
         foreign = [a for a in context.amplitudes_deg if not np.any(np.isclose(self.trained_amps, a))]
         if foreign:
             warnings.warn(f"PPO policy trained on amplitudes {self.trained_amps} deg, the env offers {foreign}: "
                           "its amplitude choices are mapped to the nearest one", stacklevel=2)
 
-    # ----------------------------------------------------------------- translation env <-> model
-    @staticmethod
-    def _unit(x, lo: float, hi: float):
-        """Physical value -> the env's [-1, 1] coordinate over (lo, hi)."""
-        return 2 * (np.asarray(x, dtype=np.float64) - lo) / (hi - lo) - 1
-
-    @staticmethod
-    def _phys(u, lo: float, hi: float):
-        """The env's [-1, 1] coordinate over (lo, hi) -> physical value."""
-        return lo + (np.asarray(u, dtype=np.float64) + 1) / 2 * (hi - lo)
-
-    @staticmethod
-    def _amp_code(k: int, n: int) -> float:
-        return (2 * k + 1) / n - 1 if n > 1 else 0.0
-
-    def _rows_to_model(self, obs: np.ndarray, n: int) -> np.ndarray:
-        """Re-express the first ``n`` observation rows from the env's band/amplitudes/windows in the model's."""
-        if self._same or n == 0:
-            return obs
-        ctx = self.context
-        rows = obs[: N_FEATURES * n].reshape(n, N_FEATURES).astype(np.float64)
-        env_amps, amps = np.asarray(ctx.amplitudes_deg), np.asarray(self.trained_amps)
-        f = self._phys(rows[:, 0], *ctx.f_band_hz)
-        k_env = np.clip(np.floor((rows[:, 1] + 1) / 2 * len(env_amps)), 0, len(env_amps) - 1).astype(int)
-        k = np.array([int(np.argmin(np.abs(amps - env_amps[i]))) for i in k_env])
-        win = self._phys(rows[:, 5], *ctx.measure_range_s)
-        rows[:, 0] = self._unit(f, *self.trained_band)
-        rows[:, 1] = [self._amp_code(i, len(amps)) for i in k]
-        rows[:, 5] = self._unit(win, *self.trained_windows)
-        out = obs.copy()
-        out[: N_FEATURES * n] = np.clip(rows, -10, 10).ravel()
-        return out
-
-    def _action_to_env(self, action: np.ndarray) -> np.ndarray:
-        """The model's action (over its training band/amplitudes/windows) as the env's action."""
-        if self._same:
-            return action
-        ctx = self.context
-        amps = self.trained_amps
-        f = float(np.clip(self._phys(action[0], *self.trained_band), *ctx.f_band_hz))
-        a_p = amps[min(int((action[1] + 1) / 2 * len(amps)), len(amps) - 1)]
-        k = int(np.argmin(np.abs(np.asarray(ctx.amplitudes_deg) - a_p)))
-        win = float(np.clip(self._phys(action[2], *self.trained_windows), *ctx.measure_range_s))
-        out = np.array([self._unit(f, *ctx.f_band_hz), self._amp_code(k, len(ctx.amplitudes_deg)),
-                        self._unit(win, *ctx.measure_range_s), action[3]], dtype=np.float32)
-        return np.clip(out, -1.0, 1.0)
-
     # ----------------------------------------------------------------- observation
     def _from_history(self, history: ProbeTable) -> np.ndarray:
         """The model's observation rebuilt from the probe table (windows: the ones this agent chose, else 1 s)."""
-        obs = np.zeros(self.obs_dim, dtype=np.float32)
-        amps = np.asarray(self.trained_amps)
         n = min(len(history), self.n_slots)
-        for i in range(n):
-            k = int(np.argmin(np.abs(amps - history.a_p_deg[i])))
-            win = self._windows[i] if i < len(self._windows) else 1.0
-            obs[N_FEATURES * i: N_FEATURES * (i + 1)] = (
-                self._unit(history.f_p_hz[i], *self.trained_band), self._amp_code(k, len(amps)),
-                np.clip(history.omega_b_deg_s[i] / 1000.0, -10, 10), np.clip(history.stderr_deg_s[i] / 1000.0, 0, 10),
-                float(history.unstable[i]), self._unit(win, *self.trained_windows), 1.0)
-        obs[-2] = max(1.0 - len(history) / self.n_slots, 0.0)
-        obs[-1] = 1.0  # the simulated-seconds budget is not in the table: unlimited, as in training
-        return np.clip(obs, -10.0, 10.0)
+        rows = [(history.f_p_hz[i], history.a_p_deg[i], history.omega_b_deg_s[i], history.stderr_deg_s[i],
+                 history.unstable[i], self._windows[i] if i < len(self._windows) else 1.0) for i in range(n)]
+        # the simulated-seconds budget is not in the table: unlimited, as in training
+        return self.codec.observation(rows, max(1.0 - len(history) / self.n_slots, 0.0), 1.0)
 
     def adapt(self, obs: np.ndarray, n_probes: int) -> np.ndarray:
         """An env observation laid out for the model (see the module docstring for other budgets)."""
-        obs = np.asarray(obs, dtype=np.float32).ravel()
-        if obs.shape[0] == self.obs_dim:
-            return obs
-        if (obs.shape[0] - 2) % N_FEATURES:
-            raise ValueError(f"observation of length {obs.shape[0]} is not a PlateRotation-v0 observation")
-        out = np.zeros(self.obs_dim, dtype=np.float32)
-        n = min(n_probes, self.n_slots, (obs.shape[0] - 2) // N_FEATURES)
-        out[: N_FEATURES * n] = obs[: N_FEATURES * n]
-        out[-2] = max(1.0 - n_probes / self.n_slots, 0.0)
-        out[-1] = obs[-1]
-        return out
+        return self.codec.resized(obs, n_probes)
 
     # ----------------------------------------------------------------- policy
     def act(self, obs: np.ndarray) -> np.ndarray:
@@ -254,12 +189,12 @@ class PPOAgent(Agent):
         if obs is None:
             obs = self._from_history(history)
         else:
-            obs = self._rows_to_model(self.adapt(obs, n), min(n, self.n_slots))
+            obs = self.codec.rows_from(self.adapt(obs, n), min(n, self.n_slots), self.env_codec)
         action = self.act(obs)
         if action[3] > 0:
             if n > 0:
                 return None
             action[3] = -1.0  # the env ignores a stop before the first probe; make that explicit
-        env_action = self._action_to_env(action)
-        self._windows.append(float(self._phys(env_action[2], *self.context.measure_range_s)))
+        env_action = self.env_codec.action_from(action, self.codec)
+        self._windows.append(float(phys(env_action[2], *self.context.measure_range_s)))
         return env_action

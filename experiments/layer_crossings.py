@@ -19,7 +19,6 @@ forward model) on a synthetic 10-40 Hz sweep written here. Writes experiments/re
 from __future__ import annotations
 
 import argparse
-import ast
 import importlib.util
 import json
 import os
@@ -32,6 +31,9 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 OUT = HERE / "results" / "layer_crossings.md"
 PATHS = ("episode", "fit")
+#: The environment variable through which the driver (this checkout's plate_env) hands plate_env.MOVED_MODULES to
+#: a child that may run the flat layout.
+MOVED_VAR = "LAYER_CROSSINGS_MOVED"
 IMPORT_SYSTEM = ("importlib._bootstrap", "_frozen_importlib", "importlib._bootstrap_external",
                  "_frozen_importlib_external")
 
@@ -43,18 +45,9 @@ def _health():
     return module
 
 
-def _moved_modules() -> dict[str, str]:
-    """plate_env.MOVED_MODULES as written in this checkout's plate_env/__init__.py (read, not imported: the
-    process may be running the flat layout)."""
-    for node in ast.parse((REPO / "plate_env" / "__init__.py").read_text()).body:
-        if isinstance(node, ast.Assign) and any(getattr(t, "id", "") == "MOVED_MODULES" for t in node.targets):
-            return ast.literal_eval(node.value)
-    raise SystemExit("plate_env/__init__.py has no MOVED_MODULES")
-
-
 def layer_function():
     """module name -> (layer index, layer name) or None, for both layouts."""
-    health, moved = _health(), _moved_modules()
+    health, moved = _health(), json.loads(os.environ[MOVED_VAR])
 
     def layer(module: str):
         if not module or not module.startswith(("plate_env", "plate_env_agents")):
@@ -139,7 +132,9 @@ def trace(which: str) -> dict:
 
 
 def run_child(which: str, tree: Path | None) -> dict:
-    env = dict(os.environ)
+    from plate_env import MOVED_MODULES
+
+    env = dict(os.environ, **{MOVED_VAR: json.dumps(MOVED_MODULES)})
     if tree is not None:
         env["PYTHONPATH"] = str(tree) + os.pathsep + env.get("PYTHONPATH", "")
     done = subprocess.run([sys.executable, __file__, "--trace", which], capture_output=True, text=True, env=env,

@@ -263,6 +263,61 @@ def paired(label_a: str, a: list, label_b: str, b: list, truth: list, rng) -> tu
     return text, d.to_dict()
 
 
+def train_networks(args, atlases: list, rng: np.random.Generator, numbers: dict) -> dict:
+    """The two networks (nominal atlas, 9-member mixture), trained or loaded from experiments/cache; their training
+    numbers go into ``numbers``."""
+    import torch
+
+    nets = {}
+    for key, members in (("nominal", atlases[:1]), ("family", atlases)):
+        t0 = time.perf_counter()
+        theta = draw_theta(args.n, rng)
+        x = simulate(members, theta, rng)
+        sim_s = time.perf_counter() - t0
+        cache = Path(f"experiments/cache/npe_sbi_{key}_n{args.n}_s{args.seed}.pt")
+        if cache.exists() and not args.retrain:
+            post, meta = torch.load(cache, weights_only=False)
+        else:
+            post, meta = train_npe(x, theta, args.seed)
+            cache.parent.mkdir(parents=True, exist_ok=True)
+            torch.save((post, meta), cache)
+        nets[key] = post
+        numbers[f"npe_{key}"] = {"members": len(members), "simulate_s": sim_s, **meta,
+                                 "unstable_share": float(x[:, F_HZ.size:].mean())}
+        print(f"NPE {key}: {args.n} sweeps simulated in {sim_s:.1f} s, trained in {meta['train_s']:.0f} s "
+              f"({meta['epochs']} epochs)", file=sys.stderr, flush=True)
+    return nets
+
+
+def emulated_section(args, atlases: list, names: list[str], nets: dict, fm, bma, numbers: dict,
+                     srng: np.random.Generator) -> list[str]:
+    """Held-out sweeps of the atlas physics itself (the training distribution): the report's lines, numbers into
+    ``numbers``."""
+    emu_lines: list[str] = []
+    if args.emulated:
+        erng = np.random.default_rng(args.seed + 1000)
+        n_emu = args.limit or args.emulated
+        emu_rows, numbers["emulated"] = [], {}
+        for key, members, mnames, fm_e, label in (
+                ("nominal", atlases[:1], names[:1], fm, f"atlas posterior (tilelink/pointmass, sigma_eps "
+                                                        f"{fm.sigma_eps:.3f})"),
+                ("family", atlases, names, dataclasses.replace(bma, sigma_eps=0.0),
+                 "atlas family, evidence-pooled (BMA), sigma_eps 0")):
+            truth_e, tables_e, _ = emulated_tables(members, mnames, n_emu, erng)
+            ests_e = {"atlas": atlas_estimates(fm_e, tables_e), "npe": npe_estimates(nets[key], tables_e, 5)}
+            rows_e, numbers["emulated"][key], notes_e = scored(
+                ests_e, {"atlas": f"{key} atlas physics data, {label}",
+                         "npe": f"{key} atlas physics data, sbi NPE trained on the {key} atlas"
+                                f"{' mixture' if key == 'family' else ''}"}, truth_e, srng)
+            emu_rows += rows_e
+        emu_lines = ["## In the training distribution: held-out sweeps of the atlas physics itself", "",
+                     f"{n_emu} prior objects per row pair (seed {args.seed + 1000}), each swept through "
+                     "`make_physics(\"atlas\")` (family: a member drawn uniformly per object); both methods see the "
+                     "same tables. This separates the network's own amortisation error from the gap between the "
+                     "atlas emulator and live physics.", "", *HEAD, *emu_rows, ""]
+    return emu_lines
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n", type=int, default=20000, help="training sweeps per NPE")
@@ -288,25 +343,7 @@ def main() -> None:
     physics_s = check_physics(atlases, names, rng)
     numbers: dict = {"n_train": args.n, "n_samples": N_SAMPLES, "atlas_physics_s_per_probe": physics_s}
 
-    # ---- training sets and networks
-    nets = {}
-    for key, members in (("nominal", atlases[:1]), ("family", atlases)):
-        t0 = time.perf_counter()
-        theta = draw_theta(args.n, rng)
-        x = simulate(members, theta, rng)
-        sim_s = time.perf_counter() - t0
-        cache = Path(f"experiments/cache/npe_sbi_{key}_n{args.n}_s{args.seed}.pt")
-        if cache.exists() and not args.retrain:
-            post, meta = torch.load(cache, weights_only=False)
-        else:
-            post, meta = train_npe(x, theta, args.seed)
-            cache.parent.mkdir(parents=True, exist_ok=True)
-            torch.save((post, meta), cache)
-        nets[key] = post
-        numbers[f"npe_{key}"] = {"members": len(members), "simulate_s": sim_s, **meta,
-                                 "unstable_share": float(x[:, F_HZ.size:].mean())}
-        print(f"NPE {key}: {args.n} sweeps simulated in {sim_s:.1f} s, trained in {meta['train_s']:.0f} s "
-              f"({meta['epochs']} epochs)", file=sys.stderr, flush=True)
+    nets = train_networks(args, atlases, rng, numbers)
 
     # ---- within model: the forward_models TEST set at 3 deg
     srng = np.random.default_rng(0)
@@ -343,29 +380,7 @@ def main() -> None:
         "NPE (mixture)", ests_n["npe_family"][0], "BMA", ests_n["bma"][0], truth_n, srng)
     numbers["nuisance"]["bma_shipped_result"] = nu[bma_key]
 
-    # ---- in the training distribution: held-out sweeps of the atlas physics itself
-    emu_lines: list[str] = []
-    if args.emulated:
-        erng = np.random.default_rng(args.seed + 1000)
-        n_emu = args.limit or args.emulated
-        emu_rows, numbers["emulated"] = [], {}
-        for key, members, mnames, fm_e, label in (
-                ("nominal", atlases[:1], names[:1], fm, f"atlas posterior (tilelink/pointmass, sigma_eps "
-                                                        f"{fm.sigma_eps:.3f})"),
-                ("family", atlases, names, dataclasses.replace(bma, sigma_eps=0.0),
-                 "atlas family, evidence-pooled (BMA), sigma_eps 0")):
-            truth_e, tables_e, _ = emulated_tables(members, mnames, n_emu, erng)
-            ests_e = {"atlas": atlas_estimates(fm_e, tables_e), "npe": npe_estimates(nets[key], tables_e, 5)}
-            rows_e, numbers["emulated"][key], notes_e = scored(
-                ests_e, {"atlas": f"{key} atlas physics data, {label}",
-                         "npe": f"{key} atlas physics data, sbi NPE trained on the {key} atlas"
-                                f"{' mixture' if key == 'family' else ''}"}, truth_e, srng)
-            emu_rows += rows_e
-        emu_lines = ["## In the training distribution: held-out sweeps of the atlas physics itself", "",
-                     f"{n_emu} prior objects per row pair (seed {args.seed + 1000}), each swept through "
-                     "`make_physics(\"atlas\")` (family: a member drawn uniformly per object); both methods see the "
-                     "same tables. This separates the network's own amortisation error from the gap between the "
-                     "atlas emulator and live physics.", "", *HEAD, *emu_rows, ""]
+    emu_lines = emulated_section(args, atlases, names, nets, fm, bma, numbers, srng)
 
     nn, nf = numbers["npe_nominal"], numbers["npe_family"]
     lines = [

@@ -23,22 +23,15 @@ __version__ = "0.1.0"
 #: The flat layout's module paths, which still import (with a DeprecationWarning naming the new path): old path ->
 #: the module that now holds it (``plate_env.physics.base``'s ``Physics`` protocol is in
 #: ``plate_env.physics.interface``). The project's own code imports the new paths (tests/test_code_health.py).
-MOVED_MODULES = {
-    "plate_env.objects": "plate_env.core.objects", "plate_env.motion": "plate_env.core.motion",
-    "plate_env.units": "plate_env.core.units", "plate_env.checks": "plate_env.core.checks",
-    "plate_env.probes": "plate_env.core.probe_table", "plate_env.physics.base": "plate_env.core.probe",
-    "plate_env.atlas": "plate_env.surrogate.atlas", "plate_env.measure": "plate_env.physics.measure",
-    "plate_env.camera": "plate_env.physics.camera", "plate_env.nuisance": "plate_env.physics.nuisance",
-    "plate_env.fitting": "plate_env.identify.fitting", "plate_env.calibration": "plate_env.identify.calibration",
-    "plate_env.inference": "plate_env.identify.inference", "plate_env.estimate": "plate_env.identify.estimate",
-    "plate_env.forward": "plate_env.identify.forward", "plate_env.executor": "plate_env.run.executor",
-    "plate_env.sweeps": "plate_env.run.sweeps", "plate_env.vector": "plate_env.env.vector",
-    "plate_env.sb3": "plate_env.env.sb3", "plate_env.render": "plate_env.env.render",
-    "plate_env.episode": "plate_env.env.episode", "plate_env.protocol": "plate_env.env.protocol",
-    "plate_env.benchmark": "plate_env.bench", "plate_env.suites": "plate_env.bench.suites",
-    "plate_env.scoring": "plate_env.bench.scoring", "plate_env.reporting": "plate_env.bench.reporting",
-    "plate_env.benchmarks": "plate_env.build.eval_sets", "plate_env.atlas_grid": "plate_env.build.atlas_grid"
-}
+#: Old name -> new module, grouped by layer (``"probes:probe_table"``: the module was renamed too).
+_MOVED = {"core": ("objects", "motion", "units", "checks", "probes:probe_table", "physics.base:probe"),
+          "surrogate": ("atlas",), "physics": ("measure", "camera", "nuisance"),
+          "identify": ("fitting", "calibration", "inference", "estimate", "forward"), "run": ("executor", "sweeps"),
+          "env": ("vector", "sb3", "render", "episode", "protocol"), "bench": ("suites", "scoring", "reporting"),
+          "build": ("atlas_grid", "benchmarks:eval_sets")}
+MOVED_MODULES = {f"plate_env.{old}": f"plate_env.{layer}.{new or old}" for layer, names in _MOVED.items()
+                 for old, _, new in (n.partition(":") for n in names)}
+MOVED_MODULES["plate_env.benchmark"] = "plate_env.bench"
 
 
 class _MovedModuleFinder:

@@ -16,11 +16,21 @@ from pathlib import Path
 import numpy as np
 
 from plate_env.core import checks
-from plate_env.core.motion import AMP_RANGE_RAD, B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
+from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import ObjectSpec, preset
 from plate_env.core.probe import MIN_PROBE_FREQ_HZ, WINDOW_RANGE_S
+from plate_env.core.setup import (
+    AMP_RANGE_RAD,
+    B_P_RANGE_M,
+    DIAMETER_RANGE_M,
+    FREQ_RANGE_HZ,
+    KNOWN_B_P_RANGE_M,
+    MASS_RANGE_KG,
+    PAPER_SETUP,
+)
 from plate_env.core.units import format_omega_pi, parse_omega_n
 from plate_env.env.rotation import DEFAULT_MAX_PROBES
+from plate_env.identify.api import METHODS
 from plate_env.physics import PHYSICS_NAMES, ProbeSpec, make_physics
 from plate_env.physics.interface import refuse_early
 from plate_env.run.executor import BackendSpec, add_executor_argument, make_executor
@@ -152,7 +162,7 @@ def _add_object(p: argparse.ArgumentParser, true: str = "") -> None:
                    "e.g. 10pi")
     p.add_argument("--alpha", type=_arg(checks.real, 0.0, 90.0, open_lo=True, open_hi=True, unit="deg"),
                    default=None, help=f"{true}friction angle, degrees")
-    p.add_argument("--mass-g", type=_arg(checks.real, 0.0, 1e4, open_lo=True, unit="g"), default=None,
+    p.add_argument("--mass-g", type=_arg(checks.real, *MASS_RANGE_G, unit="g"), default=None,
                    help="object mass, grams")
 
 
@@ -194,7 +204,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="probes per chunk (a unit of work and of persistence)")
     add_executor_argument(s)
     i = sub.add_parser("identify", help="identify a hidden object with a probing agent (the main job)")
-    i.add_argument("--agent", default="bayes", choices=("grid", "coarse_to_fine", "bayes", "ppo"))
+    i.add_argument("--agent", default="bayes", choices=_agent_names())
     i.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
     i.add_argument("--model", default=None, help="tilelink model (pointmass, rigid, rigid_limit)")
     _add_object(i, true="true ")
@@ -213,13 +223,15 @@ def build_parser() -> argparse.ArgumentParser:
     f = sub.add_parser("fit", help="fit a lab sweep (CSV) and estimate omega_n")
     f.add_argument("csv", help="CSV with columns f_p_hz, omega_b_deg_s[, stderr_deg_s, a_p_deg, unstable]")
     f.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees")
-    f.add_argument("--bp", type=_arg(checks.real, 0.1, 50.0, unit="mm"), default=3.0,
+    f.add_argument("--bp", type=_arg(checks.real, *(round(x * 1e3, 9) for x in KNOWN_B_P_RANGE_M), unit="mm"),
+                   default=PAPER_SETUP.b_p_mm,
                    help="plate linear amplitude B_p, mm (known input)")
-    f.add_argument("--mass-g", type=_arg(checks.real, 0.1, 1000.0, unit="g"), default=13.6,
+    f.add_argument("--mass-g", type=_arg(checks.real, *MASS_RANGE_G, unit="g"), default=PAPER_SETUP.mass_g,
                    help="the disc's mass, grams (known input)")
-    f.add_argument("--diameter-mm", type=_arg(checks.real, 10.0, 500.0, unit="mm"), default=80.0,
+    f.add_argument("--diameter-mm", type=_arg(checks.real, *(round(x * 1e3, 9) for x in DIAMETER_RANGE_M), unit="mm"),
+                   default=PAPER_SETUP.diameter_mm,
                    help="the disc's diameter, mm (known input)")
-    f.add_argument("--method", default="atlas", choices=("atlas", "lorentz"),
+    f.add_argument("--method", default="atlas", choices=METHODS,
                    help="atlas: a forward model's posterior (default); lorentz: the paper's Eqs. 9-10")
     f.add_argument("--forward", default="lab", help="atlas method: the forward model, 'lab' (data of unknown "
                    "origin: every physics and the unknown joint/contact values integrated over) or the simulator "
@@ -234,6 +246,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: Where ``bench`` keeps finished episodes unless told otherwise (a rerun resumes from there).
 BENCH_CACHE_DIR = ".plate_env_bench"
+
+
+def _agent_names() -> tuple[str, ...]:
+    # the seam: the CLI is the application layer, the only module of plate_env that imports the agents
+    from plate_env_agents import AGENT_NAMES
+
+    return AGENT_NAMES
+#: The allowed mass at the edge, grams (plate_env.core.setup.MASS_RANGE_KG).
+MASS_RANGE_G = tuple(round(x * 1e3, 9) for x in MASS_RANGE_KG)
 
 
 def _add_bench(sub) -> None:
@@ -285,7 +306,7 @@ def _parse_budgets(text: str | None) -> list[float] | None:
 def _cmd_bench(args: argparse.Namespace) -> int:
     import functools
 
-    from plate_env.bench import runner as benchmark
+    from plate_env import bench as benchmark
     from plate_env.bench.suites import load_suite
     from plate_env.run.executor import check_executor_name, default_local
 
@@ -293,7 +314,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from plate_env_agents import load_agent
 
     suite = load_suite(args.suite)
-    budgets = benchmark._check_budgets(suite, _parse_budgets(args.budgets))
+    budgets = benchmark.check_budgets(suite, _parse_budgets(args.budgets))
     plot = plot_path(args.plot) if args.plot else None
     check_executor_name(args.executor)
     if len(set(args.agent)) != len(args.agent):

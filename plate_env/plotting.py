@@ -16,7 +16,7 @@ from plate_env.core.probe import ProbeResult
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from plate_env.bench.runner import AgentSummary
+    from plate_env.bench.report import AgentSummary
 
 
 def new_figure(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float] | None = None,
@@ -89,13 +89,13 @@ def plot_fit(table, est, path: str) -> None:
 
 
 def plot_curves(summaries: Sequence[AgentSummary], path: str) -> None:
-    """A benchmark's curves (:func:`plate_env.bench.runner.board`'s summaries): median (solid) and 90th-percentile
+    """A benchmark's curves (:func:`plate_env.bench.summary.board`'s summaries): median (solid) and 90th-percentile
     (dashed) error against the probing budget, one colour per agent."""
     import math
 
     import numpy as np
 
-    from plate_env.bench.runner import rank
+    from plate_env.bench.report import rank
 
     fig, ax = new_figure(figsize=(10.5, 4.8))
     for i, s in enumerate(rank(summaries)):

@@ -34,8 +34,8 @@ class Interrupting:
     def __init__(self, inner, after: int) -> None:
         self.inner, self.after = inner, after
 
-    def map(self, backend, chunks):
-        with contextlib.closing(self.inner.map(backend, chunks)) as it:
+    def map(self, fn, items):
+        with contextlib.closing(self.inner.map(fn, items)) as it:
             for n, item in enumerate(it, start=1):
                 yield item
                 if n >= self.after:
@@ -53,9 +53,9 @@ class Counting:
     def __init__(self, inner) -> None:
         self.inner, self.given = inner, []
 
-    def map(self, backend, chunks):
-        self.given.append(sum(map(len, chunks)))
-        yield from self.inner.map(backend, chunks)
+    def map(self, fn, items):
+        self.given.append(sum(map(len, items)))
+        yield from self.inner.map(fn, items)
 
     def close(self) -> None:
         self.inner.close()

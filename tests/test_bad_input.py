@@ -264,9 +264,21 @@ def test_cli_sweep_interrupted_prints_the_finished_probes(json_out, monkeypatch,
     import json
 
     import plate_env.cli as cli
-    from plate_env.run.executor import InProcessExecutor
 
-    monkeypatch.setattr(cli, "make_executor", lambda name, backend: InProcessExecutor(Interrupting(backend.build(), 3)))
+    class OnPhysics:  # an in-process executor that runs every chunk on one built backend
+        name = "inprocess"
+
+        def __init__(self, physics) -> None:
+            self.physics = physics
+
+        def map(self, fn, items):
+            for i, item in enumerate(items):
+                yield i, self.physics.run(list(item))
+
+        def close(self) -> None:
+            self.physics.close()
+
+    monkeypatch.setattr(cli, "make_executor", lambda name, backend: OnPhysics(Interrupting(backend.build(), 3)))
     argv = ["sweep", "--physics", "atlas", "--omega-n", "10pi", "--freqs", "10:40:0.5", "--no-progress"]
     code, out, err = run_cli(argv + (["--json"] if json_out else []), capsys)  # defect 2
     assert code == 130 and "interrupted after 16 of 61 probes" in err

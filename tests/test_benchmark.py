@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plate_env.bench import runner as benchmark
+from plate_env import bench as benchmark
+from plate_env.bench import runner
 from plate_env.bench.suites import load_suite
 from plate_env.cli import main
 from plate_env.env.episode import estimate_of, run_episode
@@ -143,7 +144,7 @@ def test_records_resume_and_name_the_agent(tmp_path):
 
 
 def _outcome(run):
-    return [(e.index, e.probe_sim_s, e.probes, [benchmark._est_record(x) for x in e.prefix]) for e in run.episodes]
+    return [(e.index, e.probe_sim_s, e.probes, [runner._est_record(x) for x in e.prefix]) for e in run.episodes]
 
 
 def test_same_records_in_process_and_in_a_process_pool():
@@ -185,7 +186,7 @@ def test_bench_plot_is_written_after_the_table(tmp_path, capsys):
 
 def test_ctrl_c_keeps_the_finished_episodes_and_a_rerun_resumes(tmp_path, monkeypatch, capsys):
     cache = tmp_path / "c.jsonl"
-    real = benchmark.play
+    real = runner.play
     played = []
 
     def interrupted(*args, **kw):
@@ -194,13 +195,13 @@ def test_ctrl_c_keeps_the_finished_episodes_and_a_rerun_resumes(tmp_path, monkey
         played.append(1)
         return real(*args, **kw)
 
-    monkeypatch.setattr(benchmark, "play", interrupted)
+    monkeypatch.setattr(runner, "play", interrupted)
     argv = ["bench", "--suite", "atlas-v0", "--agent", "coarse_to_fine", "--limit", "4", "--cache", str(cache),
             "--no-progress", "--chunk", "1"]
     assert main(argv) == 130
     err = capsys.readouterr().err
     assert "after 2 episodes" in err and str(cache) in err and len(cache.read_text().splitlines()) == 2
-    monkeypatch.setattr(benchmark, "play", real)
+    monkeypatch.setattr(runner, "play", real)
     assert main(argv) == 0 and len(cache.read_text().splitlines()) == 4
 
 

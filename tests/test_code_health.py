@@ -12,8 +12,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = "plate_env"
-#: No function or method in the project may be longer than this many lines (decorators and docstring included).
-MAX_FUNCTION_LINES = 150
+#: No function or method in the project may be longer than this many lines (decorators and docstring included),
+#: numba kernels (``@numba.njit``: one compiled loop, split only at a cost in speed) aside.
+MAX_FUNCTION_LINES = 120
 #: The only module of the library that may import the shipped agents (the folder ``agents/``, installed as
 #: ``plate_env_agents``): the command line is the application layer (``plate-env identify`` and ``bench`` run
 #: agents); everything else in plate_env, the benchmark included, is the core below it and sees agents only
@@ -138,12 +139,19 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return out
 
 
-def function_lengths() -> list[tuple[int, str]]:
-    """(lines, "path:line name") of every function and method in the project, longest first."""
+def is_numba_kernel(node: ast.FunctionDef | ast.AsyncFunctionDef) -> bool:
+    """Whether a function is compiled by numba (a decorator ``numba.njit``/``numba.jit``, called or not)."""
+    names = {ast.unparse(d.func if isinstance(d, ast.Call) else d) for d in node.decorator_list}
+    return bool(names & {"numba.njit", "numba.jit", "njit", "jit"})
+
+
+def function_lengths(kernels: bool = False) -> list[tuple[int, str]]:
+    """(lines, "path:line name") of every function and method in the project, longest first; numba kernels only
+    with ``kernels``."""
     out = []
     for _, (path, tree) in _sources(PACKAGE, "agents", "experiments", "tests").items():
         for node in ast.walk(tree):
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and (kernels or not is_numba_kernel(node)):
                 first = min([node.lineno] + [d.lineno for d in node.decorator_list])
                 out.append((node.end_lineno - first + 1, f"{path.relative_to(ROOT)}:{node.lineno} {node.name}"))
     return sorted(out, reverse=True)
@@ -184,18 +192,11 @@ def test_the_layer_check_finds_a_planted_upward_import():
                                      "plate_env.env.rotation -> plate_env_agents.bayes (env -> agents)"]
 
 
-def _moved_modules() -> dict[str, str]:
-    tree = ast.parse((ROOT / PACKAGE / "__init__.py").read_text())
-    for node in tree.body:
-        if isinstance(node, ast.AnnAssign | ast.Assign) and "MOVED_MODULES" in ast.unparse(node).split("=")[0]:
-            return ast.literal_eval(node.value)
-    raise AssertionError("plate_env/__init__.py has no MOVED_MODULES")
-
-
 def test_the_project_imports_no_old_module_path():
     """The flat layout's paths still import for users (plate_env.MOVED_MODULES, with a warning); the project's own
     code, tests and experiments use the new ones."""
-    moved = _moved_modules()
+    from plate_env import MOVED_MODULES as moved
+
     assert len(moved) > 20 and all(layer_of(new) is not None for new in moved.values())
     old = []
     for name, (path, tree) in _sources(PACKAGE, "agents", "experiments", "tests", "examples").items():
@@ -238,6 +239,9 @@ def test_no_function_longer_than_the_limit():
     lengths = function_lengths()
     assert lengths[0][0] > 50  # the walk measured real functions
     assert [f for f in lengths if f[0] > MAX_FUNCTION_LINES] == []
+    kernels = sorted(set(function_lengths(kernels=True)) - set(lengths), reverse=True)
+    assert len(kernels) >= 10 and all("_kernels.py:" in k or "kernels.py:" in k for _, k in kernels)
+    assert kernels[0][1].endswith("pointmass_probe")  # the exemption is the numba kernels, the longest among them
 
 
 if __name__ == "__main__":

@@ -26,6 +26,7 @@ from plate_env.run.executor import (
     BackendSpec,
     InProcessExecutor,
     PoolExecutor,
+    chunk_task,
     default_local,
     make_executor,
 )
@@ -101,7 +102,7 @@ def test_a_worker_s_error_reaches_the_caller_unchanged():
     bad = BackendSpec.of("tilelink", dt=-1.0)  # refused by the backend's constructor, in the worker
     try:
         with pytest.raises(ValueError, match="dt = -1.0"):
-            list(ex.map(bad, [short_specs(1)]))
+            list(ex.map(chunk_task(bad), [short_specs(1)]))
         assert ex.restarts == 0  # an error is not a dead worker: no retry
     finally:
         ex.close()
@@ -164,3 +165,30 @@ def test_pool_workers_run_with_one_blas_and_numba_thread():
         assert {k: os.environ.get(k) for k in WORKER_ENV} == before
     finally:
         ex.close()
+
+
+def test_map_is_generic_over_functions_and_items():
+    """Any picklable function over any items, in-process and in a pool: no case for the executor's own tasks."""
+    import math
+
+    for name in ("inprocess", "pool:2"):
+        ex = make_executor(name)
+        try:
+            assert sorted(ex.map(math.sqrt, [4.0, 9.0, 16.0])) == [(0, 2.0), (1, 3.0), (2, 4.0)]
+        finally:
+            ex.close()
+
+
+def test_a_process_closes_the_backends_it_built_at_exit(tmp_path):
+    """A worker owns its backends (worker_backend) and closes them when its process ends."""
+    import subprocess
+    import sys
+
+    marker = tmp_path / "closed"
+    code = ("import plate_env.run.executor as ex\n"
+            "b = ex.worker_backend(ex.BackendSpec.of('atlas'))\n"
+            f"b.close = lambda: open({str(marker)!r}, 'w').write('closed')\n"
+            "print(len(ex._BACKENDS))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["1"] and marker.read_text() == "closed"

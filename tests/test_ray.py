@@ -21,7 +21,7 @@ from executor_helpers import (  # noqa: E402
     short_specs,
 )
 
-from plate_env.run.executor import BackendSpec, InProcessExecutor, RayExecutor  # noqa: E402
+from plate_env.run.executor import BackendSpec, InProcessExecutor, RayExecutor, chunk_task  # noqa: E402
 from plate_env.run.sweeps import load_cache, run_cached  # noqa: E402
 
 pytestmark = pytest.mark.ray
@@ -105,7 +105,7 @@ def test_a_worker_s_error_reaches_the_caller(ray_executor):
     import ray
 
     with pytest.raises(ray.exceptions.RayTaskError, match="dt = -1.0"):
-        list(ray_executor.map(BackendSpec.of("tilelink", dt=-1.0), [short_specs(1)]))
+        list(ray_executor.map(chunk_task(BackendSpec.of("tilelink", dt=-1.0)), [short_specs(1)]))
 
 
 def test_ray_workers_run_with_one_blas_and_numba_thread(ray_executor):

@@ -87,7 +87,7 @@ def per_object(truth: Sequence[float], estimates: Sequence) -> dict[str, np.ndar
     bound's 95 % statement), 95 % width / truth, ok.
 
     ``estimates`` are objects with ``ok``, ``omega_n``, ``omega_n_ci68`` and ``omega_n_ci95`` (an
-    :class:`~plate_env.estimate.Estimate`)."""
+    :class:`~plate_env.identify.estimate.Estimate`)."""
     truth = np.asarray(truth, dtype=float)
     if len(truth) != len(estimates):
         raise ValueError(f"{len(truth)} true values for {len(estimates)} estimates")
@@ -159,7 +159,7 @@ def paired_difference(errors_a: Sequence[float], errors_b: Sequence[float], rng:
 
 def discrepancies(truth: Sequence[float], estimates: Sequence) -> tuple[np.ndarray, np.ndarray]:
     """``(log(truth / estimate), the estimate's own log-sd)`` per object with an estimate, the inputs of
-    :func:`plate_env.inference.fit_sigma_eps`; the log-sd is half the 68 % interval's width in log omega_n.
+    :func:`plate_env.identify.inference.fit_sigma_eps`; the log-sd is half the 68 % interval's width in log omega_n.
     ``truth`` may be shorter than ``estimates`` and is then repeated (several data sets of the same objects)."""
     truth = np.asarray(truth, dtype=float)
     if len(estimates) % len(truth):

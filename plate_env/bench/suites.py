@@ -9,7 +9,7 @@ Versioning: a suite's content is pinned by its SHA-256 (:data:`PINNED`, over the
 suite whose content no longer matches its pin is refused at load: changing a suite means saving it under a new
 version (``tilelink-v1``) and pinning that, so a number reported on ``tilelink-v0`` always means the same episodes.
 (The physics, forward models and agents a suite is run with are code; the benchmark's records name the code they
-ran with, see :mod:`plate_env.benchmark`.)
+ran with, see :mod:`plate_env.bench.runner`.)
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@
                        cache="experiments/cache/atlas_x.jsonl", executor="ray")
 
 ``results`` is an object array shaped (n_f, n_a, n_omega, n_alpha, repeats) of :class:`ProbeResult`, ready for
-:func:`plate_env.atlas.atlas_from_repeats`. Used by ``experiments/build_atlas.py``.
+:func:`plate_env.surrogate.atlas.atlas_from_repeats`. Used by ``experiments/build_atlas.py``.
 
 A grid file is JSON with ``f_p_hz``, ``a_p_deg``, ``omega_n_pi`` (units of pi rad/s), ``alpha_deg`` (lists of
 numbers; ``f_p_hz`` may also be ``"start:stop:step"``, inclusive) and optionally ``settle_s``, ``measure_s`` and the
@@ -23,10 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from plate_env.run.executor import BackendSpec, Executor
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import ObjectSpec
 from plate_env.core.probe import ProbeSpec
+from plate_env.core.setup import PAPER_SETUP
+from plate_env.run.executor import BackendSpec, Executor
 from plate_env.run.sweeps import run_cached
 
 
@@ -62,9 +63,9 @@ class AtlasGrid:
     alpha_deg: tuple[float, ...]
     settle_s: float = 0.5
     measure_s: float = 1.0
-    mass_g: float = 13.6
-    b_p_mm: float = 3.0
-    diameter_mm: float = 80.0
+    mass_g: float = PAPER_SETUP.mass_g
+    b_p_mm: float = PAPER_SETUP.b_p_mm
+    diameter_mm: float = PAPER_SETUP.diameter_mm
 
     def __post_init__(self) -> None:
         for name in ("f_hz", "a_p_deg", "omega_n_pi", "alpha_deg"):
@@ -88,8 +89,8 @@ class AtlasGrid:
             raise ValueError(f"grid: missing keys {sorted(missing)}")
         return cls(f_hz=d["f_p_hz"], a_p_deg=d["a_p_deg"], omega_n_pi=d["omega_n_pi"], alpha_deg=d["alpha_deg"],
                    settle_s=float(d.get("settle_s", 0.5)), measure_s=float(d.get("measure_s", 1.0)),
-                   mass_g=float(d.get("mass_g", 13.6)), b_p_mm=float(d.get("b_p_mm", 3.0)),
-                   diameter_mm=float(d.get("diameter_mm", 80.0)))
+                   mass_g=float(d.get("mass_g", PAPER_SETUP.mass_g)), b_p_mm=float(d.get("b_p_mm", PAPER_SETUP.b_p_mm)),
+                   diameter_mm=float(d.get("diameter_mm", PAPER_SETUP.diameter_mm)))
 
     @classmethod
     def from_json(cls, path: str | Path) -> AtlasGrid:
@@ -134,7 +135,7 @@ def run_grid(backend: BackendSpec, grid: AtlasGrid, repeats: int, seed: int, cac
              executor: Executor | str | None = None, chunk: int | None = None, placed: bool = True,
              sweeps: bool = False, progress: bool = True, desc: str = "atlas") -> np.ndarray:
     """Every grid probe's result (object array shaped ``grid.shape(repeats)``), run through ``executor`` with the
-    resumable cache (:func:`plate_env.sweeps.run_cached`). ``chunk`` defaults to one sweep (``len(grid.f_hz)``)
+    resumable cache (:func:`plate_env.run.sweeps.run_cached`). ``chunk`` defaults to one sweep (``len(grid.f_hz)``)
     with ``sweeps``, else 128 in-process and 16 on workers (many chunks to spread, each still a batch)."""
     order, specs = grid_probes(grid, repeats, np.random.default_rng(seed), placed=placed, sweeps=sweeps)
     if chunk is None:

@@ -12,6 +12,7 @@ import numpy as np
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import ObjectPrior, ObjectSpec
 from plate_env.core.probe import ProbeSpec
+from plate_env.core.setup import PAPER_SETUP
 
 #: Objects the Eq. (10) calibration is fitted on (omega_n in pi rad/s, alpha in degrees).
 CALIBRATION_OMEGAS_PI = (3.5, 5.0, 7.0, 10.0, 13.0, 17.0, 23.0, 28.0, 33.0)
@@ -33,7 +34,7 @@ def objects(omegas_pi, alphas_deg) -> list[ObjectSpec]:
     return [ObjectSpec.from_paper(w, a) for w in omegas_pi for a in alphas_deg]
 
 
-def sweep_specs(obj: ObjectSpec, freqs_hz, a_p_deg: float, b_p_mm: float = 3.0, **kw) -> list[ProbeSpec]:
+def sweep_specs(obj: ObjectSpec, freqs_hz, a_p_deg: float, b_p_mm: float = PAPER_SETUP.b_p_mm, **kw) -> list[ProbeSpec]:
     """A frequency sweep of one object at one plate amplitude."""
     return [ProbeSpec(obj, PlateMotion.from_paper(float(f), a_p_deg, b_p_mm), **kw) for f in freqs_hz]
 
@@ -59,14 +60,15 @@ PYBULLET_HELD_OUT_OBJECTS = ((6.0, 41.0), (8.5, 50.0), (11.5, 33.0), (16.5, 55.0
 
 
 # --------------------------------------------------------------------------- identification prior and eval sets
-#: The identification prior is the env's object prior (:class:`plate_env.objects.ObjectPrior`): omega_n
+#: The identification prior is the env's object prior (:class:`plate_env.core.objects.ObjectPrior`): omega_n
 #: log-uniform over this range (pi rad/s) and alpha uniform over this range (deg).
 PRIOR_OMEGA_PI = ObjectPrior.omega_n_range_pi
 PRIOR_ALPHA_DEG = ObjectPrior.alpha_range_deg
 
 
 def prior_objects(n: int, rng: np.random.Generator, omega_range_pi: tuple[float, float] = PRIOR_OMEGA_PI,
-                  alpha_range_deg: tuple[float, float] = PRIOR_ALPHA_DEG, mass_g: float = 13.6) -> list[ObjectSpec]:
+                  alpha_range_deg: tuple[float, float] = PRIOR_ALPHA_DEG,
+                  mass_g: float = PAPER_SETUP.mass_g) -> list[ObjectSpec]:
     """``n`` objects drawn from the identification prior (per object: log omega_n, then alpha): the draws of
     :meth:`ObjectPrior.draw`, computed in numpy (the omega_n and alpha differ from it by at most 1 ulp; kept so
     that evaluation sets drawn with it stay bit for bit)."""
@@ -79,7 +81,7 @@ def prior_objects(n: int, rng: np.random.Generator, omega_range_pi: tuple[float,
 
 
 def placed_sweeps(objs: list[ObjectSpec], freqs_hz, a_p_deg: float, rng: np.random.Generator,
-                  b_p_mm: float = 3.0, **kw) -> list[ProbeSpec]:
+                  b_p_mm: float = PAPER_SETUP.b_p_mm, **kw) -> list[ProbeSpec]:
     """Frequency sweeps of every object, each probe placed as a real experiment would (``ProbeSpec.perturbed``)."""
     return [s.perturbed(rng) for o in objs for s in sweep_specs(o, freqs_hz, a_p_deg, b_p_mm, **kw)]
 
@@ -90,7 +92,7 @@ class EvalSet:
 
     Objects come from ``prior_objects(n, default_rng(seed))``, placements from ``default_rng(seed + 1)`` (the same
     draws at every amplitude), and, with ``nuisance``, each object's unknown joint and contact values from
-    ``plate_env.nuisance.PRIOR`` with ``default_rng(seed + 2)``. ``source`` names the backend for caches and
+    ``plate_env.physics.nuisance.PRIOR`` with ``default_rng(seed + 2)``. ``source`` names the backend for caches and
     reports (e.g. ``"tilelink_pointmass"``); ``omega_range_pi`` narrows the prior for a model that cannot make
     every object (the PyBullet sheet folds below ~5pi).
     """
@@ -109,7 +111,7 @@ class EvalSet:
         return prior_objects(self.n, np.random.default_rng(self.seed), self.omega_range_pi)
 
     def nuisances(self) -> list | None:
-        """Each object's :class:`plate_env.nuisance.Nuisance` (None without ``nuisance``)."""
+        """Each object's :class:`plate_env.physics.nuisance.Nuisance` (None without ``nuisance``)."""
         if not self.nuisance:
             return None
         from plate_env.physics.nuisance import PRIOR
@@ -130,7 +132,7 @@ class EvalSet:
 def run_eval_set(es: EvalSet, backend_of, executor=None, progress: bool = False) -> dict:
     """``{A_p: [ProbeTable per object]}`` for an :class:`EvalSet`, run resumably (its cache files).
 
-    ``backend_of(nuisance)`` gives the :class:`plate_env.executor.BackendSpec` for an object's nuisance draw (None
+    ``backend_of(nuisance)`` gives the :class:`plate_env.run.executor.BackendSpec` for an object's nuisance draw (None
     for a set without nuisances); objects sharing a backend run as one batch."""
     from plate_env.core.probe_table import ProbeTable
     from plate_env.run.sweeps import run_cached

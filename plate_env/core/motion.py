@@ -17,6 +17,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from plate_env.core.setup import AMP_RANGE_RAD, B_P_RANGE_M, FREQ_RANGE_HZ, PAPER_SETUP
+
 
 def plate_state(
     t: float, freq_hz: float, amp_rad: float, b_p: float, ramp_s: float
@@ -41,12 +43,6 @@ def plate_state(
     return theta, theta_dot, x, x_dot
 
 
-#: Allowed ranges of the plate's parameters (inclusive), in SI units.
-FREQ_RANGE_HZ = (0.0, 200.0)
-AMP_RANGE_RAD = (-math.radians(45.0), math.radians(45.0))
-B_P_RANGE_M = (-0.05, 0.05)
-
-
 @dataclass(frozen=True)
 class PlateMotion:
     """A sinusoidal plate motion (SI units).
@@ -60,7 +56,7 @@ class PlateMotion:
 
     freq_hz: float
     amp_rad: float
-    b_p: float = 0.003
+    b_p: float = PAPER_SETUP.b_p
     ramp_s: float = 0.2
 
     def __post_init__(self) -> None:
@@ -74,7 +70,8 @@ class PlateMotion:
                 raise ValueError(f"PlateMotion {label} = {value!r} is outside the allowed range [{lo}, {hi}]")
 
     @classmethod
-    def from_paper(cls, f_p_hz: float, a_p_deg: float, b_p_mm: float = 3.0, ramp_s: float = 0.2) -> PlateMotion:
+    def from_paper(cls, f_p_hz: float, a_p_deg: float, b_p_mm: float = PAPER_SETUP.b_p_mm,
+                   ramp_s: float = 0.2) -> PlateMotion:
         """Build from the paper's units: Hz, degrees, millimetres."""
         return cls(freq_hz=f_p_hz, amp_rad=math.radians(a_p_deg), b_p=b_p_mm * 1e-3, ramp_s=ramp_s)
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+from plate_env.core.setup import DIAMETER_RANGE_M, MASS_RANGE_KG, PAPER_SETUP, in_range
+
 #: The paper's ratio of kinetic to static friction, mu_k = BETA * mu_s (Section 3.2).
 BETA = 0.53
 
@@ -24,8 +26,8 @@ class ObjectSpec:
 
     omega_n: float = 10 * math.pi
     alpha: float = math.radians(36.9)
-    mass: float = 0.0136
-    diameter: float = 0.080
+    mass: float = PAPER_SETUP.mass
+    diameter: float = PAPER_SETUP.diameter
     beta: float = BETA
     name: str = ""
 
@@ -33,13 +35,16 @@ class ObjectSpec:
         checks = {
             "omega_n (rad/s)": (self.omega_n, 0.0, 1e4),
             "alpha (rad)": (self.alpha, 0.0, math.pi / 2),
-            "mass (kg)": (self.mass, 0.0, 10.0),
-            "diameter (m)": (self.diameter, 0.0, 1.0),
             "beta": (self.beta, 0.0, 1.0),
         }
         for label, (value, lo, hi) in checks.items():
             if not (isinstance(value, (int, float)) and math.isfinite(value) and lo < value < hi + 1e-12):
                 raise ValueError(f"ObjectSpec {label} = {value!r} is outside the allowed range ({lo}, {hi}]")
+        for label, value, (lo, hi) in (("mass (kg)", self.mass, MASS_RANGE_KG),
+                                       ("diameter (m)", self.diameter, DIAMETER_RANGE_M)):
+            if not in_range(value, lo, hi):
+                raise ValueError(f"ObjectSpec {label} = {value!r} is outside the allowed range [{lo:g}, {hi:g}] "
+                                 "(plate_env.core.setup)")
 
     @property
     def mu_s(self) -> float:
@@ -57,7 +62,8 @@ class ObjectSpec:
 
     @classmethod
     def from_paper(
-        cls, omega_n_pi: float, alpha_deg: float, mass_g: float = 13.6, diameter_mm: float = 80.0, name: str = ""
+        cls, omega_n_pi: float, alpha_deg: float, mass_g: float = PAPER_SETUP.mass_g,
+        diameter_mm: float = PAPER_SETUP.diameter_mm, name: str = ""
     ) -> ObjectSpec:
         """Build from the paper's units: omega_n in units of pi rad/s, alpha in degrees, grams, millimetres."""
         return cls(
@@ -78,9 +84,9 @@ class ObjectSpec:
 #: balls has the cheese's stiffness and 39.5/13.6 of its mass: omega_n = 10pi * sqrt(13.6/39.5) ~ 5.87pi assumed.
 #: Their friction angles are not published: the cheese's 36.9 deg is assumed for all three.
 PRESETS: dict[str, ObjectSpec] = {
-    "cheese": ObjectSpec.from_paper(10.0, 36.9, 13.6, name="cheese"),
+    "cheese": ObjectSpec.from_paper(10.0, 36.9, PAPER_SETUP.mass_g, name="cheese"),
     "dumpling": ObjectSpec.from_paper(10.0, 36.9, 6.9, name="dumpling"),
-    "cheese_lead": ObjectSpec.from_paper(10.0 * math.sqrt(13.6 / 39.5), 36.9, 39.5, name="cheese_lead"),
+    "cheese_lead": ObjectSpec.from_paper(10.0 * math.sqrt(PAPER_SETUP.mass_g / 39.5), 36.9, 39.5, name="cheese_lead"),
 }
 
 

@@ -1,8 +1,8 @@
 """The probing-agent protocol: what an agent is given (:class:`ProbeContext`, the probe table, the env's
 observation) and what it answers (a :class:`Probe`, an env action, or None to stop).
 
-It lives in the library core so that the episode loop (:mod:`plate_env.episode`), the benchmark
-(:mod:`plate_env.benchmark`) and third-party agents depend on it without importing the shipped agents
+It lives in the library core so that the episode loop (:mod:`plate_env.env.episode`), the benchmark
+(:mod:`plate_env.bench.runner`) and third-party agents depend on it without importing the shipped agents
 (``plate_env_agents``, which subclass :class:`Agent`).
 
 An agent is any object with
@@ -11,7 +11,7 @@ An agent is any object with
   how its probes are turned into an estimate;
 * ``reset(context, rng)``: a new episode starts (no probes yet); ``rng`` is the episode's seeded generator, the
   only randomness an agent may use;
-* ``next_probe(history, obs)``: given the probes so far (a :class:`~plate_env.probes.ProbeTable`, in the order
+* ``next_probe(history, obs)``: given the probes so far (a :class:`~plate_env.core.probe_table.ProbeTable`, in the order
   they ran) and the env's observation, return the next :class:`Probe`, a raw env action (4 numbers in [-1, 1]), or
   None to stop and estimate.
 
@@ -26,10 +26,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.api import METHODS
 from plate_env.surrogate.conditioning import KnownInputs
 
 #: The estimators an agent may name as its ``method``.
-AGENT_METHODS = ("atlas", "lorentz")
+AGENT_METHODS = METHODS
 
 
 @dataclass(frozen=True)
@@ -88,8 +89,8 @@ class Agent(ABC):
         """The next probe to run (a :class:`Probe` or a raw env action), or None to stop and estimate."""
 
     def estimate_model(self):
-        """The forward model (:class:`plate_env.forward.ForwardModel`) the episode's estimate must use, or None for
-        the shipped one of the episode's physics: an agent that chose its probes on a model says so here."""
+        """The forward model (:class:`~plate_env.identify.forward.ForwardModel`) the episode's estimate must use, or
+        None for the shipped one of the episode's physics: an agent that chose its probes on a model says so here."""
         return None
 
 
@@ -99,7 +100,7 @@ def check_agent(agent: object, where: str = "agent") -> object:
     missing = [m for m in ("reset", "next_probe") if not callable(getattr(agent, m, None))]
     if missing:
         raise ValueError(f"{where}: {type(agent).__name__} has no method(s) {missing}; an agent needs "
-                         "reset(context, rng) and next_probe(history, obs) (see plate_env.protocol)")
+                         "reset(context, rng) and next_probe(history, obs) (see plate_env.env.protocol)")
     if not isinstance(getattr(agent, "name", None), str):
         raise ValueError(f"{where}: {type(agent).__name__}.name must be a string")
     method = getattr(agent, "method", "atlas")

@@ -14,7 +14,7 @@ import numpy as np
 from gymnasium import spaces
 
 from plate_env.core import checks
-from plate_env.core.motion import B_P_RANGE_M, FREQ_RANGE_HZ, PlateMotion
+from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import ObjectPrior, ObjectSpec
 from plate_env.core.probe import (
     MIN_PROBE_FREQ_HZ,
@@ -24,18 +24,20 @@ from plate_env.core.probe import (
     ProbeSpec,
 )
 from plate_env.core.probe_table import ProbeTable
+from plate_env.core.setup import B_P_RANGE_M, FREQ_RANGE_HZ, PAPER_SETUP
+from plate_env.env.codec import ACTION_SIZE, Codec
+from plate_env.identify.api import METHODS
 from plate_env.identify.estimate import Estimate
 from plate_env.physics import PHYSICS_NAMES, make_physics
 from plate_env.physics.camera import camera_omega_b
 from plate_env.physics.interface import refuse_early
 from plate_env.surrogate.conditioning import KnownInputs
 
-N_FEATURES = 7
 #: The probe budget of an episode when none is given: the one default of the env, the CLI, the suites and the
 #: shipped policy (the observation's length, 7 * max_probes + 2, depends on it).
 DEFAULT_MAX_PROBES = 30
 #: Mass of the hidden object before ``mass_variation``, kg (the paper's cheese slice).
-MASS_KG = ObjectSpec().mass
+MASS_KG = PAPER_SETUP.mass
 #: Keys ``reset(options=...)`` accepts: the hidden object's omega_n (rad/s), alpha (rad), mass (kg).
 RESET_OPTIONS = ("omega_n", "alpha", "mass")
 #: The constructor option that decides each quantity of the probes a backend may refuse (ProbeRefused.quantity).
@@ -154,7 +156,7 @@ class PlateRotationEnv(gym.Env):
 
     ``gym.make_vec("PlateRotation-v0", num_envs=8, vectorization_mode="vector_entry_point", physics="atlas")``:
     one batched physics call per step for all sub-environments (Gymnasium's next-step autoreset);
-    ``plate_env.sb3.make_sb3_vec_env(n_envs=8, physics="atlas")``: the same as a Stable-Baselines3 ``VecEnv``.
+    ``plate_env.env.sb3.make_sb3_vec_env(n_envs=8, physics="atlas")``: the same as a Stable-Baselines3 ``VecEnv``.
 
     ## Version History
 
@@ -172,7 +174,7 @@ class PlateRotationEnv(gym.Env):
                  omega_n_range_pi: tuple[float, float] = ObjectPrior.omega_n_range_pi,
                  alpha_range_deg: tuple[float, float] = ObjectPrior.alpha_range_deg,
                  mass_variation: float = 0.0, f_band_hz: tuple[float, float] = (10.0, 40.0),
-                 amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = 3.0,
+                 amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = PAPER_SETUP.b_p_mm,
                  max_probes: int = DEFAULT_MAX_PROBES,
                  max_sim_s: float | None = None, measure_range_s: tuple[float, float] = (0.25, 2.0),
                  settle_s: float = 0.5, camera_fps: float = 30.0, angle_noise_deg: float = 0.5,
@@ -181,7 +183,7 @@ class PlateRotationEnv(gym.Env):
         super().__init__()
         # every option checked (a ValueError naming it) before the physics is built
         render_mode = checks.one_of("render_mode", render_mode, (None, *self.metadata["render_modes"]))
-        method = checks.one_of("method", method, ("atlas", "lorentz"))
+        method = checks.one_of("method", method, METHODS)
         omega_n_range_pi = checks.pair("omega_n_range_pi", omega_n_range_pi, 0.1, 300.0, "pi rad/s")
         alpha_range_deg = checks.pair("alpha_range_deg", alpha_range_deg, 1.0, 89.0, "deg")
         mass_variation = checks.real("mass_variation", mass_variation, 0.0, 1.0, open_hi=True)
@@ -229,9 +231,10 @@ class PlateRotationEnv(gym.Env):
         objects = [ObjectSpec(omega_n=math.pi * w, alpha=math.radians(a), mass=m)
                    for w in (lo, hi) for a in alpha_range_deg for m in sorted(set(masses))]
         self._refuse_unanswerable(objects, "option")
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
-        self.observation_space = spaces.Box(-10.0, 10.0, shape=(N_FEATURES * self.max_probes + 2,),
-                                            dtype=np.float32)
+        #: The observation/action layout (plate_env.env.codec), shared with agents that act from observations.
+        self.codec = Codec(self.f_band_hz, self.amplitudes_deg, self.measure_range_s, self.max_probes)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(ACTION_SIZE,), dtype=np.float32)
+        self.observation_space = spaces.Box(-10.0, 10.0, shape=(self.codec.obs_dim,), dtype=np.float32)
         self._obj: ObjectSpec | None = None
         self._rows: list[tuple[float, float, float, float, bool, float]] = []
         self._results: list[ProbeResult] = []
@@ -286,11 +289,9 @@ class PlateRotationEnv(gym.Env):
         a = np.clip(a, -1.0, 1.0)
         if a[3] > 0 and self._rows:
             return True, None
-        f = self.f_band_hz[0] + (a[0] + 1) / 2 * (self.f_band_hz[1] - self.f_band_hz[0])
-        k = min(int((a[1] + 1) / 2 * len(self.amplitudes_deg)), len(self.amplitudes_deg) - 1)
-        window = self.measure_range_s[0] + (a[2] + 1) / 2 * (self.measure_range_s[1] - self.measure_range_s[0])
-        motion = PlateMotion.from_paper(float(f), self.amplitudes_deg[k], self.b_p_mm)
-        spec = ProbeSpec(self._obj, motion, settle_s=self.settle_s, measure_s=float(window), record_trace=True)
+        f, a_p, window = self.codec.decode(a)
+        motion = PlateMotion.from_paper(f, a_p, self.b_p_mm)
+        spec = ProbeSpec(self._obj, motion, settle_s=self.settle_s, measure_s=window, record_trace=True)
         return False, spec.perturbed(self.np_random)
 
     def encode_action(self, f_p_hz: float | None = None, a_p_deg: float | None = None,
@@ -299,18 +300,8 @@ class PlateRotationEnv(gym.Env):
         ``measure_s`` (s), or that stops. Values are clipped to the band and window range."""
         if stop:
             return np.array([0.0, 0.0, 0.0, 1.0], dtype=np.float32)
-        f_lo, f_hi = self.f_band_hz
-        m_lo, m_hi = self.measure_range_s
-        f = 2 * (np.clip(f_p_hz, f_lo, f_hi) - f_lo) / (f_hi - f_lo) - 1
-        if a_p_deg is None:
-            a_p_deg = self.amplitudes_deg[0]
-        if not any(abs(a_p_deg - a) < 1e-9 for a in self.amplitudes_deg):
-            raise ValueError(f"A_p = {a_p_deg!r} deg is not one of this env's amplitudes {self.amplitudes_deg}")
-        k = min(range(len(self.amplitudes_deg)), key=lambda i: abs(self.amplitudes_deg[i] - a_p_deg))
-        amp = (2 * k + 1) / len(self.amplitudes_deg) - 1
-        window = 1.0 if measure_s is None else measure_s
-        m = 2 * (np.clip(window, m_lo, m_hi) - m_lo) / (m_hi - m_lo) - 1
-        return np.array([f, amp, m, -1.0], dtype=np.float32)
+        return self.codec.encode(f_p_hz, self.amplitudes_deg[0] if a_p_deg is None else a_p_deg,
+                                 1.0 if measure_s is None else measure_s)
 
     def step(self, action):
         stop, spec = self.prepare(action)
@@ -401,19 +392,8 @@ class PlateRotationEnv(gym.Env):
         return KnownInputs(b_p=self.b_p_mm * 1e-3, mass=self._obj.mass, diameter=self._obj.diameter)
 
     def _obs(self) -> np.ndarray:
-        obs = np.zeros(self.observation_space.shape, dtype=np.float32)
-        f_lo, f_hi = self.f_band_hz
-        m_lo, m_hi = self.measure_range_s
-        n_amp = len(self.amplitudes_deg)
-        for i, (f, a, w, se, un, win) in enumerate(self._rows[: self.max_probes]):
-            k = self.amplitudes_deg.index(min(self.amplitudes_deg, key=lambda x: abs(x - a)))
-            obs[N_FEATURES * i: N_FEATURES * (i + 1)] = (
-                2 * (f - f_lo) / (f_hi - f_lo) - 1, (2 * k + 1) / n_amp - 1 if n_amp > 1 else 0.0,
-                np.clip(w / 1000.0, -10, 10), np.clip(se / 1000.0, 0, 10), float(un),
-                2 * (win - m_lo) / (m_hi - m_lo) - 1, 1.0)
-        obs[-2] = 1.0 - len(self._rows) / self.max_probes
-        obs[-1] = 1.0 - self._sim_s / self.max_sim_s if self.max_sim_s else 1.0
-        return np.clip(obs, -10.0, 10.0)
+        sim_left = 1.0 - self._sim_s / self.max_sim_s if self.max_sim_s else 1.0
+        return self.codec.observation(self._rows, 1.0 - len(self._rows) / self.max_probes, sim_left)
 
     def _info(self) -> dict[str, Any]:
         info: dict[str, Any] = {"omega_n_true": self._obj.omega_n if self._obj else None,

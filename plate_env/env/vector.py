@@ -78,7 +78,7 @@ class PlateRotationVectorEnv(VectorEnv):
     def step_envs(self, actions: np.ndarray, active: np.ndarray) -> list[tuple | None]:
         """Step the sub-environments where ``active`` is True, their probes in one batched physics call: per
         sub-environment ``(obs, reward, terminated, truncated, info)``, or None where inactive. (The step of this
-        vector env and of :class:`plate_env.sb3.PlateRotationSB3VecEnv`; they differ in how they reset.)"""
+        vector env and of :class:`plate_env.env.sb3.PlateRotationSB3VecEnv`; they differ in how they reset.)"""
         plans: list[tuple[str, int | None]] = []
         specs = []
         for i, env in enumerate(self.envs):

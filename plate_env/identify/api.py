@@ -1,7 +1,7 @@
 """From probes to omega_n_hat (and alpha_hat) with uncertainty, by the paper's Lorentzian method or the atlas.
 
-Dependencies run one way: this module uses :mod:`plate_env.inference` (the atlas method) and both build the
-:class:`~plate_env.estimate.Estimate` of :mod:`plate_env.estimate`, which imports neither.
+Dependencies run one way: this module uses :mod:`plate_env.identify.inference` (the atlas method) and both build the
+:class:`~plate_env.identify.estimate.Estimate` of :mod:`plate_env.identify.estimate`, which imports neither.
 """
 
 from __future__ import annotations
@@ -20,7 +20,8 @@ from plate_env.identify.forward import ForwardModel, load_forward_model
 from plate_env.identify.inference import GAUSS_HERMITE, identify_atlas
 from plate_env.surrogate.conditioning import KnownInputs
 
-METHODS = ("lorentz", "atlas")
+#: The identification methods: ``"atlas"``, a forward model's posterior; ``"lorentz"``, the paper's Eqs. 9-10.
+METHODS = ("atlas", "lorentz")
 
 
 def _table(probes: Sequence[ProbeResult] | ProbeTable) -> ProbeTable:
@@ -114,12 +115,12 @@ def identify(probes: Sequence[ProbeResult] | ProbeTable, method: str = "atlas", 
              **options) -> Estimate:
     """Estimate omega_n (and alpha) from probes at any plate amplitudes.
 
-    ``method="atlas"`` (model-based, the default): the posterior of a forward model (:mod:`plate_env.inference`):
-    ``forward`` (a :class:`~plate_env.forward.ForwardModel` or a shipped name such as ``"lab"``), else the model
-    that made the data, ``"<physics>/<model>"``, conditioned on the known inputs (``known``, else those of the
-    probes when they are :class:`ProbeResult`, else the paper's set-up). ``method="lorentz"``: the paper's Eq. (9)
-    fit per amplitude and Eq. (10) calibration of ``physics``/``model`` (``physics="paper"``: the paper's
-    coefficients).
+    ``method="atlas"`` (model-based, the default): the posterior of a forward model
+    (:mod:`~plate_env.identify.inference`): ``forward`` (a :class:`~.forward.ForwardModel` or a shipped name such as
+    ``"lab"``), else the model that made the data, ``"<physics>/<model>"``, conditioned on the known inputs (``known``,
+    else those of the probes when they are :class:`ProbeResult`, else the paper's set-up). ``method="lorentz"``: the
+    paper's Eq. (9) fit per amplitude and Eq. (10) calibration of ``physics``/``model`` (``physics="paper"``: the
+    paper's coefficients).
     """
     if method not in METHODS:
         raise ValueError(f"unknown identification method {method!r}; choose one of {METHODS}")

@@ -36,7 +36,7 @@ class Calibration:
         model_lines: a line pooled over several models: each model's own (p1, q1) (rad/s per Hz, rad/s). The
             offset of a model never seen from the pooled line is Student-t with len - 1 degrees of freedom and the
             scale of the models' offsets at that f0 (:meth:`offset_scale`), as the atlas route's offset between
-            models (:func:`plate_env.inference.family_discrepancy`).
+            models (:func:`plate_env.identify.inference.family_discrepancy`).
         alpha_coef: (a0 [rad], a1 [rad per deg/s], a2 [rad/Hz]) of the friction model; alpha_resid_std: rad.
         provenance: how it was made (objects, amplitudes, dt, window, version).
     """

@@ -1,6 +1,6 @@
 """What an identification returns: an :class:`Estimate` of omega_n (and alpha) and, for the model-based method, the
 grid :class:`Posterior` it came from. Plain frozen values; both identification methods (:mod:`plate_env.identify`,
-:mod:`plate_env.inference`) build them, so they live below both.
+:mod:`plate_env.identify.inference`) build them, so they live below both.
 
 Contracts every estimate keeps: the point estimate lies inside its 68 % interval, which lies inside its 95 %
 interval; ``omega_n_stderr`` is half the 68 % interval's width; an answer at the edge of what the method can

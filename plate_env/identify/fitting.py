@@ -204,7 +204,7 @@ def fit_lorentzian(f_hz, omega_deg_s, stderr_deg_s=None, unstable=None, window: 
     ``1/stderr`` when standard errors are given (zero or missing ones get the median of the others).
     Returns ``LorentzFit(ok=False, reason=...)`` instead of raising when the data cannot support three parameters.
     """
-    import scipy.optimize  # lazily: LorentzFit is imported by light modules (plate_env.estimate, the env)
+    import scipy.optimize  # lazily: LorentzFit is imported by light modules (plate_env.identify.estimate, the env)
 
     if window not in WINDOWS:
         raise ValueError(f"unknown fit window {window!r}; choose one of {WINDOWS}")

@@ -5,7 +5,7 @@ the lab knows (plate amplitude, B_p, the disc's mass and diameter: :class:`Known
 against live probes, and a *coherent discrepancy* ``sigma_eps`` (the scale of log omega_n by which the truth may
 differ from what the members' curves match) with, across models, an *offset* between the data's model and the
 members, estimated by leaving objects or whole models out, never guessed.
-:mod:`plate_env.inference` turns a forward model and probes into a posterior.
+:mod:`plate_env.identify.inference` turns a forward model and probes into a posterior.
 
 Shipped forward models (``plate_env/data/forward_models.json``, written by ``experiments/forward_models.py``):
 ``"<physics>/<model>"`` for data known to come from that simulator, and ``"lab"`` for data of unknown origin (every
@@ -87,7 +87,7 @@ class ForwardModel:
     Student-t with ``eps_nu`` degrees of freedom: across models the errors are heavy-tailed), and how members are
     pooled.
 
-    Across models the discrepancy has two levels (:func:`plate_env.inference.family_discrepancy`): an *offset*
+    Across models the discrepancy has two levels (:func:`plate_env.identify.inference.family_discrepancy`): an *offset*
     between the data's model and the members (``offset_sigma``, Student-t with ``offset_nu`` degrees of freedom:
     the number of models it was estimated from, less one), the same for every object, and the object-level scatter
     around it (``sigma_eps``, ``eps_nu``); the posterior is smoothed by both in turn (their sum)."""

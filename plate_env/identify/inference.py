@@ -1,6 +1,6 @@
 """Model-based identification (beyond the paper): the posterior over (omega_n, alpha) of a forward model. Pure.
 
-A forward model (:mod:`plate_env.forward`) is one or more *members* (a physics model's response atlas with its
+A forward model (:mod:`plate_env.identify.forward`) is one or more *members* (a physics model's response atlas with its
 measured error) and a coherent discrepancy. Given probes:
 
 1. Per member and grid point (omega_eff, alpha), the probes' likelihood: a stable probe with omega_B = y +- e
@@ -18,7 +18,7 @@ measured error) and a coherent discrepancy. Given probes:
 3. Priors: log-uniform in omega_n over each member's atlas range, uniform in alpha; members are weighted by their
    evidence times their prior weight (``pooling="evidence"``) or by the prior weight alone (``"fixed"``).
 
-The estimate is the posterior median with equal-tailed intervals (:class:`plate_env.estimate.Posterior`); a
+The estimate is the posterior median with equal-tailed intervals (:class:`plate_env.identify.estimate.Posterior`); a
 posterior piled against the edge of the identifiable range is reported as a bound. Works with any probes: mixed
 amplitudes, one-sided data, curves without a peak; probes outside a member's atlas are left out of that member.
 """

@@ -3,32 +3,25 @@
 from __future__ import annotations
 
 from plate_env.core.probe import ProbeResult, ProbeSpec, YawTrace
+from plate_env.core.registry import Registry
 from plate_env.physics.interface import Physics
 
-PHYSICS_NAMES = ("tilelink", "pybullet", "atlas")
+#: The physics backends, by name (the one list: the env, the command line, the executor read it).
+PHYSICS = Registry("physics", {"tilelink": "plate_env.physics.tilelink:TileLinkPhysics",
+                               "pybullet": "plate_env.physics.pybullet_sheet:PyBulletPhysics",
+                               "atlas": "plate_env.physics.atlas_physics:AtlasPhysics"})
+PHYSICS_NAMES = PHYSICS.names
 
 
 def make_physics(name: str, **options) -> Physics:
-    """Create a physics backend by name; options go to its constructor.
+    """Create a physics backend by name (:data:`PHYSICS`); options go to its constructor.
 
     ``"tilelink"``: the paper's model (``model="pointmass"`` default, ``"rigid"`` or ``"rigid_limit"``), batched
     in numba.
     ``"pybullet"``: a PyBullet soft-body sheet on a kinematic plate (options: dt, n_layer, n_workers, ...).
     ``"atlas"``: the response atlas of another backend served as physics (microsecond probes, for RL training).
     """
-    if name == "tilelink":
-        from plate_env.physics.tilelink import TileLinkPhysics
-
-        return TileLinkPhysics(**options)
-    if name == "pybullet":
-        from plate_env.physics.pybullet_sheet import PyBulletPhysics
-
-        return PyBulletPhysics(**options)
-    if name == "atlas":
-        from plate_env.physics.atlas_physics import AtlasPhysics
-
-        return AtlasPhysics(**options)
-    raise ValueError(f"unknown physics {name!r}; choose one of {PHYSICS_NAMES}")
+    return PHYSICS.load(name)(**options)
 
 
-__all__ = ["PHYSICS_NAMES", "Physics", "ProbeResult", "ProbeSpec", "YawTrace", "make_physics"]
+__all__ = ["PHYSICS", "PHYSICS_NAMES", "Physics", "ProbeResult", "ProbeSpec", "YawTrace", "make_physics"]

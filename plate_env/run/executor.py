@@ -1,10 +1,13 @@
 """Where batches of probes run: one executor seam for sweeps, atlases, calibrations and benchmark suites.
 
-The unit of work is a *chunk*: a list of :class:`ProbeSpec` plus a :class:`BackendSpec`, the picklable description of
-a backend (``make_physics`` name and options). A worker process builds the backend once and keeps it for every later
-chunk of the same description (numba's kernels load once per worker, a PyBullet worker keeps its client and builds a
+An executor is generic: ``executor.map(fn, items)`` yields ``(index, fn(item))`` as items finish, ``fn`` a picklable
+callable (a module-level function, or a :func:`functools.partial` of one) for executors with workers. For probes the
+item is a *chunk*, a list of :class:`ProbeSpec`, and ``fn`` is :func:`chunk_task` of a :class:`BackendSpec`, the
+picklable description of a backend (``make_physics`` name and options); the benchmark maps whole episodes the same
+way. A process builds a backend once (:func:`worker_backend`) and keeps it for every later chunk of the same
+description (numba's kernels load once per worker, a PyBullet worker keeps its client and builds a
 scene per object sequence of the chunk) and returns the chunk's :class:`ProbeResult` list. Executors yield finished
-chunks as they complete (in any order); :func:`plate_env.sweeps.run_cached` persists each one on arrival, so a
+chunks as they complete (in any order); :func:`plate_env.run.sweeps.run_cached` persists each one on arrival, so a
 killed driver or worker loses at most the chunks in flight.
 
 Executors (:func:`make_executor`):
@@ -29,7 +32,9 @@ from numba's disk cache (README, Determinism).
 
 from __future__ import annotations
 
+import atexit
 import contextlib
+import functools
 import os
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
@@ -90,10 +95,21 @@ _BACKENDS: dict[BackendSpec, Physics] = {}
 _MAX_BACKENDS = 4
 
 
+def close_backends() -> None:
+    """Close every backend this process built (:func:`worker_backend`); run at the process's exit, so a worker (a
+    pool's, Ray's, or this process) closes what it owns: PyBullet clients, numba thread pools."""
+    while _BACKENDS:
+        _BACKENDS.popitem()[1].close()
+
+
 def worker_backend(backend: BackendSpec) -> Physics:
-    """This process's backend for ``backend``: built on first use, then reused."""
+    """This process's backend for ``backend``: built on first use, then reused; closed at the process's exit (or
+    when more than a few are kept, the oldest first)."""
     phys = _BACKENDS.get(backend)
     if phys is None:
+        if not _BACKENDS:
+            atexit.unregister(close_backends)
+            atexit.register(close_backends)
         if len(_BACKENDS) >= _MAX_BACKENDS:
             old = next(iter(_BACKENDS))
             _BACKENDS.pop(old).close()
@@ -102,22 +118,25 @@ def worker_backend(backend: BackendSpec) -> Physics:
 
 
 def run_chunk(backend: BackendSpec, probes: Sequence[ProbeSpec]) -> list[ProbeResult]:
-    """Run one chunk on this process's backend (the task every executor runs)."""
+    """Run one chunk of probes on this process's backend for ``backend``."""
     return worker_backend(backend).run(list(probes))
+
+
+def chunk_task(backend: BackendSpec) -> Callable[[Sequence[ProbeSpec]], list[ProbeResult]]:
+    """The picklable ``fn`` that runs a chunk of probes on ``backend`` for :meth:`Executor.map`."""
+    return functools.partial(run_chunk, backend)
 
 
 # --------------------------------------------------------------------------- executors
 class Executor(Protocol):
-    """Runs chunks of probes on a described backend and yields ``(chunk index, results)`` as chunks finish."""
+    """Runs ``fn`` on items and yields ``(item index, fn(item))`` as items finish."""
 
     name: str
 
-    def map(self, backend: BackendSpec, chunks: Sequence[Sequence[ProbeSpec]],
-            task: Callable = run_chunk) -> Iterator[tuple[int, list[ProbeResult]]]:
-        """Every chunk's results, in completion order. Closing the iterator early (Ctrl-C, an error in the
-        consumer) cancels the chunks not yet finished. ``task(backend, chunk)`` is what runs a chunk (default
-        :func:`run_chunk`; the benchmark runs whole episodes, :func:`plate_env.benchmark.run_episode_chunk`): a
-        module-level function, so that workers can import it."""
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[int, Any]]:
+        """Every item's result, in completion order. Closing the iterator early (Ctrl-C, an error in the consumer)
+        cancels the items not yet finished. ``fn`` must pickle for executors with workers (a module-level function
+        or a :func:`functools.partial` of one: :func:`chunk_task` for probes)."""
         ...
 
     def close(self) -> None:
@@ -126,24 +145,17 @@ class Executor(Protocol):
 
 
 class InProcessExecutor:
-    """Chunks one after another in this process; ``physics`` (optional) is an already built backend to use. Numba's
+    """Items one after another in this process (``fn`` need not pickle: a built backend's ``run`` will do). Numba's
     threads are not limited here (the point-mass kernel spreads a chunk over the cores)."""
 
     name = "inprocess"
 
-    def __init__(self, physics: Physics | None = None) -> None:
-        self.physics = physics
-
-    def map(self, backend: BackendSpec | None, chunks, task: Callable = run_chunk):
-        for i, chunk in enumerate(chunks):
-            if task is not run_chunk:
-                yield i, task(backend, list(chunk))
-                continue
-            phys = self.physics if self.physics is not None else worker_backend(backend)
-            yield i, phys.run(list(chunk))
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[int, Any]]:
+        for i, item in enumerate(items):
+            yield i, fn(item)
 
     def close(self) -> None:
-        """Nothing to release (backends built here stay cached for the process)."""
+        """Nothing to release (backends built here are this process's, closed at its exit)."""
 
 
 @contextlib.contextmanager
@@ -191,17 +203,17 @@ class PoolExecutor:
         procs = getattr(self._pool, "_processes", None) or {}
         return [p.pid for p in procs.values() if p.is_alive()]
 
-    def map(self, backend: BackendSpec, chunks, task: Callable = run_chunk):
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[int, Any]]:
         from concurrent.futures import as_completed
         from concurrent.futures.process import BrokenProcessPool
 
-        pending = list(range(len(chunks)))
+        pending = list(range(len(items)))
         failures = dict.fromkeys(pending, 0)
         while pending:
             if self._pool is None:
                 self._pool = self._new_pool()
             with _env(WORKER_ENV):  # workers spawn during submit and inherit this environment
-                futures = {self._pool.submit(task, backend, list(chunks[i])): i for i in pending}
+                futures = {self._pool.submit(fn, items[i]): i for i in pending}
             try:
                 for fut in as_completed(futures):
                     i = futures[fut]
@@ -216,7 +228,7 @@ class PoolExecutor:
                     failures[i] += 1
                 worst = max(pending, key=failures.__getitem__)
                 if failures[worst] > self.max_retries:
-                    raise RuntimeError(f"chunk {worst} lost its worker {failures[worst]} times; giving up") from None
+                    raise RuntimeError(f"item {worst} lost its worker {failures[worst]} times; giving up") from None
             finally:
                 if pending and self._pool is not None:
                     for fut in futures:
@@ -258,19 +270,21 @@ class RayExecutor:
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.max_in_flight = max_in_flight or 2 * max(cpus, 1)
 
-    def map(self, backend: BackendSpec, chunks, task: Callable = run_chunk):
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[int, Any]]:
         ray = self._ray
-        if task not in self._tasks:
-            self._tasks[task] = ray.remote(num_cpus=1, max_retries=self._max_retries)(task)
-        remote = self._tasks[task]
-        backend_ref = ray.put(backend)
-        pending = deque(range(len(chunks)))
+        # a partial runs as a task of its function (named after it, ``ray::run_chunk``), its arguments put once
+        func, args = (fn.func, fn.args) if isinstance(fn, functools.partial) and not fn.keywords else (fn, ())
+        if func not in self._tasks:
+            self._tasks[func] = ray.remote(num_cpus=1, max_retries=self._max_retries)(func)
+        remote = self._tasks[func]
+        arg_refs = [ray.put(a) for a in args]
+        pending = deque(range(len(items)))
         refs: dict[Any, int] = {}
         try:
             while pending or refs:
                 while pending and len(refs) < self.max_in_flight:
                     i = pending.popleft()
-                    refs[remote.remote(backend_ref, list(chunks[i]))] = i
+                    refs[remote.remote(*arg_refs, items[i])] = i
                 ready, _ = ray.wait(list(refs), num_returns=1)
                 for ref in ready:
                     i = refs.pop(ref)

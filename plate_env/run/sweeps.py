@@ -1,7 +1,7 @@
 """Run many probes with a resumable on-disk cache: every finished chunk is appended to a JSON-lines file.
 
 Interrupting a long sweep (Ctrl-C) keeps the probes already written; running it again only simulates the rest.
-Chunks run on an executor (:mod:`plate_env.executor`: in-process, a process pool or Ray) and are written as they
+Chunks run on an executor (:mod:`plate_env.run.executor`: in-process, a process pool or Ray) and are written as they
 finish, in any order. Used by the CLI's ``sweep`` and the experiment scripts (calibration, atlas, paper reproduction).
 """
 
@@ -14,7 +14,14 @@ from pathlib import Path
 
 from plate_env.core.probe import ProbeResult, ProbeSpec
 from plate_env.physics.interface import Physics
-from plate_env.run.executor import BackendSpec, Executor, InProcessExecutor, check_executor_name, make_executor
+from plate_env.run.executor import (
+    BackendSpec,
+    Executor,
+    InProcessExecutor,
+    check_executor_name,
+    chunk_task,
+    make_executor,
+)
 
 #: Backend settings that change results and so enter the cache key (each where the backend has it).
 TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact", "record_interval_s")
@@ -109,7 +116,7 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
 
     Chunks are cut from the whole ``specs`` list every ``chunk`` probes (so an interrupted and resumed run runs the
     same chunks, less the finished ones; a chunk is a PyBullet object sequence's boundary) and run on ``executor``
-    (an :class:`~plate_env.executor.Executor` or a name for :func:`~plate_env.executor.make_executor`; default
+    (an :class:`~plate_env.run.executor.Executor` or a name for :func:`~plate_env.run.executor.make_executor`; default
     ``"local"``), each written to the cache and counted on the progress bar as it finishes. ``physics`` is a
     :class:`BackendSpec` (any executor) or a built backend (in this process only).
     """
@@ -123,16 +130,16 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
     chunks = [c for c in chunks if c]
     own = executor is None or isinstance(executor, str)  # an executor object passed in stays the caller's
     if isinstance(physics, BackendSpec):
-        backend = physics
+        backend, fn = physics, chunk_task(physics)
         if own:
             check_executor_name(executor)
             executor = make_executor(executor, backend) if chunks else None  # workers only if there is work
     else:
-        backend = None
+        fn = physics.run
         if executor not in (None, "local", "inprocess"):
             raise TypeError(f"executor {executor!r} needs a BackendSpec (a built {physics.name} backend cannot be "
                             "sent to workers): pass BackendSpec.of(name, **options)")
-        executor, own = InProcessExecutor(physics), True
+        executor, own = InProcessExecutor(), True
     bar = None
     if progress and chunks:
         from tqdm.auto import tqdm
@@ -141,7 +148,7 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
     fh = open_for_append(Path(cache)) if cache and chunks else None
     try:
         if chunks:
-            for j, results in executor.map(backend, [[specs[i] for i in c] for c in chunks]):
+            for j, results in executor.map(fn, [[specs[i] for i in c] for c in chunks]):
                 idx = chunks[j]
                 for i, r in zip(idx, results, strict=True):
                     line = _to_line(keys[i], r)

@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from plate_env.core.setup import PAPER_SETUP
+
 
 @dataclass(frozen=True, eq=False)
 class Atlas:
@@ -176,7 +178,7 @@ class Atlas:
 
 
 #: Values the shipped atlases were built at, assumed where an atlas's provenance does not record them (edge units).
-DEFAULT_BUILD = {"b_p_mm": 3.0, "mass_g": 13.6, "diameter_mm": 80.0}
+DEFAULT_BUILD = {"b_p_mm": PAPER_SETUP.b_p_mm, "mass_g": PAPER_SETUP.mass_g, "diameter_mm": PAPER_SETUP.diameter_mm}
 #: Quantities the atlas describes by magnitude (omega_B is sign-normalised by sign(A_p B_p)).
 SIGN_NORMALISED = ("a_p_deg", "b_p")
 #: Edge units of the domain's quantities in messages: (factor from SI, unit, label).

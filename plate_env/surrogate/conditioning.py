@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from plate_env.core.setup import DIAMETER_RANGE_M, KNOWN_B_P_RANGE_M, MASS_RANGE_KG, PAPER_SETUP, in_range
 from plate_env.surrogate.atlas import Atlas
 
 
@@ -19,14 +20,14 @@ class KnownInputs:
     A forward model is conditioned on them: its atlases must have been built at this B_p and diameter, and at
     masses that bracket this one (interpolated in log mass between the two nearest)."""
 
-    b_p: float = 0.003
-    mass: float = 0.0136
-    diameter: float = 0.080
+    b_p: float = PAPER_SETUP.b_p
+    mass: float = PAPER_SETUP.mass
+    diameter: float = PAPER_SETUP.diameter
 
     def __post_init__(self) -> None:
-        for name, lo, hi in (("b_p", 1e-4, 0.05), ("mass", 1e-4, 1.0), ("diameter", 0.01, 0.5)):
+        for name, (lo, hi) in (("b_p", KNOWN_B_P_RANGE_M), ("mass", MASS_RANGE_KG), ("diameter", DIAMETER_RANGE_M)):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= abs(value) <= hi):
+            if not in_range(abs(value) if name == "b_p" and isinstance(value, (int, float)) else value, lo, hi):
                 raise ValueError(f"KnownInputs {name} = {value!r} is outside the allowed range [{lo:g}, {hi:g}] (SI)")
 
     @classmethod

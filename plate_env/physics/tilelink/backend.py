@@ -50,7 +50,7 @@ PROGRESS_CHUNK = 8
 @lru_cache(maxsize=256)
 def _pointmass_params(obj: ObjectSpec, config: PointMassConfig):
     # one BLAS thread: the modal analysis' eigensolve differs in the last bits with the BLAS thread count, which
-    # the kernel grows to ~1e-10 of omega_B; with it a probe repeats bit for bit in any process (plate_env.executor)
+    # the kernel grows to ~1e-10 of omega_B; with it a probe repeats bit for bit in any process (plate_env.run.executor)
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1, user_api="blas"):
@@ -80,7 +80,7 @@ class TileLinkPhysics:
         contact: the plate contact law's coefficients (default: the paper's).
         record_interval_s: simulated seconds between recorded yaw/centre samples (rounded to whole steps, at
             least one); omega_B interpolates the records at the plate periods' boundaries, so this is part of
-            a result's provenance (and of the sweep cache key, :func:`plate_env.sweeps.backend_tag`).
+            a result's provenance (and of the sweep cache key, :func:`plate_env.run.sweeps.backend_tag`).
     """
 
     def __init__(self, model: str = "pointmass", dt: float | None = None, slip_limit: float = SLIP_LIMIT_M,

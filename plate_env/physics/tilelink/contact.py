@@ -38,8 +38,8 @@ class ContactLaw:
     """The coefficients of the plate contact law (SI): ``k`` N/m^2.2, ``c`` N s/m, ``v_transition`` m/s.
 
     The defaults are the paper's values (read in its mm units, see the module docstring). They were measured for
-    the paper's own set-up; :mod:`plate_env.nuisance` states the band over which a forward model integrates them.
-    """
+    the paper's own set-up; :mod:`~plate_env.physics.nuisance` states the band over which a forward model integrates
+    them. """
 
     k: float = K_CONTACT
     c: float = C_CONTACT

@@ -12,6 +12,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from plate_env.core.setup import PAPER_SETUP
+
 GRID_CELLS_ACROSS = 8
 
 
@@ -43,7 +45,7 @@ class DiscGeometry:
 
 
 @lru_cache(maxsize=8)
-def disc_geometry(diameter: float = 0.080) -> DiscGeometry:
+def disc_geometry(diameter: float = PAPER_SETUP.diameter) -> DiscGeometry:
     """Tile centres on a ``diameter/8`` grid whose centres lie inside the disc, and their connectivity."""
     h = diameter / GRID_CELLS_ACROSS
     radius = diameter / 2

@@ -733,7 +733,7 @@ def run_rigid_arrays(probes: Sequence[ProbeSpec], dt: float = DEFAULT_DT["rigid"
 
     Returns the keys of ``TileLinkPhysics.run_param_arrays`` ("prm" with ``P_NSTEPS``/``P_RECEVERY`` filled,
     "yaw" rad, "cu"/"cv" m traces every ``record_interval_s``, "status" codes of
-    :class:`~plate_env.physics.base.Status`, "nrec") plus "diag" (B, 4):
+    :class:`~plate_env.core.probe.Status`, "nrec") plus "diag" (B, 4):
     max energy excess over the plate's work (J), max |bending angle| (rad), plate work (J), final E - E0 (J),
     and "wall_s", the kernel's wall time.
     """
