@@ -24,7 +24,13 @@ AGENT_NAMES = AGENTS.names
 
 
 def make_agent(name: str, **options) -> Agent:
-    """Create a shipped agent by name (:data:`AGENTS`); options go to its constructor."""
+    """Create a shipped agent by name (:data:`AGENTS`); options go to its constructor. A spec :func:`load_agent`
+    takes (``sb3:model.zip``, ``path/to/file.py:MyAgent``, ``grid:n=30``) is loaded by it (without further
+    options)."""
+    if isinstance(name, str) and ":" in name:
+        if options:
+            raise ValueError(f"make_agent({name!r}, ...): a spec carries its own options (name:key=value,...)")
+        return load_agent(name)
     return AGENTS.load(name)(**options)
 
 
@@ -58,14 +64,20 @@ def load_file_agent(path: str | Path, class_name: str):
         sys.modules[module_name] = module
         try:
             spec.loader.exec_module(module)
-        except Exception:
+        except BaseException as exc:  # noqa: BLE001 - a user's file: SyntaxError, ImportError, sys.exit, anything
             del sys.modules[module_name]
-            raise
+            if isinstance(exc, KeyboardInterrupt):
+                raise
+            raise ValueError(f"agent file {str(path)!r} cannot be imported: {type(exc).__name__}: {exc}") from None
     cls = getattr(module, class_name, None)
     if not isinstance(cls, type):
         found = sorted(k for k, v in vars(module).items() if isinstance(v, type) and hasattr(v, "next_probe"))
         raise ValueError(f"agent file {str(path)!r} has no class {class_name!r} (agent classes there: {found})")
-    return cls()
+    try:
+        return cls()
+    except Exception as exc:  # noqa: BLE001 - a user's constructor: arguments it needs, anything it raises
+        raise ValueError(f"agent {class_name!r} from {str(path)!r} cannot be made without arguments: "
+                         f"{type(exc).__name__}: {exc}") from None
 
 
 def load_agent(spec: str):
@@ -97,7 +109,10 @@ def load_agent(spec: str):
             if agent is None:
                 raise ValueError(f"agent {spec!r}: a file agent is path/to/file.py:ClassName")
         elif head in AGENT_NAMES:
-            agent = make_agent(head, **_options(tail, spec))
+            try:
+                agent = make_agent(head, **_options(tail, spec))
+            except (TypeError, ValueError) as exc:  # an unknown option, a value of the wrong type or range
+                raise ValueError(f"agent {spec!r}: {exc}") from None
         else:
             raise ValueError(f"unknown agent {spec!r}; choose one of {AGENT_NAMES} (options: name:key=value,...), "
                              "path/to/file.py:ClassName or sb3:model.zip")

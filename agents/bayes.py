@@ -32,16 +32,8 @@ from plate_env.core import checks
 from plate_env.core.probe_table import ProbeTable
 from plate_env.env.protocol import Agent, Probe
 from plate_env.identify.forward import ForwardModel, load_forward_model
-from plate_env.identify.inference import (
-    blurred,
-    log_student,
-    member_coverage,
-    member_domain,
-    member_response,
-    pool,
-    probe_log_likelihood,
-    smoothed_p,
-)
+from plate_env.identify.inference import blurred, log_student, member_domain, member_response, smoothed_p
+from plate_env.identify.posterior_state import PosteriorState
 
 #: The agent's own blur (sd of log omega_n), added in quadrature to each member's: an adaptive design puts its
 #: probes where the atlas predicts the sharpest change (instability edges, the rising flank), exactly where its
@@ -103,11 +95,14 @@ class BayesAgent(Agent):
         self.amps = list(self.tables)
         if not self.amps:
             raise ValueError(f"none of the env's amplitudes {context.amplitudes_deg} is in forward model {fm.name!r}")
-        self.inside = [member_coverage(m, self.omega, self.alpha) for m in fm.members]
-        self.lls = [np.zeros((len(self.omega), self.n_alpha)) for _ in fm.members]
-        step = math.log(self.omega[1] / self.omega[0])
-        self.blur_steps = [math.hypot(m.blur, self.blur) / step for m in fm.members]
-        self._seen = 0
+        # the design posterior: on the agent's grid, every member's likelihood on the whole grid, blurred by the
+        # agent's blur too, members compared on their own probes
+        self.state = PosteriorState(fm, grid=(self.omega, self.alpha),
+                                    blurs=[math.hypot(m.blur, self.blur) for m in fm.members],
+                                    member_rows_only=False, compare_on_common=False)
+        self.inside = self.state.inside
+        self.blur_steps = self.state.blur_steps
+        self._pu: dict = {}
 
     def _table(self, member, a_p_deg: float):
         """A member's predictive over the candidate frequencies at one amplitude: (covered (n_f,), mean, spread,
@@ -124,21 +119,12 @@ class BayesAgent(Agent):
 
     # ----------------------------------------------------------------- posterior
     def _update(self, history: ProbeTable) -> None:
-        for k in range(self._seen, len(history)):
-            f, amp = float(history.f_p_hz[k]), float(history.a_p_deg[k])
-            for i, m in enumerate(self.fm.members):
-                if member_domain(m, f, amp) is not None:
-                    continue
-                mu, s, p = member_response(m, amp, self.omega, self.alpha)[0](f)
-                self.lls[i] += blurred(probe_log_likelihood(mu, s, p, float(history.omega_b_deg_s[k]),
-                                                            float(history.stderr_deg_s[k]), bool(history.unstable[k]),
-                                                            m.sigma_model, m.atlas.n_repeats), self.blur_steps[i])
-        self._seen = len(history)
+        self.state.add_table(history, start=self.state.n_probes)
 
     def posterior(self):
         """What the probes say: the forward model's posterior on the agent's grid, without the discrepancies no
         probe can reduce (a :class:`plate_env.identify.estimate.Posterior`); the stopping rule reads it."""
-        return pool(dataclasses.replace(self.fm, sigma_eps=0.0, offset_sigma=0.0), self.omega, self.alpha, self.lls)
+        return self.state.posterior(discrepancy=False)
 
     def design_eps(self) -> tuple[float, float]:
         """(scale, nu) of the estimate's coherent discrepancy: ``design_discrepancy`` if given, else
@@ -163,20 +149,7 @@ class BayesAgent(Agent):
 
     def _member_posts(self) -> tuple[np.ndarray, np.ndarray]:
         """Unsmoothed per-member posteriors (K, n_omega, n_alpha), each normalised, and the members' weights."""
-        posts, log_z = [], []
-        for ll, inside, m in zip(self.lls, self.inside, self.fm.members, strict=True):
-            ll = np.where(inside, ll, -np.inf)
-            top = float(ll.max())
-            like = np.exp(ll - top)
-            mass = float(like.sum())
-            posts.append(like / mass)
-            log_z.append(top + math.log(mass) - math.log(max(int(inside.sum()), 1)) + math.log(m.weight))
-        log_z = np.array(log_z)
-        if self.fm.pooling == "evidence":
-            wts = np.exp(log_z - log_z.max())
-        else:
-            wts = np.array([m.weight for m in self.fm.members], dtype=float)
-        return np.array(posts), wts / wts.sum()
+        return self.state.member_posteriors()
 
     def _pooled_var(self, posts: np.ndarray, wts: np.ndarray) -> np.ndarray:
         """Variance of log omega_n of mixtures: ``posts`` (..., K, n_omega, n_alpha) unnormalised per member,
@@ -189,6 +162,19 @@ class BayesAgent(Agent):
         return np.maximum(m2 - m1 ** 2, 0.0)
 
     # ----------------------------------------------------------------- design
+    def _unstable_at(self, a: float, i_f: int) -> tuple[np.ndarray, np.ndarray]:
+        """Per member, the blurred instability probability of the candidate (amplitude ``a``, frequency index
+        ``i_f``) on the grid (ones where a member does not cover it), and which members cover it; computed once
+        per episode and candidate (it depends on neither the probes nor the draws)."""
+        key = (a, i_f)
+        if key not in self._pu:
+            per = self.tables[a]
+            self._pu[key] = (
+                np.stack([np.exp(blurred(np.log(t[3][i_f]), self.blur_steps[j])) if (t is not None and t[0][i_f])
+                          else np.ones((len(self.omega), self.n_alpha)) for j, t in enumerate(per)]),
+                np.array([t is not None and bool(t[0][i_f]) for t in per]))
+        return self._pu[key]
+
     def next_probe(self, history: ProbeTable, obs=None) -> Probe | None:
         self._update(history)
         ctx = self.context
@@ -214,9 +200,7 @@ class BayesAgent(Agent):
                 if all(t is None or not t[0][i_f] for t in per):
                     continue
                 # per member: p at this candidate (members that do not cover it learn nothing from it)
-                pu = np.stack([np.exp(blurred(np.log(t[3][i_f]), self.blur_steps[j])) if (t is not None and t[0][i_f])
-                               else np.ones((len(self.omega), self.n_alpha)) for j, t in enumerate(per)])
-                covers = np.array([t is not None and bool(t[0][i_f]) for t in per])
+                pu, covers = self._unstable_at(a, i_f)
                 p_un = float(np.sum(wts * np.where(covers, (posts * pu).sum(axis=(1, 2)), 0.0)))
                 post_un = np.where(covers[:, None, None], posts * pu, posts)
                 var_un = float(self._pooled_var(post_un, wts)) if p_un > 0 else v0

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from plate_env.core.probe_table import ProbeTable
-from plate_env.env.codec import Codec, phys
+from plate_env.env.codec import N_FEATURES, Codec, phys
 from plate_env.env.protocol import Agent, ProbeContext
 
 #: The model shipped with the package.
@@ -91,6 +91,69 @@ class NumpyPolicy:
         return h @ self.out[0].T + self.out[1]
 
 
+#: The policy class each algorithm's zip must name (read from its metadata, never unpickled).
+POLICY_CLASSES = {"ppo": "ActorCriticPolicy", "a2c": "ActorCriticPolicy", "sac": "SACPolicy"}
+#: Pickled entries of an SB3 zip that only training reads (replaced by harmless stand-ins on load).
+TRAINING_ONLY = ("lr_schedule", "clip_range", "clip_range_vf", "learning_rate", "ent_coef", "target_entropy",
+                 "_last_obs", "_last_original_obs", "_last_episode_starts", "ep_info_buffer", "ep_success_buffer",
+                 "rollout_buffer_class", "replay_buffer_class", "rollout_buffer_kwargs", "replay_buffer_kwargs",
+                 "action_noise")
+
+
+def _no_schedule(_progress: float) -> float:
+    return 0.0
+
+
+def safe_custom_objects(path: str | Path, algo: str) -> dict:
+    """Everything Stable-Baselines3 would unpickle from a model zip's metadata, replaced before it does: SB3 stores
+    the policy class, the spaces and the schedules with cloudpickle, and unpickling them runs whatever code the zip
+    carries. Here the spaces are rebuilt from their readable fields and checked against PlateRotation-v0's (an
+    observation of ``k * N_FEATURES + 2`` values in [-10, 10], an action of 4 in [-1, 1]), the policy class is the
+    algorithm's own (checked against the name the zip gives), training-only entries become stand-ins, and a zip
+    with any other pickled entry is refused. ValueError naming the file and the problem. The weights
+    (``policy.pth``) are read by torch's loader as SB3 does; a model zip remains a file you should trust."""
+    import zipfile
+
+    import gymnasium as gym
+    import stable_baselines3 as sb3
+
+    where = f"sb3 model {str(path)!r}"
+    try:
+        with zipfile.ZipFile(path) as z:
+            data = json.loads(z.read("data"))
+    except (OSError, KeyError, ValueError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{where}: not a Stable-Baselines3 zip ({exc})") from None
+    out: dict = {}
+    for key, value in data.items():
+        if not (isinstance(value, dict) and ":serialized:" in value):
+            continue
+        if key in ("observation_space", "action_space"):
+            kind = str(value.get(":type:", ""))
+            raw = value.get("_shape")
+            shape = tuple(raw) if isinstance(raw, list) and all(isinstance(x, int) for x in raw) else ()
+            want = f"an observation of k * {N_FEATURES} + 2 values" if key == "observation_space" else "4 values"
+            ok = "gymnasium.spaces.box.Box" in kind and len(shape) == 1 and (
+                (shape[0] - 2) % N_FEATURES == 0 and shape[0] > 2 if key == "observation_space" else shape[0] == 4)
+            if not ok:
+                raise ValueError(f"{where}: its {key.replace('_', ' ')} is {kind or '?'} of shape {shape}, not "
+                                 f"PlateRotation-v0's ({want}): a model for another environment")
+            lim = 10.0 if key == "observation_space" else 1.0
+            out[key] = gym.spaces.Box(-lim, lim, shape, dtype=np.float32)
+        elif key == "policy_class":
+            init = str(value.get("__init__", ""))
+            expected = POLICY_CLASSES[algo]
+            if f"{expected}.__init__" not in init:
+                found = init.split(".__init__")[0].removeprefix("<function ") or "an unknown class"
+                raise ValueError(f"{where}: a {found} policy, not the {expected} of sb3:{algo}: (name the algorithm "
+                                 "it was trained with, e.g. sb3:ppo:model.zip)")
+            out[key] = getattr(sb3, algo.upper()).policy_aliases["MlpPolicy"]
+        elif key in TRAINING_ONLY:
+            out[key] = _no_schedule if key in ("lr_schedule", "clip_range", "clip_range_vf", "learning_rate") else None
+        else:
+            raise ValueError(f"{where}: stores a pickled {key!r}; loading it would run code from the file: refused")
+    return out
+
+
 class PPOAgent(Agent):
     """Probing by a trained SB3 policy; ``path`` is its zip (default: the shipped PPO model), ``algo`` its
     algorithm (PPO by default; A2C and SAC load through Stable-Baselines3)."""
@@ -134,7 +197,8 @@ class PPOAgent(Agent):
     def _load_sb3(self):
         import stable_baselines3 as sb3
 
-        return getattr(sb3, self.algo.upper()).load(self.path, device=self.device)
+        return getattr(sb3, self.algo.upper()).load(self.path, device=self.device,
+                                                     custom_objects=safe_custom_objects(self.path, self.algo))
 
     @property
     def model(self):

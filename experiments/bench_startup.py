@@ -42,43 +42,6 @@ print(json.dumps({{"imports": t1 - t0, "make_agent": t2 - t1, "env": t3 - t2, "f
                    "agent_total": (t2 - t1) + (t4 - t3), "backend": agent.backend}}))
 """
 
-PYBULLET_CODE = """
-import time, json, math
-import numpy as np
-from plate_env.env.rotation import PlateRotationEnv
-from plate_env.physics.pybullet_sheet import calibrate, scene
-t0 = time.perf_counter()
-env = PlateRotationEnv(physics="pybullet", amplitudes_deg=(3.0,), f_band_hz=(10.0, 26.0), settle_s=0.3,
-                       measure_range_s=(0.4, 1.0))
-env.reset(seed=0, options={"omega_n": 15 * math.pi, "alpha": 0.7})
-t1 = time.perf_counter()
-cal = {"s": 0.0, "n": 0}
-ring = calibrate.ringdown_omega_n
-def timed(*a, **k):
-    t = time.perf_counter()
-    try:
-        return ring(*a, **k)
-    finally:
-        cal["s"] += time.perf_counter() - t
-        cal["n"] += 1
-calibrate.ringdown_omega_n = timed
-build = {"s": 0.0}
-init = scene.SheetScene.__init__
-def timed_init(self, *a, **k):
-    t = time.perf_counter()
-    try:
-        return init(self, *a, **k)
-    finally:
-        build["s"] += time.perf_counter() - t
-scene.SheetScene.__init__ = timed_init
-t2 = time.perf_counter()
-_, _, _, _, info = env.step(env.encode_action(18.0, 3.0, 0.6))
-t3 = time.perf_counter()
-print(json.dumps({"env_and_reset": t1 - t0, "first_step": t3 - t2, "ringdowns": cal["n"],
-                  "calibration": cal["s"] - 0.0, "scene_build": build["s"], "sim_s": info["last_probe"]["sim_s"]}))
-"""
-
-
 def run(code: str) -> dict:
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
@@ -107,7 +70,13 @@ def main() -> None:
     a, b = (rows[k]["agent_total"] for k in rows)
     lines += ["", f"Ratio (torch / numpy): {b / a:.0f}x."]
     if not args.no_pybullet:
-        p = run(PYBULLET_CODE)
+        # the measurement of experiments/bench_speed.py (one fresh process), under this report's names
+        speed = str(Path(__file__).with_name("bench_speed.py"))
+        done = subprocess.run([sys.executable, speed, "--measure", "pybullet"], capture_output=True, text=True,
+                              check=True)
+        m = json.loads(done.stdout.strip().splitlines()[-1])
+        p = {"env_and_reset": m["env_and_reset_s"], "first_step": m["first_probe_s"], "ringdowns": m["ringdowns"],
+             "calibration": m["calibration_s"], "scene_build": m["scene_build_s"], "sim_s": m["sim_s"]}
         print(p, flush=True)
         probe = p["first_step"] - p["calibration"] - p["scene_build"]
         lines += ["", "## PyBullet: an env's first step (one fresh process, omega_n = 15 pi, 18 Hz, 0.6 s window)", "",

@@ -4,6 +4,7 @@ document."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -91,6 +92,20 @@ def plot_path(text: str) -> Path:
     return path
 
 
+def output_path(text: str, option: str) -> Path:
+    """A file an option will write (``--markdown``, ``--csv``), checked before any work: not a directory, its
+    directory exists and is writable, an existing file is writable."""
+    path = Path(text)
+    parent = path.parent if str(path.parent) else Path(".")
+    if not text or path.is_dir():
+        raise CliError(f"{option} {text!r} is a directory or empty; give a file name")
+    if not parent.is_dir() or not os.access(parent, os.W_OK):
+        raise CliError(f"{option} {text!r}: directory {str(parent)!r} does not exist or is not writable")
+    if path.exists() and not (path.is_file() and os.access(path, os.W_OK)):
+        raise CliError(f"{option} {text!r}: the file exists and is not a writable regular file")
+    return path
+
+
 def parse_freqs(text: str) -> np.ndarray:
     """``"10:40:1"`` (start:stop:step, inclusive) or ``"12,18,25"`` -> frequencies in Hz.
 
@@ -108,7 +123,8 @@ def parse_freqs(text: str) -> np.ndarray:
             raise CliError(f"--freqs {text!r}: start and stop must satisfy {lo:g} <= start <= stop <= {hi:g} Hz")
         if not step > 0:
             raise CliError(f"--freqs {text!r}: the step must be positive")
-        count = math.floor((stop - start) / step + 1e-6) + 1
+        span = (stop - start) / step  # inf for a subnormal step (1e-320): refused, not an overflow
+        count = math.floor(span + 1e-6) + 1 if math.isfinite(span) else math.inf
         if count > MAX_SWEEP_PROBES:
             raise CliError(f"--freqs {text!r}: {count:.4g} probes; at most {MAX_SWEEP_PROBES} per sweep "
                            f"(use a larger step)")
@@ -189,6 +205,7 @@ def _add_common(p: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="plate-env", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("probe", help="run one probe and print omega_B")
     _add_common(p)
@@ -198,6 +215,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_common(s)
     s.add_argument("--freqs", default="10:40:1", help="start:stop:step or a comma list, Hz")
     s.add_argument("--plot", default=None, help="write a PNG of omega_B vs f_p (after the results are printed)")
+    s.add_argument("--csv", default=None, help="also write the probes as a CSV that `plate-env fit` reads")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
     s.add_argument("--cache", default=None, help="JSON-lines file: finished chunks are appended, a rerun resumes")
     s.add_argument("--chunk", type=_arg(checks.integer, 1, MAX_SWEEP_PROBES), default=8,
@@ -224,24 +242,49 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("csv", help="CSV with columns f_p_hz, omega_b_deg_s[, stderr_deg_s, a_p_deg, unstable]")
     f.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees")
     f.add_argument("--bp", type=_arg(checks.real, *(round(x * 1e3, 9) for x in KNOWN_B_P_RANGE_M), unit="mm"),
-                   default=PAPER_SETUP.b_p_mm,
-                   help="plate linear amplitude B_p, mm (known input)")
-    f.add_argument("--mass-g", type=_arg(checks.real, *MASS_RANGE_G, unit="g"), default=PAPER_SETUP.mass_g,
-                   help="the disc's mass, grams (known input)")
+                   default=None, help=f"atlas method: plate linear amplitude B_p, mm (known input; default "
+                   f"{PAPER_SETUP.b_p_mm:g})")
+    f.add_argument("--mass-g", type=_arg(checks.real, *MASS_RANGE_G, unit="g"), default=None,
+                   help=f"atlas method: the disc's mass, grams (known input; default {PAPER_SETUP.mass_g:g})")
     f.add_argument("--diameter-mm", type=_arg(checks.real, *(round(x * 1e3, 9) for x in DIAMETER_RANGE_M), unit="mm"),
-                   default=PAPER_SETUP.diameter_mm,
-                   help="the disc's diameter, mm (known input)")
+                   default=None, help=f"atlas method: the disc's diameter, mm (known input; default "
+                   f"{PAPER_SETUP.diameter_mm:g})")
     f.add_argument("--method", default="atlas", choices=METHODS,
                    help="atlas: a forward model's posterior (default); lorentz: the paper's Eqs. 9-10")
-    f.add_argument("--forward", default="lab", help="atlas method: the forward model, 'lab' (data of unknown "
+    f.add_argument("--forward", default=None, help="atlas method: the forward model, 'lab' (data of unknown "
                    "origin: every physics and the unknown joint/contact values integrated over) or the simulator "
                    "that made the data, e.g. 'tilelink/pointmass'")
-    f.add_argument("--physics", default="lab", help="lorentz method: whose Eq. (10) calibration: lab (every model "
+    f.add_argument("--physics", default=None, help="lorentz method: whose Eq. (10) calibration: lab (every model "
                    "pooled, default), tilelink (with --model), paper (the paper's coefficients)")
     f.add_argument("--model", default=None, help="lorentz method: tilelink model of the calibration (pointmass)")
     f.add_argument("--plot", default=None, help="write a PNG of data, fitted curve and posterior (after the results)")
     f.add_argument("--json", action="store_true", help="print one JSON document")
+    f.add_argument("--calibration", default=None, help="a lab calibration (CAL.json from plate-env calibrate): read "
+                   "the data through what the lab's reference discs taught")
+    _add_calibrate(sub)
+    for p in sub.choices.values():  # --help shows every default
+        p.formatter_class = _DefaultsFormatter
     return parser
+
+
+class _DefaultsFormatter(argparse.HelpFormatter):
+    """Help that names each option's default (none shown for flags and options without one)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        shown = action.default not in (None, False, argparse.SUPPRESS) and action.option_strings
+        if shown and "%(default)" not in text:
+            text += " (default: %(default)s)"
+        return text
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("plate-env")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
 
 
 #: Where ``bench`` keeps finished episodes unless told otherwise (a rerun resumes from there).
@@ -280,6 +323,28 @@ def _add_bench(sub) -> None:
     add_executor_argument(b)
 
 
+def _nulled(obj, path: str, nulled: list[str]):
+    if isinstance(obj, float) and not math.isfinite(obj):
+        nulled.append(path)
+        return None
+    if isinstance(obj, dict):
+        return {k: _nulled(v, f"{path}.{k}" if path else str(k), nulled) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_nulled(v, f"{path}[{i}]", nulled) for i, v in enumerate(obj)]
+    return obj
+
+
+def strict_json(doc: dict) -> str:
+    """``doc`` as strict JSON (RFC 8259: no ``Infinity`` or ``NaN``, which Python's json writes and most parsers
+    refuse): a non-finite number becomes ``null`` and its path is listed under ``"non_finite"`` (e.g. an error of
+    an agent with no estimate, which is infinite)."""
+    nulled: list[str] = []
+    out = _nulled(doc, "", nulled)
+    if nulled:
+        out["non_finite"] = nulled
+    return json.dumps(out, allow_nan=False)
+
+
 def _bench_note(args: argparse.Namespace, suite: str) -> str:
     """How to regenerate a leaderboard (the command, the cache it resumes from) and the machine's load."""
     import shlex
@@ -316,6 +381,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     suite = load_suite(args.suite)
     budgets = benchmark.check_budgets(suite, _parse_budgets(args.budgets))
     plot = plot_path(args.plot) if args.plot else None
+    markdown = output_path(args.markdown, "--markdown") if args.markdown else None
     check_executor_name(args.executor)
     if len(set(args.agent)) != len(args.agent):
         raise CliError(f"--agent: each agent once, got {args.agent}")
@@ -327,9 +393,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     for spec, agent in agents.items():
         what = agent if where == "inprocess" else functools.partial(load_agent, spec)
         try:
-            runs.append(benchmark.evaluate(what, suite, label=spec, budgets_s=budgets, executor=args.executor,
-                                           cache=cache, limit=args.limit, chunk=args.chunk,
-                                           progress=not (args.json or args.no_progress)))
+            # what agents and libraries (Ray's worker lines) print while episodes run goes to stderr: stdout keeps
+            # the one result document
+            with contextlib.redirect_stdout(sys.stderr):
+                runs.append(benchmark.evaluate(what, suite, label=spec, budgets_s=budgets, executor=args.executor,
+                                               cache=cache, limit=args.limit, chunk=args.chunk,
+                                               progress=not (args.json or args.no_progress)))
         except benchmark.BenchInterrupted as exc:
             kept = f"kept in {exc.cache}; rerun the same command to resume" if exc.cache else "not kept (--no-cache)"
             print(f"plate-env bench: interrupted during {spec} after {exc.finished} episodes ({kept})",
@@ -340,12 +409,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.markdown:
         text = f"# Leaderboard: {suite.name}\n\n{suite.description}\n\n{text}"
     if args.json:
-        print(json.dumps({"suite": suite.name, "suite_sha256": suite.sha256, "budgets_s": list(budgets),
-                          **benchmark.board_to_dict(b)}), flush=True)
+        print(strict_json({"suite": suite.name, "suite_sha256": suite.sha256, "budgets_s": list(budgets),
+                           **benchmark.board_to_dict(b)}), flush=True)
     else:
         print(text, flush=True)
-    if args.markdown:
-        Path(args.markdown).write_text(text)
+    if markdown is not None:
+        markdown.write_text(text)
     if plot is not None:
         from plate_env.plotting import plot_curves
 
@@ -380,10 +449,12 @@ def _print_sweep(args: argparse.Namespace, obj: ObjectSpec, results: list, inter
         return
     print(f"{args.physics}: omega_n={format_omega_pi(obj.omega_n)} rad/s alpha={math.degrees(obj.alpha):.1f} deg "
           f"A_p={args.amp:g} deg B_p={args.bp:g} mm")
-    print(f"{'f_p [Hz]':>9} {'omega_B [deg/s]':>16} {'stderr':>8}  state")
+    print(f"{'f_p [Hz]':>9} {'omega_B [deg/s]':>16} {'stderr':>8}  state  (an unstable probe has no omega_B: -)")
     for r in results:
-        state = f"unstable: {r.reason}" if r.unstable else "stable"
-        print(f"{r.spec.motion.freq_hz:9.2f} {r.omega_b_deg_s:16.1f} {r.stderr_deg_s:8.1f}  {state}")
+        if r.unstable:  # one rule: what it turned at before it slipped or broke is not a steady omega_B
+            print(f"{r.spec.motion.freq_hz:9.2f} {'-':>16} {'-':>8}  unstable: {r.reason}")
+        else:
+            print(f"{r.spec.motion.freq_hz:9.2f} {r.omega_b_deg_s:16.1f} {r.stderr_deg_s:8.1f}  stable")
     print(f"{sum(r.sim_s for r in results):.1f} s simulated in {sum(r.wall_s for r in results):.2f} s wall",
           flush=True)
 
@@ -394,6 +465,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     obj = _object(args)
     freqs = parse_freqs(args.freqs)
     plot = plot_path(args.plot) if args.plot else None
+    csv_out = output_path(args.csv, "--csv") if args.csv else None
     specs = [_spec(args, obj, f) for f in freqs]
     backend = BackendSpec.of(args.physics, **_physics_options(args))
     built = backend.build()  # bad options and probes the backend cannot run: refused here, before any worker starts
@@ -414,6 +486,11 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     finally:
         executor.close()
     _print_sweep(args, obj, results, interrupted)
+    if csv_out is not None and results:
+        from plate_env.core.probe_table import ProbeTable, write_lab_csv
+
+        write_lab_csv(ProbeTable.from_results(results), csv_out)
+        print(f"csv: {csv_out}", file=sys.stderr if args.json else sys.stdout)
     if interrupted:
         print(f"plate-env sweep: interrupted after {len(results)} of {len(specs)} probes (printed above)",
               file=sys.stderr)
@@ -449,7 +526,111 @@ def _fit_report(est, table) -> list[str]:
     return out
 
 
+#: Most rows ``fit`` reads (what one sweep may make; the posterior's cost grows with the rows).
+MAX_FIT_ROWS = MAX_SWEEP_PROBES
+#: ``fit``'s known inputs when not given (the paper's set-up and disc).
+FIT_KNOWN = {"bp": PAPER_SETUP.b_p_mm, "mass_g": PAPER_SETUP.mass_g, "diameter_mm": PAPER_SETUP.diameter_mm}
+#: Options of ``fit`` that only one method reads (refused with the other, never dropped silently).
+FIT_METHOD_OPTIONS = {"atlas": ("forward", "bp", "mass_g", "diameter_mm"), "lorentz": ("physics", "model")}
+
+
+def _fit_options(args: argparse.Namespace) -> None:
+    """Refuse an option the chosen method does not read, and a Lorentz calibration source that does not exist;
+    then fill in the defaults (in place)."""
+    for method, names in FIT_METHOD_OPTIONS.items():
+        given = [n for n in names if getattr(args, n) is not None]
+        if method != args.method and given:
+            opts = ", ".join("--" + n.replace("_", "-") for n in given)
+            raise CliError(f"{opts} {'applies' if len(given) == 1 else 'apply'} to --method {method} only, not to "
+                           f"--method {args.method}")
+    for name, value in FIT_KNOWN.items():
+        if getattr(args, name) is None:
+            setattr(args, name, value)
+    args.forward = args.forward or "lab"
+    args.physics = args.physics or "lab"
+    if args.method == "lorentz" and args.physics != "paper":
+        from plate_env.identify.calibration import load_calibrations
+
+        sources = sorted({k.rsplit("/", 1)[0] for k in load_calibrations()})
+        model = args.model or ("lab" if args.physics == "lab" else "pointmass")
+        if f"{args.physics}/{model}" not in sources:
+            raise CliError(f"--physics {args.physics} --model {model}: no Eq. (10) calibration; calibrated: "
+                           f"{', '.join(sources + ['paper'])}")
+
+
+def _add_calibrate(sub) -> None:
+    c = sub.add_parser("calibrate", help="learn a lab calibration from reference discs of known omega_n")
+    c.add_argument("refs", help="CSV: the fit columns plus object and omega_n_rad_s (optional mass_g per object)")
+    c.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees")
+    c.add_argument("--bp", type=_arg(checks.real, 0.1, 50.0, unit="mm"), default=3.0, help="B_p, mm")
+    c.add_argument("--mass-g", type=_arg(checks.real, 0.1, 1000.0, unit="g"), default=None,
+                   help="the discs' mass, g (default: the file's mass_g, else 13.6)")
+    c.add_argument("--diameter-mm", type=_arg(checks.real, 10.0, 500.0, unit="mm"), default=80.0, help="mm")
+    c.add_argument("--forward", default="lab", help="the forward model whose members read the sweeps")
+    c.add_argument("--out", required=True, help="the calibration file to write (CAL.json)")
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from plate_env.identify import lab_calibration_file as lcf
+    from plate_env.surrogate.catalog import forward_model_names
+    from plate_env.surrogate.conditioning import KnownInputs
+
+    if args.forward not in forward_model_names():
+        raise CliError(f"--forward {args.forward!r}: choose one of {forward_model_names()}")
+    objects, omega_n, tables, masses = lcf.read_reference_csv(args.refs, a_p_deg=args.amp)
+    lcf.check_references(objects, omega_n)
+    given = {m for m in masses if m is not None}
+    if len(given) > 1:
+        raise CliError(f"the references have different masses {sorted(given)} g: one calibration holds for one mass")
+    mass_g = args.mass_g if args.mass_g is not None else (given.pop() if given else 13.6)
+    amps = sorted({float(a) for t in tables for a in t.a_p_deg})
+    if len(amps) != 1:
+        raise CliError(f"the references are at A_p {amps} deg: one calibration holds for one amplitude")
+    known = KnownInputs(b_p=args.bp * 1e-3, mass=mass_g * 1e-3, diameter=args.diameter_mm * 1e-3)
+    cal = lcf.calibrate(tables, omega_n, objects, amps[0], known, forward=args.forward)
+    lcf.save(cal, args.out)
+    s = cal.posterior.summary()
+    top = max(s["member_weights"].items(), key=lambda kv: kv[1])
+    print(f"calibration of {len(objects)} reference disc(s) at A_p = {amps[0]:g} deg written to {args.out}: "
+          f"offset {s['a_mean']:+.2f}, slope {s['b_mean']:.2f}, scatter {s['sigma_mean']:.2f} (log omega_n), "
+          f"member {top[0]} ({top[1]:.0%})", flush=True)
+    return 0
+
+
+#: Printed by ``fit`` without a calibration.
+UNCALIBRATED_NOTE = ("uncalibrated: the interval carries the disagreement between the physics models (about x11 "
+                     "either way at 95 %); measure reference discs of known omega_n and run plate-env calibrate to "
+                     "narrow it (docs/calibration.md)")
+
+
+def _cmd_fit_calibrated(args: argparse.Namespace) -> int:
+    from plate_env.core.probe_table import read_lab_csv
+    from plate_env.identify import lab_calibration_file as lcf
+    from plate_env.surrogate.conditioning import KnownInputs
+
+    cal = lcf.load(args.calibration)
+    if args.method != "atlas":
+        raise CliError("--calibration reads the data through the atlas members: drop --method lorentz")
+    known = KnownInputs(b_p=args.bp * 1e-3, mass=args.mass_g * 1e-3, diameter=args.diameter_mm * 1e-3)
+    table = read_lab_csv(args.csv, a_p_deg=args.amp)
+    lcf.check_data(cal, table, known)
+    est = lcf.identify_calibrated(table, cal, known)
+    if args.json:
+        print(json.dumps({"file": str(args.csv), "calibrated": True, "calibration": str(args.calibration),
+                          **est.to_dict()}), flush=True)
+    elif est.ok:
+        lo, hi = est.omega_n_ci95
+        print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s ({format_omega_pi(est.omega_n)}; "
+              f"95 % interval {lo:.1f}-{hi:.1f} rad/s) calibrated by {args.calibration}", flush=True)
+    else:
+        print(f"no estimate: {est.reason}", flush=True)
+    return 0 if est.ok else 1
+
+
 def _cmd_fit(args: argparse.Namespace) -> int:
+    _fit_options(args)
+    if args.calibration is not None:
+        return _cmd_fit_calibrated(args)
     from plate_env.core.probe_table import read_lab_csv
     from plate_env.identify import identify
     from plate_env.surrogate.catalog import forward_model_names
@@ -460,22 +641,27 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     if args.method == "atlas" and args.forward not in forward_model_names():
         raise CliError(f"--forward {args.forward!r}: choose one of {forward_model_names()}")
     table = read_lab_csv(args.csv, a_p_deg=args.amp)
+    if len(table) > MAX_FIT_ROWS:
+        raise CliError(f"{args.csv}: {len(table)} rows; fit takes at most {MAX_FIT_ROWS} (the most a sweep makes: the "
+                       "posterior's time grows with the rows, ~16 ms a row on the lab model); average repeated "
+                       "frequencies or split the file")
     model = args.model or ("lab" if args.physics == "lab" else "pointmass")
     est = identify(table, method=args.method, physics=args.physics, model=model, forward=args.forward, known=known)
     if args.json:
-        print(json.dumps({"file": str(args.csv), "physics": args.physics, "model": model, **est.to_dict()}),
-              flush=True)
+        print(json.dumps({"file": str(args.csv), "physics": args.physics, "model": model, "calibrated": False,
+                          **est.to_dict()}), flush=True)
     else:
         for line in _fit_report(est, table):
             print(line)
         if est.ok:
-            lo, hi = est.omega_n_ci95
             source = est.forward if est.method == "atlas" else f"{args.physics}/{model}"
             print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s "
-                  f"({format_omega_pi(est.omega_n)}; 95 % interval {lo:.1f}-{hi:.1f} rad/s) by {est.method} "
-                  f"on {source}")
+                  f"({format_omega_pi(est.omega_n)}) by {est.method} on {source}")
+            print(_intervals(est))
             if est.alpha is not None:
                 print(f"alpha_hat   = {math.degrees(est.alpha):.1f} +- {math.degrees(est.alpha_stderr):.1f} deg")
+            if est.method == "atlas" and est.forward == "lab":
+                print(UNCALIBRATED_NOTE)
         else:
             print(f"no estimate: {est.reason}")
         sys.stdout.flush()
@@ -538,11 +724,19 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     return 0 if est.ok else 1
 
 
+def _intervals(est) -> str:
+    """The 68 % and 95 % intervals of omega_n, rad/s and in units of pi."""
+    (a, b), (c, d) = est.omega_n_ci68, est.omega_n_ci95
+    return (f"              68 % interval {a:.2f}-{b:.2f} rad/s ({a / math.pi:.2f}-{b / math.pi:.2f} pi), "
+            f"95 % interval {c:.2f}-{d:.2f} rad/s ({c / math.pi:.2f}-{d / math.pi:.2f} pi)")
+
+
 def _print_identify(res) -> None:
     est = res.estimate
     if est.ok:
         print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s ({format_omega_pi(est.omega_n)}) "
               f"by {est.method}")
+        print(_intervals(est))
         print(f"true        = {res.omega_n_true:.2f} rad/s ({format_omega_pi(res.omega_n_true)});  "
               f"error {100 * res.relative_error:.1f} %")
         if est.alpha is not None:
@@ -554,7 +748,7 @@ def _print_identify(res) -> None:
 
 
 COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep, "fit": _cmd_fit, "identify": _cmd_identify,
-            "bench": _cmd_bench}
+            "bench": _cmd_bench, "calibrate": _cmd_calibrate}
 
 
 #: A command-line token that is a negative value, not an option: "-10pi", "-1e-3", "-inf", "-.5".

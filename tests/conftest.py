@@ -12,6 +12,24 @@ from plate_env.identify.fitting import lorentzian
 from plate_env.surrogate.atlas import Atlas, atlas_from_repeats
 
 
+def pytest_configure(config) -> None:
+    """The disk cache of spline coefficients (plate_env/core/cache.py) in a directory of this test session (kept out of
+    the user's cache; shared by the session's worker processes), unless PLATE_ENV_CACHE_DIR is set."""
+    import os
+    import tempfile
+
+    if "PLATE_ENV_CACHE_DIR" not in os.environ:
+        os.environ["PLATE_ENV_CACHE_DIR"] = config._plate_env_cache = tempfile.mkdtemp(prefix="plate_env_test_cache_")
+
+
+def pytest_unconfigure(config) -> None:
+    import shutil
+
+    made = getattr(config, "_plate_env_cache", None)
+    if made:
+        shutil.rmtree(made, ignore_errors=True)
+
+
 @pytest.fixture(scope="session")
 def tilelink():
     return pe.make_physics("tilelink")

@@ -105,3 +105,29 @@ def test_a_shipped_forward_model_between_masses_is_conditioned_once_per_inputs()
     assert "interpolated" in a.provenance and a.provenance["mass_g"] == pytest.approx(11.0)
     nominal = load_atlas_file("atlas_tilelink_pointmass.npz")
     assert a.omega_n.size == nominal.omega_n.size  # the 8.2 g atlas read on the nominal atlas's refined nodes
+
+
+def test_point_spline_equals_scipys_ndbspline_bit_for_bit():
+    """The Python evaluation of an atlas spline at a few points (an env's probe, without importing scipy) gives the
+    same floats as scipy's NdBSpline, inside the grid, on its nodes and at its edges."""
+    import math
+
+    from scipy.interpolate import NdBSpline
+
+    from plate_env.surrogate.atlas import load_atlas_file
+
+    atlas = load_atlas_file("atlas_tilelink_rigid_limit_f2.npz")
+    rng = np.random.default_rng(3)
+    n = 400
+    for kind in ("mean", "spread", "p_unstable"):
+        spline = atlas._interpolator(kind, 0)
+        pts = np.stack([rng.uniform(atlas.f_hz[0], atlas.f_hz[-1], n),
+                        rng.uniform(math.log(atlas.omega_n[0]), math.log(atlas.omega_n[-1]), n),
+                        rng.uniform(atlas.alpha[0], atlas.alpha[-1], n)], -1)
+        nodes = np.array(np.meshgrid(atlas.f_hz, np.log(atlas.omega_n)[[0, 1, -1]], atlas.alpha[[0, -1]],
+                                     indexing="ij")).reshape(3, -1).T
+        pts = np.concatenate([pts, nodes])
+        want = NdBSpline(spline.t, spline.c, spline.k)(pts)
+        got = np.array([spline.at(p) for p in pts.tolist()])  # the Python path (before scipy is imported)
+        assert np.array_equal(got, want)
+        assert np.array_equal(spline(pts[:4]), want[:4]) and np.array_equal(spline(pts), want)  # scipy's

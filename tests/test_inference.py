@@ -108,7 +108,10 @@ def test_estimate_keeps_its_contracts_and_refuses_probes_no_member_describes(toy
     atlas = toy_atlas(unstable_above_pi=10.0)
     table = ProbeTable.from_arrays([20.0, 28.0, 32.0], 3.0, [300.0, 0.0, 0.0], [3.0, 0.0, 0.0], [False, True, True])
     est = identify_atlas(table, _fm(atlas))
-    assert est.ok and est.method == "atlas" and est.n_probes == 3 and est.n_unstable == 2 and est.forward == "toy"
+    # one stable probe: alpha piles at the top of the toy's 30-60 deg, which the alpha edge rule flags (issue 28);
+    # the numbers it carries keep the contracts all the same
+    assert not est.ok and "alpha is above the friction angles 'toy' covers" in est.reason
+    assert est.method == "atlas" and est.n_probes == 3 and est.n_unstable == 2 and est.forward == "toy"
     lo, hi = est.omega_n_ci95
     assert lo <= est.omega_n_ci68[0] <= est.omega_n <= est.omega_n_ci68[1] <= hi
     assert est.omega_n_stderr == pytest.approx((est.omega_n_ci68[1] - est.omega_n_ci68[0]) / 2)

@@ -111,12 +111,11 @@ def _est_from(d: dict) -> Estimate:
 def play(env, agent, obj, index: int, max_budget_s: float) -> Episode:
     """One episode of ``agent`` on ``env`` hiding suite object ``obj``: the probes until it stops or the budget
     ends, and the agent's estimate after every probe."""
-    from plate_env.env.episode import estimate_model_of, estimate_of, run_episode
+    from plate_env.env.episode import run_episode
 
-    res = run_episode(env, agent, seed=obj.seed, options=obj.reset_options(), max_sim_s=max_budget_s)
+    res = run_episode(env, agent, seed=obj.seed, options=obj.reset_options(), max_sim_s=max_budget_s, prefix=True)
     t = res.probes
-    fm = estimate_model_of(agent)
-    prefix = tuple(estimate_of(env, t.subset(np.arange(len(t)) < k), agent.method, fm) for k in range(1, len(t) + 1))
+    prefix = res.prefix
     probes = tuple((float(f), float(a), float(w), float(s), bool(u)) for f, a, w, s, u in
                    zip(t.f_p_hz, t.a_p_deg, t.omega_b_deg_s, t.stderr_deg_s, t.unstable, strict=True))
     return Episode(index=index, seed=obj.seed, omega_n_true=obj.omega_n, probe_sim_s=res.probe_sim_s, prefix=prefix,

@@ -20,7 +20,8 @@ class EpisodeResult:
     """One identification: the truth, the agent's estimate (by its own method), and what the probing cost.
 
     ``probe_sim_s``: simulated seconds of each probe in order (ramp + settle + window, less if it ended unstable);
-    ``decision_wall_s``: wall seconds of each ``next_probe`` call (the last one may be the decision to stop).
+    ``decision_wall_s``: wall seconds of each ``next_probe`` call (the last one may be the decision to stop);
+    ``prefix``: the estimate after each probe when asked for (``run_episode(prefix=True)``).
     """
 
     agent: str
@@ -33,6 +34,7 @@ class EpisodeResult:
     wall_s: float
     probe_sim_s: tuple[float, ...] = ()
     decision_wall_s: tuple[float, ...] = ()
+    prefix: tuple[Estimate, ...] = field(default=(), repr=False)
 
     @property
     def relative_error(self) -> float:
@@ -67,6 +69,25 @@ def estimate_of(env, table: ProbeTable, method: str, forward=None) -> Estimate:
         return Estimate(ok=False, method=method, reason=str(exc))
 
 
+def prefix_estimates(env, table: ProbeTable, method: str, forward=None) -> tuple[Estimate, ...]:
+    """``method``'s estimate after each probe of ``table`` (as :func:`estimate_of` of each prefix gives it): for the
+    atlas method from one :class:`~plate_env.identify.posterior_state.PosteriorState` the probes are added to one by one
+    (each prefix costs one pooling, not a recomputation of every probe's likelihood)."""
+    if method != "atlas":
+        return tuple(estimate_of(env, table.subset(np.arange(len(table)) < k), method, forward)
+                     for k in range(1, len(table) + 1))
+    from plate_env.identify.forward import load_forward_model
+    from plate_env.identify.posterior_state import PosteriorState
+
+    e = env.unwrapped
+    try:
+        state = PosteriorState(forward if forward is not None else
+                               load_forward_model(f"{e.source}/{e.model}", e.known_inputs()))
+    except ValueError as exc:
+        return tuple(Estimate(ok=False, method=method, reason=str(exc)) for _ in range(len(table)))
+    return state.prefix_estimates(table)
+
+
 def _step(env, agent, choice):
     """``env.step`` of an agent's answer (ValueError naming the agent for an answer the env refuses; the env is
     left as it was)."""
@@ -83,27 +104,45 @@ def _step(env, agent, choice):
         raise ValueError(f"agent {agent.name!r}: next_probe returned {choice!r}: {exc}") from None
 
 
+class AgentError(ValueError):
+    """An agent failed (raised, exited, stopped before its first probe): the message names it. A ValueError, so the
+    command line answers it as the user's input (exit 2), not as a bug of plate-env."""
+
+
+def _call(agent, method: str, *args):
+    """``agent.<method>(*args)``, its failures (an exception, ``sys.exit``) as :class:`AgentError` naming it."""
+    try:
+        return getattr(agent, method)(*args)
+    except AgentError:
+        raise
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - a user's agent may raise anything; Ctrl-C passes
+        name = getattr(agent, "name", type(agent).__name__)
+        raise AgentError(f"agent {name!r} failed in {method}: {type(exc).__name__}: {exc}") from None
+
+
 def run_episode(env, agent, seed: int, options: dict | None = None,
                 on_probe: Callable[[int, dict], None] | None = None,
-                max_sim_s: float | None = None) -> EpisodeResult:
+                max_sim_s: float | None = None, prefix: bool = False) -> EpisodeResult:
     """Reset ``env`` with ``seed`` (and ``options``: omega_n, alpha, mass), let ``agent`` probe until it stops, the
     env's budget ends or the probes have taken ``max_sim_s`` simulated seconds (a budget enforced here, without
     changing the env's observation; the agent's context names it), then estimate omega_n with the agent's method.
-    ``on_probe(k, probe_dict)`` is called after each probe."""
+    ``on_probe(k, probe_dict)`` is called after each probe. ``prefix``: also the estimate after each probe
+    (:func:`prefix_estimates`, in ``EpisodeResult.prefix``; the last is the episode's estimate). Otherwise the
+    estimate of the env's own atlas posterior is reused when the agent's method and forward model are the env's."""
     t0 = time.perf_counter()
     e = env.unwrapped
     obs, info = env.reset(seed=seed, options=options)
-    agent.reset(ProbeContext.from_env(env, max_sim_s), np.random.default_rng(seed))
+    _call(agent, "reset", ProbeContext.from_env(env, max_sim_s), np.random.default_rng(seed))
     sims: list[float] = []
     decisions: list[float] = []
     done = False
     while not done and not (max_sim_s is not None and info["sim_s"] >= max_sim_s):
         table = e.table()
         t = time.perf_counter()
-        choice = agent.next_probe(table, obs)
+        choice = _call(agent, "next_probe", table, obs)
         decisions.append(time.perf_counter() - t)
         if choice is None and len(table) == 0:
-            raise RuntimeError(f"agent {agent.name} stopped before its first probe")
+            raise AgentError(f"agent {agent.name!r} stopped before its first probe (an episode needs at least one)")
         obs, _, terminated, truncated, info = _step(env, agent, choice)
         done = terminated or truncated
         if info["probes"] > len(sims):
@@ -111,8 +150,17 @@ def run_episode(env, agent, seed: int, options: dict | None = None,
             if on_probe is not None:
                 on_probe(info["probes"], info["last_probe"])
     table = e.table()
+    fm = estimate_model_of(agent)
+    prefixes: tuple[Estimate, ...] = ()
+    if prefix and len(table):
+        prefixes = prefix_estimates(env, table, agent.method, fm)
+        estimate = prefixes[-1]
+    elif fm is None and agent.method == "atlas" == e.method:
+        estimate = e.estimate()  # the env's own posterior of these probes (its episode end computed it)
+    else:
+        estimate = estimate_of(env, table, agent.method, fm)
     return EpisodeResult(agent=agent.name, omega_n_true=info["omega_n_true"], alpha_true=info["alpha_true"],
-                         estimate=estimate_of(env, table, agent.method, estimate_model_of(agent)), probes=table,
+                         estimate=estimate, probes=table, prefix=prefixes,
                          n_probes=len(table),
                          sim_s=info["sim_s"], wall_s=time.perf_counter() - t0, probe_sim_s=tuple(sims),
                          decision_wall_s=tuple(decisions))

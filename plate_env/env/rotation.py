@@ -138,6 +138,7 @@ class PlateRotationEnv(gym.Env):
     | ``camera_fps`` | 30 | camera frame rate, Hz |
     | ``angle_noise_deg`` | 0.5 | camera angle noise (sd), deg |
     | ``cost_per_sim_s`` | 0.005 | reward cost per simulated second |
+    | ``calibration`` | None | a lab calibration (CAL.json, ``"paper"``): the estimate reads the probes through it |
     | ``error_cap`` | 1 | largest error charged |
     | ``no_estimate_penalty`` | 1 | reward when no estimate can be made |
     | ``render_mode`` | None | ``rgb_array`` or ``human`` |
@@ -179,7 +180,7 @@ class PlateRotationEnv(gym.Env):
                  max_sim_s: float | None = None, measure_range_s: tuple[float, float] = (0.25, 2.0),
                  settle_s: float = 0.5, camera_fps: float = 30.0, angle_noise_deg: float = 0.5,
                  cost_per_sim_s: float = 0.005, error_cap: float = 1.0, no_estimate_penalty: float = 1.0,
-                 render_mode: str | None = None) -> None:
+                 render_mode: str | None = None, calibration=None) -> None:
         super().__init__()
         # every option checked (a ValueError naming it) before the physics is built
         render_mode = checks.one_of("render_mode", render_mode, (None, *self.metadata["render_modes"]))
@@ -201,6 +202,7 @@ class PlateRotationEnv(gym.Env):
         error_cap = checks.real("error_cap", error_cap, 0.0, 1e3, open_lo=True)
         no_estimate_penalty = checks.real("no_estimate_penalty", no_estimate_penalty, 0.0, 1e3)
         physics = checks.one_of("physics", physics, PHYSICS_NAMES)
+        self.calibration = _calibration(calibration, amplitudes_deg, b_p_mm)
         if physics_options is not None and not isinstance(physics_options, dict):
             raise ValueError(f"physics_options = {physics_options!r} must be a dict of backend options or None")
         self.physics_name = physics
@@ -245,6 +247,7 @@ class PlateRotationEnv(gym.Env):
         self._closed = False
         self._window = None
         self._renderer = None
+        self._posterior = None  # the episode's PosteriorState (method atlas), or why there is none; built lazily
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -269,10 +272,23 @@ class PlateRotationEnv(gym.Env):
         self._sim_s = self._wall_s = 0.0
         self._done = False
         self._last = None
+        self._posterior = None
         return self._obs(), self._info()
 
     def decode_action(self, action) -> tuple[bool, ProbeSpec | None]:
-        """Check an action and turn it into (stop, probe). Raises ValueError naming a bad value."""
+        """Check an action and turn it into (stop, probe). Raises ValueError naming a bad value (before any random
+        draw: the placement of the probe is drawn only for a valid action)."""
+        a = self.check_action(action)
+        if a[3] > 0 and self._rows:
+            return True, None
+        f, a_p, window = self.codec.decode(a)
+        motion = PlateMotion.from_paper(f, a_p, self.b_p_mm)
+        spec = ProbeSpec(self._obj, motion, settle_s=self.settle_s, measure_s=window, record_trace=True)
+        return False, spec.perturbed(self.np_random)
+
+    def check_action(self, action) -> np.ndarray:
+        """The action as 4 floats in [-1, 1], or ValueError naming the bad value. Pure: no state changes, no random
+        draw (a vector env checks every sub-env's action with it before any sub-env draws)."""
         try:
             a = np.asarray(action)
             if a.dtype.kind not in "fiu":  # bool, complex, strings, objects: not actions, even if castable
@@ -286,13 +302,7 @@ class PlateRotationEnv(gym.Env):
             raise ValueError(f"action {a.tolist()} contains NaN or inf; allowed: finite values in [-1, 1]")
         if np.any(np.abs(a) > 1.0 + 1e-6):
             raise ValueError(f"action {a.tolist()} is outside the allowed range [-1, 1]")
-        a = np.clip(a, -1.0, 1.0)
-        if a[3] > 0 and self._rows:
-            return True, None
-        f, a_p, window = self.codec.decode(a)
-        motion = PlateMotion.from_paper(f, a_p, self.b_p_mm)
-        spec = ProbeSpec(self._obj, motion, settle_s=self.settle_s, measure_s=window, record_trace=True)
-        return False, spec.perturbed(self.np_random)
+        return np.clip(a, -1.0, 1.0)
 
     def encode_action(self, f_p_hz: float | None = None, a_p_deg: float | None = None,
                       measure_s: float | None = None, stop: bool = False) -> np.ndarray:
@@ -310,10 +320,15 @@ class PlateRotationEnv(gym.Env):
 
     def prepare(self, action) -> tuple[bool, ProbeSpec | None]:
         """First half of a step: validate the action, decide stop or the probe to run (for batched vector envs)."""
+        self.check_step(action)
+        return self.decode_action(action)
+
+    def check_step(self, action) -> None:
+        """Refuse a step before anything happens: a closed env, an episode not reset or over, a bad action."""
         self._check_open()
         if self._obj is None or self._done:
             raise RuntimeError("call reset() before step() (the episode is over)")
-        return self.decode_action(action)
+        self.check_action(action)
 
     def finish(self, result: ProbeResult | None):
         """Second half of a step: record the probe (or stop), compute reward, termination and info."""
@@ -373,16 +388,41 @@ class PlateRotationEnv(gym.Env):
         return ProbeTable.from_arrays(f, a, w, se, un)
 
     def estimate(self) -> Estimate:
-        """The current omega_n estimate from the probes so far."""
+        """The current omega_n estimate from the probes so far (method atlas: the episode's incremental posterior,
+        :class:`plate_env.identify.posterior_state.PosteriorState`, brought up to date with the probes not in it)."""
         from plate_env.identify import identify
 
         if not self._rows:
             return Estimate(ok=False, method=self.method, reason="no probes")
+        if self.method == "atlas":
+            state = self.posterior_state()
+            if isinstance(state, str):
+                return Estimate(ok=False, method=self.method, reason=state)
+            if state.n_probes < len(self._rows):
+                state.add_table(self.table(), start=state.n_probes)
+            return state.estimate()
         try:
+            if self.calibration is not None:
+                return identify(self.table(), calibration=self.calibration, known=self.known_inputs())
             return identify(self.table(), method=self.method, physics=self.source, model=self.model,
                             known=self.known_inputs())
         except ValueError as exc:
             return Estimate(ok=False, method=self.method, reason=str(exc))
+
+    def posterior_state(self):
+        """The episode's :class:`~plate_env.identify.posterior_state.PosteriorState` on the shipped forward model of
+        this env's physics, conditioned on the episode's known inputs (probes are added by :meth:`estimate`), or the
+        reason there is none (a str)."""
+        if self._posterior is None:
+            from plate_env.identify.forward import load_forward_model
+            from plate_env.identify.posterior_state import PosteriorState
+
+            try:
+                self._posterior = PosteriorState(load_forward_model(f"{self.source}/{self.model}",
+                                                                    self.known_inputs()))
+            except ValueError as exc:
+                self._posterior = str(exc)
+        return self._posterior
 
     def known_inputs(self) -> KnownInputs:
         """What a lab would know of this episode's set-up: B_p and the disc's mass and diameter (weighed and
@@ -446,6 +486,7 @@ class PlateRotationEnv(gym.Env):
         state["physics"] = None
         state["_window"] = None
         state["_renderer"] = None
+        state["_posterior"] = None  # rebuilt from the probes when needed
         return state
 
     def __setstate__(self, state):
@@ -477,3 +518,19 @@ def _amplitudes(values) -> tuple[float, ...]:
     if 0.0 in amps or len(set(amps)) != len(amps):
         raise ValueError(f"amplitudes_deg = {values!r}: amplitudes must be distinct and non-zero")
     return amps
+
+
+def _calibration(calibration, amplitudes_deg: tuple[float, ...], b_p_mm: float):
+    """The env's lab calibration (None: the estimate's own forward model), checked against the amplitudes and
+    B_p the episodes use (ValueError naming the mismatch)."""
+    if calibration is None:
+        return None
+    from plate_env.identify import lab_calibration_file as lcf
+
+    cal = calibration if isinstance(calibration, lcf.LabCalibration) else lcf.load(calibration)
+    if tuple(float(a) for a in amplitudes_deg) != (cal.a_p_deg,):
+        raise ValueError(f"calibration holds for A_p = {cal.a_p_deg:g} deg only: set amplitudes_deg=({cal.a_p_deg:g},) "
+                         f"(got {tuple(amplitudes_deg)})")
+    if abs(b_p_mm - cal.known.b_p * 1e3) > 0.02 * cal.known.b_p * 1e3:
+        raise ValueError(f"calibration holds for B_p = {cal.known.b_p * 1e3:g} mm, the env's b_p_mm is {b_p_mm:g}")
+    return cal

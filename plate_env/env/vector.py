@@ -79,6 +79,9 @@ class PlateRotationVectorEnv(VectorEnv):
         """Step the sub-environments where ``active`` is True, their probes in one batched physics call: per
         sub-environment ``(obs, reward, terminated, truncated, info)``, or None where inactive. (The step of this
         vector env and of :class:`plate_env.env.sb3.PlateRotationSB3VecEnv`; they differ in how they reset.)"""
+        for i, env in enumerate(self.envs):  # every sub-env's step refused before any draws (a clean rerun matches)
+            if active[i]:
+                env.check_step(actions[i])
         plans: list[tuple[str, int | None]] = []
         specs = []
         for i, env in enumerate(self.envs):

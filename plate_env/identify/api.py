@@ -112,7 +112,7 @@ def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = 
 
 def identify(probes: Sequence[ProbeResult] | ProbeTable, method: str = "atlas", physics: str = "tilelink",
              model: str = "pointmass", forward: ForwardModel | str | None = None, known: KnownInputs | None = None,
-             **options) -> Estimate:
+             calibration=None, **options) -> Estimate:
     """Estimate omega_n (and alpha) from probes at any plate amplitudes.
 
     ``method="atlas"`` (model-based, the default): the posterior of a forward model
@@ -120,8 +120,20 @@ def identify(probes: Sequence[ProbeResult] | ProbeTable, method: str = "atlas", 
     ``"lab"``), else the model that made the data, ``"<physics>/<model>"``, conditioned on the known inputs (``known``,
     else those of the probes when they are :class:`ProbeResult`, else the paper's set-up). ``method="lorentz"``: the
     paper's Eq. (9) fit per amplitude and Eq. (10) calibration of ``physics``/``model`` (``physics="paper"``: the
-    paper's coefficients).
+    paper's coefficients). ``calibration`` (a :class:`~.lab_calibration_file.LabCalibration`, a CAL.json path or
+    ``"paper"``): read the probes through what a lab's reference discs taught (``plate-env calibrate``); the data
+    must match its amplitude and set-up.
     """
+    if calibration is not None:
+        from plate_env.identify import lab_calibration_file as lcf
+
+        if method != "atlas" or forward is not None or options:
+            raise ValueError("identify(calibration=...) reads the probes through the calibration's own members: "
+                             "give no method, forward or options with it")
+        cal = calibration if isinstance(calibration, lcf.LabCalibration) else lcf.load(calibration)
+        if known is None and not isinstance(probes, ProbeTable):
+            known = KnownInputs.from_specs(r.spec for r in probes)
+        return lcf.identify_calibrated(_table(probes), cal, known)
     if method not in METHODS:
         raise ValueError(f"unknown identification method {method!r}; choose one of {METHODS}")
     table = _table(probes)

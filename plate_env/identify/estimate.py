@@ -18,6 +18,12 @@ from plate_env.identify.fitting import LorentzFit
 
 #: Share of the posterior allowed in an edge zone of the identifiable range before the answer becomes a bound.
 EDGE_MASS = 0.05
+#: The alpha edge rule's factor: an end of the friction-angle range holding this many times its prior share piles.
+ALPHA_PILE = 3.0
+#: A sweep whose predictive p-value (:func:`plate_env.inference.predictive_check`) is below this is one the forward
+#: model cannot explain: no estimate. Calibrated on honest sweeps from the model itself (the share of them rejected:
+#: experiments/predictive_check.py, experiments/results/predictive_check.md).
+CHECK_P_MIN = 1e-3
 
 
 @dataclass(frozen=True)
@@ -109,6 +115,66 @@ class Posterior:
             return "above"
         return None
 
+    def alpha_edge(self) -> str | None:
+        """``"below"`` / ``"above"`` when the alpha marginal piles against an end of the friction angles the models
+        cover (their atlases' range): the two grid points at that end hold more than :data:`EDGE_MASS` and more than
+        :data:`ALPHA_PILE` times what the uniform prior puts there, else None. The data would be explained better
+        by a friction angle the models do not reach, and their omega_n is then not to be trusted; a posterior that
+        leaves alpha undetermined (near the prior) is not flagged."""
+        p = self.marginal_alpha()
+        n = self.alpha.size
+        if n < 4:
+            return None
+        limit = max(EDGE_MASS, ALPHA_PILE * 2.0 / n)
+        below, above = float(p[:2].sum()), float(p[-2:].sum())
+        if below > limit and below >= above:
+            return "below"
+        if above > limit:
+            return "above"
+        return None
+
+
+@dataclass(frozen=True)
+class PredictiveCheck:
+    """How well the forward model's best-fitting object explains the probes (a posterior predictive check).
+
+    ``statistic``: the probes' surprise at the best fit, the sum over stable probes of ``(nu + 1) / 2 *
+    log(1 + z^2 / nu)`` (z the residual over the likelihood's own scale, ``sqrt(spread^2 + stderr^2 +
+    sigma_model^2)``) plus, over every probe, ``-log P(its stable / unstable flag)``; ``p_value``: the share of
+    sweeps replicated from that object (its instability probabilities, Student-t residuals) at least as surprising;
+    ``passed``: ``p_value >= CHECK_P_MIN``; ``worst``: the probe explained worst (f_p Hz, A_p deg, z); ``member``: the
+    member checked (the one of highest posterior weight)."""
+
+    statistic: float
+    p_value: float
+    n_probes: int
+    member: str
+    worst: tuple[float, float, float] | None
+    p_min: float = CHECK_P_MIN
+
+    @property
+    def passed(self) -> bool:
+        return self.p_value >= self.p_min
+
+    def reason(self) -> str:
+        where = "" if self.worst is None else (f"; worst probe f_p = {self.worst[0]:g} Hz, A_p = {self.worst[1]:g} "
+                                               f"deg, {self.worst[2]:+.3g} model scales off")
+        return (f"the probes are not a sweep {self.member!r} can explain (predictive p-value {self.p_value:.2g} < "
+                f"{self.p_min:g}{where}): check the data's units, sign and columns, or use a forward model that "
+                "describes the object")
+
+    @classmethod
+    def from_dict(cls, d: dict) -> PredictiveCheck:
+        w = d.get("worst")
+        return cls(statistic=d["statistic"], p_value=d["p_value"], n_probes=d["n_probes"], member=d["member"],
+                   worst=None if w is None else (w["f_p_hz"], w["a_p_deg"], w["z"]), p_min=d["p_min"])
+
+    def to_dict(self) -> dict:
+        return {"statistic": self.statistic, "p_value": self.p_value, "p_min": self.p_min, "passed": self.passed,
+                "n_probes": self.n_probes, "member": self.member,
+                "worst": None if self.worst is None else {"f_p_hz": self.worst[0], "a_p_deg": self.worst[1],
+                                                          "z": self.worst[2]}}
+
 
 @dataclass(frozen=True)
 class Estimate:
@@ -123,6 +189,8 @@ class Estimate:
         forward: the forward model the model-based method used (its name), else None.
         fits: the per-amplitude Lorentzian fits (lorentz method), keyed by A_p in degrees.
         posterior: the model-based posterior, else None.
+        check: the model-based method's posterior predictive check of the probes (None for the Lorentzian method);
+            a failed check is no estimate (``ok`` False, ``reason`` says why).
     """
 
     ok: bool
@@ -140,6 +208,7 @@ class Estimate:
     forward: str | None = None
     fits: dict[float, LorentzFit] = field(default_factory=dict, compare=False, repr=False)
     posterior: Posterior | None = field(default=None, compare=False, repr=False)
+    check: PredictiveCheck | None = None
 
     def __post_init__(self) -> None:
         if self.ok and not (self.omega_n_ci95[0] <= self.omega_n_ci68[0] <= self.omega_n <= self.omega_n_ci68[1]
@@ -162,8 +231,12 @@ class Estimate:
              "n_unstable": self.n_unstable,
              "bound": None if self.bound is None else {"side": self.bound[0], "omega_n_rad_s": self.bound[1]}}
         if self.posterior is not None and self.posterior.members:
-            d["members"] = dict(zip(self.posterior.members, self.posterior.member_weights, strict=True))
+            members: dict[str, float] = {}  # members sharing a label (one physics, other joint values) summed
+            for label, weight in zip(self.posterior.members, self.posterior.member_weights, strict=True):
+                members[label] = members.get(label, 0.0) + weight
+            d["members"] = members
         d["fits"] = {f"{a:g}": fit.to_dict() for a, fit in self.fits.items()}
+        d["check"] = None if self.check is None else self.check.to_dict()
         return d
 
     @classmethod
@@ -171,10 +244,12 @@ class Estimate:
         """The estimate back from :meth:`to_dict` (its posterior grid and per-amplitude fits are not kept)."""
         bound = d.get("bound")
         alpha = d.get("alpha_deg")
+        check = d.get("check")
         return cls(ok=d["ok"], method=d["method"], reason=d["reason"], forward=d.get("forward"),
                    omega_n=d["omega_n_rad_s"], omega_n_stderr=d["omega_n_stderr_rad_s"],
                    omega_n_ci68=tuple(d["omega_n_ci68_rad_s"]), omega_n_ci95=tuple(d["omega_n_ci95_rad_s"]),
                    alpha=None if alpha is None else math.radians(alpha),
                    alpha_stderr=math.radians(d.get("alpha_stderr_deg", 0.0)), n_probes=d.get("n_probes", 0),
                    n_unstable=d.get("n_unstable", 0),
-                   bound=None if bound is None else (bound["side"], bound["omega_n_rad_s"]))
+                   bound=None if bound is None else (bound["side"], bound["omega_n_rad_s"]),
+                   check=None if check is None else PredictiveCheck.from_dict(check))

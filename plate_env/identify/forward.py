@@ -22,7 +22,7 @@ import numpy as np
 
 from plate_env.surrogate.atlas import Atlas
 from plate_env.surrogate.catalog import read_catalog
-from plate_env.surrogate.conditioning import KnownInputs, condition
+from plate_env.surrogate.conditioning import BUILD_HINT, KnownInputs, condition
 
 POOLINGS = ("evidence", "fixed")
 #: The posterior grid reaches this many discrepancies (sigma_eps, log omega) beyond the members' omega_n range
@@ -34,6 +34,7 @@ PAD_SIGMAS = 3.0
 PAD_MAX_LOG = math.log(1000.0)
 
 
+@functools.lru_cache(maxsize=64)
 def pad_sigmas(nu: float) -> float:
     """How many discrepancy scales the grid reaches beyond the models' range for a discrepancy with ``nu`` degrees
     of freedom (inf: normal)."""
@@ -181,7 +182,10 @@ def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardMo
             sigma = atlas.provenance["sigma_model_deg_s"]
         members.append(Member(atlas, float(sigma), float(m.get("weight", 1.0)), float(m.get("blur", 0.0))))
     if not members:
-        raise ValueError(f"forward model {name!r} has no member for these known inputs: {'; '.join(left_out)}")
+        # members of one physics fail for the same reason: each reason once, the hint once
+        reasons = dict.fromkeys(r.removesuffix(f"; {BUILD_HINT}") for r in left_out)
+        raise ValueError(f"forward model {name!r} has no member for these known inputs: {'; '.join(reasons)}; "
+                         f"{BUILD_HINT}")
     return ForwardModel(name=name, members=tuple(members), sigma_eps=float(entry["sigma_eps"]),
                         eps_nu=float(entry.get("eps_nu", math.inf)),
                         offset_sigma=float(entry.get("offset_sigma", 0.0)),

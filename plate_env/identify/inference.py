@@ -25,14 +25,15 @@ amplitudes, one-sided data, curves without a peak; probes outside a member's atl
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from plate_env.core.probe_table import ProbeTable
-from plate_env.identify.estimate import Estimate, Posterior
+from plate_env.identify.estimate import Estimate, Posterior, PredictiveCheck
 from plate_env.identify.forward import ForwardModel, Member
 from plate_env.surrogate.atlas import Atlas
 
@@ -92,11 +93,22 @@ def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
 
 
 def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
-    from scipy.interpolate import CubicSpline
+    from scipy.interpolate import CubicSpline, PPoly
 
-    ff, ww, aa = np.meshgrid(atlas.f_hz, w, a, indexing="ij")
-    mean, spread, pu = atlas.predict(ff, a_p_deg, ww, aa)
-    interps = [CubicSpline(atlas.f_hz, arr, axis=0) for arr in (mean, spread, pu)]
+    from plate_env.core.cache import cached_arrays, content_key
+
+    def build() -> dict[str, np.ndarray]:
+        ff, ww, aa = np.meshgrid(atlas.f_hz, w, a, indexing="ij")
+        arrays = atlas.predict(ff, a_p_deg, ww, aa)
+        return {name: CubicSpline(atlas.f_hz, arr, axis=0).c for name, arr in zip(RESPONSE, arrays, strict=True)}
+
+    key = content_key("response", atlas.f_hz, atlas.a_p_deg, atlas.omega_n, atlas.alpha, atlas.mean, atlas.spread,
+                      atlas.p_unstable, float(a_p_deg), np.asarray(w, float), np.asarray(a, float))
+    coef = cached_arrays("response", key, build, mmap=True,
+                         note=f"computing the {atlas.physics}/{atlas.model} atlas's response at A_p = {a_p_deg:g} deg "
+                              f"on a {len(w)} x {len(a)} posterior grid")
+    x = np.asarray(atlas.f_hz, float)
+    interps = [PPoly.construct_fast(coef[name], x, True, 0) for name in RESPONSE]  # CubicSpline's own polynomials
     inside = _covered(atlas, w, a)
 
     def at(f_hz: float):
@@ -106,10 +118,15 @@ def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     return at, inside
 
 
+#: The atlas quantities a member's response gives (mean, spread, instability share).
+RESPONSE = ("mean", "spread", "p_unstable")
+
+
 def member_response(member: Member, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     """``(f_hz -> (mean, spread, p_unstable)), inside``: a member's atlas on the grid ``w`` x ``a`` at one amplitude
     as cubic splines along f_p (exact at the atlas's nodes; built once per atlas, amplitude and grid, kept on the
-    atlas), and the mask of grid points inside its omega_n and alpha ranges."""
+    atlas, their coefficients in the disk cache of :mod:`plate_env.core.cache`, keyed by the atlas's arrays, the
+    amplitude and the grid), and the mask of grid points inside its omega_n and alpha ranges."""
     key = ("response", abs(float(a_p_deg)), float(w[0]), float(w[-1]), len(w), float(a[0]), float(a[-1]), len(a))
     return member.atlas.cached(key, lambda: _response(member.atlas, abs(float(a_p_deg)), w, a))
 
@@ -167,12 +184,22 @@ def _smooth_log_omega(prob: np.ndarray, sigma_steps: float, nu: float = math.inf
     if math.isinf(nu):
         return gaussian_filter1d(prob, sigma_steps, axis=0, mode="constant", cval=0.0, truncate=5.0)
     from scipy.signal import fftconvolve
-    from scipy.stats import t
 
     half = min(int(math.ceil(sigma_steps * 40)), prob.shape[0])
-    kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
-    kernel = (kernel / kernel.sum()).reshape((-1,) + (1,) * (prob.ndim - 1))
+    kernel = _t_kernel(half, sigma_steps, nu).reshape((-1,) + (1,) * (prob.ndim - 1))
     return np.maximum(fftconvolve(prob, kernel, mode="same", axes=0), 0.0)  # zero beyond the grid, as above
+
+
+@functools.lru_cache(maxsize=64)
+def _t_kernel(half: int, sigma_steps: float, nu: float) -> np.ndarray:
+    """The normalised Student-t kernel of :func:`_smooth_log_omega` on ``2 half + 1`` grid steps (read-only: it is
+    shared by every call with these arguments)."""
+    from scipy.stats import t
+
+    kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
+    kernel = kernel / kernel.sum()
+    kernel.flags.writeable = False
+    return kernel
 
 
 def _log_evidence(ll: np.ndarray, inside: np.ndarray, sigma_steps: float, nu: float = math.inf,
@@ -240,30 +267,126 @@ def posterior(fm: ForwardModel, table: ProbeTable, n_omega: int = N_OMEGA, n_alp
     return pool(fm, w, a, lls, skipped, evidence)
 
 
+# ----------------------------------------------------------------------------------------------- predictive check
+#: Replicated sweeps drawn for the check's p-value (from a fixed seed: the check is a pure function of its input).
+CHECK_DRAWS = 4000
+CHECK_SEED = 20261202
+#: How many of a member's blur scales (sd of log omega_n) each probe may move along omega_n in the check.
+CHECK_BLURS = 1.0
+
+
+def _surprise(z2: np.ndarray, stable: np.ndarray, p: np.ndarray, nu: float = NU) -> np.ndarray:
+    """The check's statistic per probe (last axis summed): Student-t surprise of stable residuals, flag surprise."""
+    flag = -np.log(np.where(stable, 1.0 - p, p))
+    return (np.where(stable, 0.5 * (nu + 1.0) * np.log1p(z2 / nu), 0.0) + flag).sum(-1)
+
+
+def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> PredictiveCheck:
+    """A posterior predictive check of the probes under ``fm`` (see :class:`PredictiveCheck`). Pure: replicates
+    come from a fixed seed.
+
+    The object checked is the one of the member of highest posterior weight that explains the probes best (least
+    surprise over its whole grid); replicated sweeps are drawn from that object. Checking at a fitted point makes
+    the test conservative for honest data (a fit explains its own data better than the truth does), so a failure
+    is data the model cannot produce, not bad luck."""
+    i = int(np.argmax(post.member_weights)) if post.member_weights else 0
+    m = fm.members[i]
+    w, a = post.omega_n, post.alpha
+    sub = w[member_rows(m, w)]
+    idx = np.array([k for k, (f, amp) in enumerate(zip(table.f_p_hz, table.a_p_deg, strict=True))
+                    if member_domain(m, float(f), float(amp)) is None], dtype=int)
+    n = idx.size
+    if n == 0 or sub.size == 0:
+        return PredictiveCheck(statistic=0.0, p_value=1.0, n_probes=0, member=m.label, worst=None)
+
+    def terms(k: int):
+        amp = float(table.a_p_deg[k])
+        mk, sk, pk = member_response(m, amp, sub, a)[0](float(table.f_p_hz[k]))
+        sd = np.sqrt(sk ** 2 + float(table.stderr_deg_s[k]) ** 2 + m.sigma_model ** 2)
+        return (float(table.omega_b_deg_s[k]) - mk) / sd, smoothed_p(pk, m.atlas.n_repeats)
+
+    # a member with a blur trusts no probe to pin omega_n finer than it: each probe's surprise is its least within
+    # CHECK_BLURS blur scales along log omega_n (none for a member without blur)
+    reach = int(round(CHECK_BLURS * m.blur / math.log(w[1] / w[0]))) if len(w) > 1 else 0
+    total = np.zeros((sub.size, a.size))
+    for k in idx:  # the surprise of every grid object, probe by probe (memory stays one grid)
+        z, pu = terms(k)
+        one = _surprise((z ** 2)[..., None], np.array([not table.unstable[k]]), pu[..., None])
+        if reach > 0:
+            from scipy.ndimage import minimum_filter1d
+
+            one = minimum_filter1d(one, 2 * reach + 1, axis=0, mode="nearest")
+        total += one
+    total = np.where(member_coverage(m, sub, a), total, np.inf)
+    c = np.unravel_index(int(np.argmin(total)), total.shape)
+    stable = ~table.unstable[idx]
+    rows_c = slice(max(c[0] - reach, 0), c[0] + reach + 1)
+    z, p_c = [], []
+    for k, st in zip(idx, stable, strict=True):  # each probe at its best omega_n within the reach of the object
+        zz, pp = terms(k)
+        zz, pp = zz[rows_c, c[1]], pp[rows_c, c[1]]
+        j = int(np.argmin(_surprise((zz ** 2)[:, None], np.array([st]), pp[:, None])))
+        z.append(zz[j])
+        p_c.append(pp[j])
+    z, p_c = np.array(z), np.array(p_c)
+    t_obs = float(_surprise(z ** 2, stable, p_c))
+    rng = np.random.default_rng(CHECK_SEED)
+    stable_rep = rng.random((CHECK_DRAWS, n)) >= p_c
+    z2_rep = rng.standard_t(NU, (CHECK_DRAWS, n)) ** 2
+    t_rep = _surprise(z2_rep, stable_rep, np.broadcast_to(p_c, (CHECK_DRAWS, n)))
+    p_value = float((1 + np.count_nonzero(t_rep >= t_obs)) / (CHECK_DRAWS + 1))
+    worst = None
+    if np.any(stable):
+        j = int(np.argmax(np.where(stable, np.abs(z), -1.0)))
+        worst = (float(table.f_p_hz[idx[j]]), float(table.a_p_deg[idx[j]]), float(z[j]))
+    return PredictiveCheck(statistic=t_obs, p_value=p_value, n_probes=n, member=m.label, worst=worst)
+
+
 def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:
     """omega_n and alpha as posterior medians of ``fm``, with equal-tailed 68 % / 95 % intervals; a bound (``ok``
     False) when the posterior piles against the edge of the identifiable range; no estimate when a probe lies
-    outside every member's atlas (it is named, not dropped)."""
-    n_un = int(table.unstable.sum())
-    base = {"method": "atlas", "n_probes": len(table), "n_unstable": n_un, "forward": fm.name}
-    if len(table) == 0:
-        return Estimate(ok=False, reason="no probes", **base)
+    outside every member's atlas (it is named, not dropped), when the probes fail the predictive check
+    (:func:`predictive_check`: data the model cannot explain) or when alpha piles against the edge of the
+    friction angles the model covers (:meth:`Posterior.alpha_edge`). The estimate carries its check. From scratch;
+    :class:`plate_env.identify.posterior_state.PosteriorState` gives the same estimate probe by probe."""
     orphans = sorted({reason for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)
                       if all((reason := member_domain(m, float(f), float(amp))) is not None for m in fm.members)})
+    return atlas_estimate(fm, table, orphans, lambda: posterior(fm, table))
+
+
+def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
+                   make_posterior: Callable[[], Posterior]) -> Estimate:
+    """The estimate of :func:`identify_atlas` from the probes (counted, and read by the predictive check), the
+    reasons of probes no member describes (``orphans``: then no estimate) and the posterior (``make_posterior()``,
+    called only when it is needed)."""
+    base = {"method": "atlas", "n_probes": len(table), "n_unstable": int(table.unstable.sum()), "forward": fm.name}
+    if len(table) == 0:
+        return Estimate(ok=False, reason="no probes", **base)
     if orphans:  # probes no member describes are not dropped silently
         return Estimate(ok=False, reason="; ".join(orphans) + f": leave those probes out or use a forward model "
                         f"that describes them (not {fm.name!r})", **base)
-    post = posterior(fm, table)
+    post = make_posterior()
     om, al = post.omega(), post.alpha_marginal()
+    check = predictive_check(fm, table, post)
     fields = dict(omega_n=om.value, omega_n_stderr=om.stderr, omega_n_ci68=om.ci68, omega_n_ci95=om.ci95,
-                  alpha=al.value, alpha_stderr=al.stderr, posterior=post, **base)
+                  alpha=al.value, alpha_stderr=al.stderr, posterior=post, check=check, **base)
     side = post.edge()
+    if not check.passed:  # data no object of the model could make: no number and no bound, the check says why
+        edge = "" if side is None else f" (its best fit piles at the {side} edge of the range it can identify)"
+        return Estimate(ok=False, reason=check.reason() + edge, **fields)
     if side is not None:
         lo, hi = post.identifiable_range
         bound = ("above", om.ci95[0]) if side == "above" else ("below", om.ci95[1])
         return Estimate(ok=False, bound=bound, reason=(
             f"omega_n is {side} the range {fm.name!r} can identify ({lo / math.pi:.3g}-{hi / math.pi:.3g} pi rad/s): "
             f"omega_n {'>' if side == 'above' else '<'} {bound[1]:.4g} rad/s at 95 %"), **fields)
+    alpha_side = post.alpha_edge()
+    if alpha_side is not None:
+        a_lo, a_hi = fm.alpha_range
+        return Estimate(ok=False, reason=(
+            f"alpha is {alpha_side} the friction angles {fm.name!r} covers ({math.degrees(a_lo):.0f}-"
+            f"{math.degrees(a_hi):.0f} deg): the posterior piles at that edge, so its omega_n cannot be trusted"),
+            **fields)
     return Estimate(ok=True, **fields)
 
 

@@ -16,8 +16,8 @@ PHYSICS_NAMES = PHYSICS.names
 def make_physics(name: str, **options) -> Physics:
     """Create a physics backend by name (:data:`PHYSICS`); options go to its constructor.
 
-    ``"tilelink"``: the paper's model (``model="pointmass"`` default, ``"rigid"`` or ``"rigid_limit"``), batched
-    in numba.
+    ``"tilelink"``: the paper's model (``model="pointmass"`` default, ``"rigid"``, ``"rigid_limit"``,
+    ``"rigid_fast"``), batched in numba.
     ``"pybullet"``: a PyBullet soft-body sheet on a kinematic plate (options: dt, n_layer, n_workers, ...).
     ``"atlas"``: the response atlas of another backend served as physics (microsecond probes, for RL training).
     """

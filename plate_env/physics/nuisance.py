@@ -75,14 +75,14 @@ class Nuisance:
 
     def tilelink_options(self, model: str = "pointmass") -> dict:
         """``make_physics("tilelink", model=model, **options)`` options that realise this draw."""
-        from plate_env.physics.tilelink.rigid import RIGID_LIMIT_CONFIG, RigidTileConfig
+        from plate_env.physics.tilelink.rigid import MODEL_CONFIGS, RigidTileConfig
 
         contact = ContactLaw(k=PAPER_CONTACT.k * self.contact_k_scale, c=PAPER_CONTACT.c * self.contact_c_scale,
                              v_transition=self.v_transition)
         joints = {"k_inplane": self.k_inplane, "zeta_inplane": self.zeta_inplane, "zeta_bending": self.zeta_bending}
         if model == "pointmass":
             return {"model": model, "config": PointMassConfig(**joints), "contact": contact}
-        base = RIGID_LIMIT_CONFIG if model == "rigid_limit" else RigidTileConfig()
+        base = MODEL_CONFIGS.get(model, RigidTileConfig())
         return {"model": model, "rigid_config": replace(base, **joints), "contact": contact}
 
 

@@ -49,7 +49,7 @@ WORKER_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THRE
 #: Executor names accepted by :func:`make_executor` (plus ``pool:N`` and ``ray://HOST:PORT``).
 EXECUTOR_NAMES = ("local", "inprocess", "pool", "ray")
 #: tilelink models that run in a process pool under the ``local`` executor.
-POOLED_TILELINK_MODELS = ("rigid", "rigid_limit")
+POOLED_TILELINK_MODELS = ("rigid", "rigid_limit", "rigid_fast")
 
 
 @dataclass(frozen=True)
@@ -196,7 +196,18 @@ class PoolExecutor:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
-        return ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"))
+        return ProcessPoolExecutor(max_workers=self.workers, mp_context=mp.get_context("spawn"),
+                                   initializer=ignore_interrupts)
+
+    def _terminate(self) -> None:
+        """Ctrl-C: end the workers now (they ignore SIGINT, so none prints a traceback) and drop the pool."""
+        if self._pool is None:
+            return
+        for proc in list((getattr(self._pool, "_processes", None) or {}).values()):
+            with contextlib.suppress(Exception):
+                proc.terminate()
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        self._pool = None
 
     def worker_pids(self) -> list[int]:
         """Process ids of the live workers (for fault tests)."""
@@ -220,6 +231,9 @@ class PoolExecutor:
                     res = fut.result()
                     pending.remove(i)
                     yield i, res
+            except KeyboardInterrupt:
+                self._terminate()
+                raise
             except BrokenProcessPool:
                 self._pool.shutdown(wait=False, cancel_futures=True)
                 self._pool = None
@@ -238,6 +252,14 @@ class PoolExecutor:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+
+
+def ignore_interrupts() -> None:
+    """A pool worker's initializer: Ctrl-C reaches the whole process group, and the driver alone handles it (it
+    keeps the finished chunks and ends the workers); a worker would print its own KeyboardInterrupt traceback."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 class RayExecutor:
@@ -314,10 +336,26 @@ def check_executor_name(name: str | None) -> None:
         return
     if name.startswith("pool:"):
         n = name.split(":", 1)[1]
-        if n.isdigit() and int(n) >= 1:
+        if n.isascii() and n.isdigit() and int(n) >= 1:  # ASCII digits only: "²".isdigit() is True
             return
         raise ValueError(f"executor {name!r}: pool:N needs a positive number of workers N")
     raise ValueError(f"unknown executor {name!r}; choose local, inprocess, pool, pool:N, ray or ray://HOST:PORT")
+
+
+def pool_workers(name: str) -> int | None:
+    """The workers of ``pool:N``: N, at most the CPU count (more only queue for the same cores and cost a process
+    each; a warning says so); None for ``pool`` (one per core)."""
+    if ":" not in name:
+        return None
+    n = int(name.split(":", 1)[1])
+    cores = os.cpu_count() or 1
+    if n > cores:
+        import warnings
+
+        warnings.warn(f"executor {name!r}: {n} workers on {cores} CPU cores; using {cores} (more would only wait for "
+                      "the same cores)", stacklevel=3)
+        return cores
+    return n
 
 
 def make_executor(name: str | None = "local", backend: BackendSpec | None = None, **kw: Any) -> Executor:
@@ -330,7 +368,7 @@ def make_executor(name: str | None = "local", backend: BackendSpec | None = None
     if name == "inprocess":
         return InProcessExecutor(**kw)
     if name == "pool" or name.startswith("pool:"):
-        return PoolExecutor(workers=int(name.split(":", 1)[1]) if ":" in name else None, **kw)
+        return PoolExecutor(workers=pool_workers(name), **kw)
     if name.startswith("ray://"):
         return RayExecutor(address=name, **kw)
     return RayExecutor(**kw)

@@ -7,12 +7,13 @@ finish, in any order. Used by the CLI's ``sweep`` and the experiment scripts (ca
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from plate_env.core.probe import ProbeResult, ProbeSpec
+from plate_env.core.probe import SLIP_LIMIT_M, ProbeResult, ProbeSpec
 from plate_env.physics.interface import Physics
 from plate_env.run.executor import (
     BackendSpec,
@@ -24,10 +25,13 @@ from plate_env.run.executor import (
 )
 
 #: Backend settings that change results and so enter the cache key (each where the backend has it).
-TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact", "record_interval_s")
+TAG_SETTINGS = ("model", "dt", "n_layer", "mesh", "config", "rigid_config", "contact", "record_interval_s",
+                "slip_limit", "k_elastic", "stderr_tol_deg_s", "rho", "corr_hz", "kernel")
 #: Settings named in the key only when they differ from this default: they became options after caches of the
-#: default existed, which stay valid.
-TAG_DEFAULTS = {"record_interval_s": 1e-3}
+#: default existed, which stay valid (tilelink ``slip_limit`` and ``kernel``, pybullet ``k_elastic`` and
+#: ``stderr_tol_deg_s``, the atlas's ``instability_rho`` and ``instability_corr_hz``, kept as ``rho`` and ``corr_hz``).
+TAG_DEFAULTS = {"record_interval_s": 1e-3, "slip_limit": SLIP_LIMIT_M, "k_elastic": None, "stderr_tol_deg_s": None,
+                "rho": 0.0, "corr_hz": 2.0, "kernel": "v1"}
 
 
 def backend_tag(physics: Physics | BackendSpec) -> str:
@@ -68,25 +72,73 @@ def _from_record(spec: ProbeSpec, d: dict) -> ProbeResult:
                        wall_s=float(d["wall_s"]), periods_measured=int(d["periods_measured"]))
 
 
-def read_records(path: Path) -> list[dict]:
-    """The JSON objects of a JSON-lines file (none if it does not exist), skipping a torn last line (an
-    interrupted write) and lines that are not objects."""
-    if not path.exists():
-        return []
-    out = []
-    for line in path.read_text().splitlines():
+def check_cache_file(path: Path, option: str = "--cache") -> Path:
+    """``path`` if it is a regular file or does not exist yet, else ValueError naming it: a device (``/dev/zero``
+    reads forever), a FIFO (blocks) or a directory is never a cache."""
+    path = Path(path)
+    if path.exists() and not path.is_file():
+        raise ValueError(f"{option} {str(path)!r} is not a regular file (a directory, device or FIFO); give the path "
+                         "of a JSON-lines file (created if missing)")
+    return path
+
+
+def _numbered_records(path: Path):
+    """``(line number, object)`` of a JSON-lines file (none if it does not exist), skipping a torn last line (an
+    interrupted write) and lines that are not objects; refuses a path that is not a regular file."""
+    if not check_cache_file(path).exists():
+        return
+    for lineno, line in enumerate(path.read_text().splitlines(), start=1):
         try:
             d = json.loads(line)
         except json.JSONDecodeError:
             continue
         if isinstance(d, dict):
-            out.append(d)
-    return out
+            yield lineno, d
+
+
+def read_records(path: Path) -> list[dict]:
+    """The JSON objects of a JSON-lines file (none if it does not exist), skipping a torn last line (an
+    interrupted write) and lines that are not objects. ValueError if ``path`` is not a regular file."""
+    return [d for _, d in _numbered_records(Path(path))]
+
+
+def record_problem(d: dict) -> str | None:
+    """Why a sweep-cache record cannot be loaded (a field missing, of the wrong type or out of range), else None."""
+    def number(name: str, lo: float = -math.inf, integral: bool = False) -> str | None:
+        v = d.get(name)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or (integral and not isinstance(v, int)):
+            return f"{name} = {v!r} is not {'an integer' if integral else 'a number'}"
+        if not (math.isfinite(v) and v >= lo):
+            return f"{name} = {v!r} is outside [{lo:g}, inf)"
+        return None
+
+    for problem in (number("omega_b_deg_s"), number("stderr_deg_s", 0.0), number("sim_s", 0.0),
+                    number("wall_s", 0.0), number("periods_measured", 0, integral=True)):
+        if problem:
+            return problem
+    if not isinstance(d.get("unstable"), bool):
+        return f"unstable = {d.get('unstable')!r} is not true/false"
+    if not (d.get("reason") is None or isinstance(d.get("reason"), str)):
+        return f"reason = {d.get('reason')!r} is not a string or null"
+    return None
 
 
 def load_cache(path: Path) -> dict[str, dict]:
-    """A sweep cache file's records by key (torn or foreign lines skipped)."""
-    return {d["key"]: d for d in read_records(path) if "key" in d}
+    """A sweep cache file's records by key (torn or foreign lines skipped). A record with a bad field is skipped
+    with a warning naming the file, line and field (its probe runs again), never loaded."""
+    import warnings
+
+    out = {}
+    for lineno, d in _numbered_records(Path(path)):
+        if "key" not in d:
+            continue
+        problem = record_problem(d)
+        if problem:
+            warnings.warn(f"{path}: line {lineno}: {problem}; the record is skipped (its probe runs again)",
+                          stacklevel=2)
+            continue
+        out[d["key"]] = d
+    return out
 
 
 class SweepInterrupted(KeyboardInterrupt):
@@ -107,6 +159,14 @@ def open_for_append(path: Path):
         with open(path, "r+b") as fh:
             fh.truncate(data.rfind(b"\n") + 1)
     return open(path, "ab")  # noqa: SIM115 - returned to the caller, who closes it
+
+
+def _cache_failed(cache, exc: OSError) -> None:
+    import warnings
+
+    warnings.warn(f"cannot write the cache {str(cache)!r} ({exc.strerror or exc}): the sweep goes on without it and "
+                  "its probes are returned (printed) all the same; a rerun recomputes what was not written (a torn "
+                  "last line is skipped)", stacklevel=3)
 
 
 def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache: str | Path | None,
@@ -145,18 +205,30 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
         from tqdm.auto import tqdm
 
         bar = tqdm(total=sum(map(len, chunks)), desc=desc, unit="probe")
-    fh = open_for_append(Path(cache)) if cache and chunks else None
+    fh = None
+    if cache and chunks:
+        try:
+            fh = open_for_append(Path(cache))
+        except OSError as exc:
+            _cache_failed(cache, exc)
     try:
         if chunks:
             for j, results in executor.map(fn, [[specs[i] for i in c] for c in chunks]):
                 idx = chunks[j]
+                lines = []
                 for i, r in zip(idx, results, strict=True):
                     line = _to_line(keys[i], r)
                     done[keys[i]] = json.loads(line)
-                    if fh is not None:
-                        fh.write((line + "\n").encode())
+                    lines.append(line + "\n")
                 if fh is not None:
-                    fh.flush()
+                    try:
+                        fh.write("".join(lines).encode())
+                        fh.flush()
+                    except OSError as exc:  # disk full, quota, I/O error: the sweep goes on, its results in memory
+                        _cache_failed(cache, exc)
+                        with contextlib.suppress(OSError):
+                            fh.close()
+                        fh = None
                 if bar is not None:
                     bar.update(len(idx))
     except KeyboardInterrupt:
@@ -166,7 +238,8 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
         if own and executor is not None:
             executor.close()
         if fh is not None:
-            fh.close()
+            with contextlib.suppress(OSError):
+                fh.close()
         if bar is not None:
             bar.close()
     out = [_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)]

@@ -2,7 +2,7 @@
 
 Built by ``experiments/build_atlas.py`` from repeated probes of a real backend (each repeat places the disc at a
 random yaw and offset, as a real experiment would), shipped as package data (``.npz`` with provenance), and
-interpolated smoothly: tensor-product cubic splines along f_p, log omega_n and alpha (scipy's
+interpolated smoothly: tensor-product cubic splines along f_p, log omega_n and alpha (the spline of scipy's
 RegularGridInterpolator "cubic"), passing exactly through the grid values; spreads are clipped at 0 and
 instability probabilities to [0, 1] where the spline overshoots. (Its "pchip" variant would not overshoot but
 evaluates ~700x slower: 4.4 s against 6 ms for 20,000 points, measured.) Plate amplitudes are not interpolated:
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -67,11 +68,12 @@ class Atlas:
         self.__dict__.update(state)
 
     def amp_index(self, a_p_deg: float) -> int:
-        idx = np.flatnonzero(np.isclose(self.a_p_deg, a_p_deg, atol=1e-6))
-        if idx.size == 0:
-            raise ValueError(f"A_p = {a_p_deg!r} deg is not in this atlas; its amplitudes are "
-                             f"{[float(a) for a in self.a_p_deg]} deg")
-        return int(idx[0])
+        x = float(a_p_deg)
+        for i, a in enumerate(self.a_p_deg.tolist()):  # np.isclose(a, x, atol=1e-6), without its per-call cost
+            if abs(a - x) <= 1e-6 + 1e-5 * abs(x):
+                return i
+        raise ValueError(f"A_p = {a_p_deg!r} deg is not in this atlas; its amplitudes are "
+                         f"{[float(a) for a in self.a_p_deg]} deg")
 
     # -------------------------------------------------------------- domain
     def axes(self) -> dict[str, np.ndarray]:
@@ -198,14 +200,104 @@ def _show(name: str, value: float, hi: float | None = None, unit: bool = True) -
 
 
 def _interp(atlas: Atlas, kind: str, amp: int) -> Callable[[np.ndarray], np.ndarray]:
-    from scipy.interpolate import RegularGridInterpolator
-    from scipy.sparse.linalg import spsolve
+    """The tensor-product cubic spline scipy's ``RegularGridInterpolator(method="cubic", solver=spsolve)`` builds
+    (its ``NdBSpline``), evaluated directly at points inside the grid (the same floats, without the interpolator's
+    per-call checks). Its coefficients are kept in the disk cache (:mod:`plate_env.core.cache`), keyed by the atlas's
+    values and axes: the sparse solve runs once per machine, not once per process."""
+    from plate_env.core.cache import cached_arrays, content_key
 
-    values = getattr(atlas, kind)[:, amp, :, :]
+    values = np.ascontiguousarray(getattr(atlas, kind)[:, amp, :, :], dtype=float)
+    axes = (np.asarray(atlas.f_hz, float), np.log(atlas.omega_n), np.asarray(atlas.alpha, float))
 
-    # a direct solve of the spline system: exact at the nodes (the default iterative solver leaves ~1e-6)
-    return RegularGridInterpolator((atlas.f_hz, np.log(atlas.omega_n), atlas.alpha), values, method="cubic",
-                                   solver=spsolve)
+    def build() -> dict[str, np.ndarray]:
+        from scipy.interpolate import RegularGridInterpolator
+        from scipy.sparse.linalg import spsolve
+
+        # a direct solve of the spline system: exact at the nodes (the default iterative solver leaves ~1e-6)
+        spl = RegularGridInterpolator(axes, values, method="cubic", solver=spsolve)._spline
+        return {"c": spl.c, "k": np.asarray(spl.k), "t0": spl.t[0], "t1": spl.t[1], "t2": spl.t[2]}
+
+    arr = cached_arrays("atlas-spline", content_key("atlas-spline", *axes, values), build)
+    return _TensorSpline((arr["t0"], arr["t1"], arr["t2"]), np.array(arr["c"]), tuple(int(k) for k in arr["k"]))
+
+
+class _TensorSpline:
+    """A tensor-product B-spline (knots ``t``, coefficients ``c``, degrees ``k``) evaluated as scipy's ``NdBSpline``
+    evaluates it, operation for operation: at a few points in plain Python while scipy.interpolate is not imported
+    (an env's first steps do not wait for its import), otherwise through ``NdBSpline`` itself.
+    tests/test_atlas.py checks that the two give the same floats."""
+
+    #: Up to this many points are evaluated in Python.
+    FEW = 8
+
+    def __init__(self, t: tuple[np.ndarray, ...], c: np.ndarray, k: tuple[int, ...]) -> None:
+        self.t, self.c, self.k = t, c, k
+        self._t_lists = [list(map(float, td)) for td in t]
+        self._c_list = None
+        self._scipy = None
+
+    def __call__(self, xi: np.ndarray) -> np.ndarray:
+        xi = np.asarray(xi, dtype=float)
+        if (xi.ndim == 2 and xi.shape[0] <= self.FEW and xi.shape[1] == len(self.t)
+                and "scipy.interpolate" not in sys.modules):  # once scipy is loaded, its faster call serves
+            return np.array([self.at(row) for row in xi.tolist()], dtype=float)
+        if self._scipy is None:
+            from scipy.interpolate import NdBSpline
+
+            self._scipy = NdBSpline(self.t, self.c, self.k)
+        return self._scipy(xi)
+
+    def at(self, x: list[float]) -> float:
+        """The spline at one point (inside the knots' base interval in every dimension)."""
+        if self._c_list is None:
+            self._c_list = self.c.tolist()
+        bases, starts = [], []
+        for td, kd, xd in zip(self._t_lists, self.k, x, strict=True):
+            ell = _find_interval(td, kd, xd)
+            bases.append(_de_boor(td, xd, kd, ell))
+            starts.append(ell - kd)
+        (b0, b1, b2), (s0, s1, s2) = bases, starts
+        c = self._c_list
+        out = 0.0
+        for i0, w0 in enumerate(b0):
+            plane = c[s0 + i0]
+            for i1, w1 in enumerate(b1):
+                line = plane[s1 + i1]
+                f01 = 1.0 * w0 * w1
+                for i2, w2 in enumerate(b2):
+                    out += line[s2 + i2] * (f01 * w2)
+        return out
+
+
+def _find_interval(t: list[float], k: int, x: float) -> int:
+    """``l`` with ``t[l] <= x < t[l + 1]`` (``k <= l < n``; x at the last knot: ``n - 1``), as scipy's
+    ``fitpack::_find_interval`` from ``prev_l = k``."""
+    n = len(t) - k - 1
+    if x != x:
+        return -1
+    ell = k + 1
+    while x >= t[ell] and ell != n:
+        ell += 1
+    return ell - 1
+
+
+def _de_boor(t: list[float], x: float, k: int, ell: int) -> list[float]:
+    """The ``k + 1`` non-zero B-splines at ``x`` in the interval ``ell``, as scipy's ``fitpack::_deBoor_D``
+    (``m = 0``) computes them."""
+    h = [1.0] + [0.0] * k
+    for j in range(1, k + 1):
+        hh = h[:j]
+        h[0] = 0.0
+        for n in range(1, j + 1):
+            ind = ell + n
+            xb, xa = t[ind], t[ind - j]
+            if xb == xa:
+                h[n] = 0.0
+                continue
+            w = hh[n - 1] / (xb - xa)
+            h[n - 1] += w * (xb - x)
+            h[n] = w * (x - xa)
+    return h
 
 
 #: Spread (deg/s) given to grid points where no repeat was stable.

@@ -49,6 +49,8 @@ def atlas_inputs(atlas: Atlas) -> KnownInputs:
     return KnownInputs(**atlas.fixed())
 
 
+#: How to make an atlas that is missing (said once per message).
+BUILD_HINT = "build one for these inputs with experiments/build_atlas.py"
 #: Relative tolerance when matching a lab's B_p, diameter or mass to an atlas's.
 INPUT_RTOL = 0.02
 
@@ -67,8 +69,7 @@ def condition(atlases: Sequence[Atlas], known: KnownInputs) -> Atlas:
     if not ok:
         have = sorted({(round(k.b_p * 1e3, 3), round(k.diameter * 1e3, 1)) for k in ins})
         raise ValueError(f"no {label} atlas for B_p = {abs(known.b_p) * 1e3:g} mm, diameter = "
-                         f"{known.diameter * 1e3:g} mm (built: (B_p mm, diameter mm) {have}); build one with "
-                         "experiments/build_atlas.py")
+                         f"{known.diameter * 1e3:g} mm (built: (B_p mm, diameter mm) {have}); {BUILD_HINT}")
     ok.sort(key=lambda a: atlas_inputs(a).mass)
     masses = np.array([atlas_inputs(a).mass for a in ok])
     for a, m in zip(ok, masses, strict=True):
@@ -80,8 +81,7 @@ def condition(atlases: Sequence[Atlas], known: KnownInputs) -> Atlas:
                                                                       f"{INPUT_RTOL:.0%})"))
     if not (masses[0] < known.mass < masses[-1]):
         raise ValueError(f"no {label} atlas covers a mass of {known.mass * 1e3:g} g (built: "
-                         f"{[float(round(m * 1e3, 2)) for m in masses]} g); build one at that mass with "
-                         "experiments/build_atlas.py")
+                         f"{[float(round(m * 1e3, 2)) for m in masses]} g); {BUILD_HINT}")
     j = int(np.searchsorted(masses, known.mass))
     lo, hi = ok[j - 1], ok[j]
     for name in ("f_hz", "a_p_deg", "alpha"):

@@ -146,9 +146,39 @@ def calibrated_k(obj: ObjectSpec, config: SheetConfig, tol: float = 0.02, max_it
 
     The ring-down estimate wiggles by up to ~10 % around the sqrt(k) law between table points, so the table
     value is checked by a ring-down at that k and corrected with ``k *= (target / measured)^2`` until the
-    measured omega_n is within ``tol`` (at most ``max_iter`` ring-downs, ~0.5-2 s each, once per object and
-    process). Returns the best pair seen.
+    measured omega_n is within ``tol`` (at most ``max_iter`` ring-downs, ~0.5-2 s each). Once per object and
+    process, and kept in the disk cache (:mod:`plate_env.core.cache`) keyed by the object, the config, the tolerances,
+    the pybullet version and this package's PyBullet source: a new process reads it instead of running the
+    ring-downs again. Returns the best pair seen.
     """
+    import pybullet
+
+    from plate_env.core.cache import cached_arrays, content_key
+
+    key = content_key("pybullet-k", repr(obj), repr(config), tol, max_iter, _source_digest(),
+                      getattr(pybullet, "getAPIVersion", lambda: "?")())
+    arr = cached_arrays("pybullet-k", key, lambda: {"k_w": np.array(_ringdown_k(obj, config, tol, max_iter))},
+                        note=f"calibrating the PyBullet sheet's stiffness to omega_n = {obj.omega_n:.4g} rad/s by "
+                             "ring-downs")
+    k, w = (float(x) for x in arr["k_w"])
+    return k, w
+
+
+@lru_cache(maxsize=1)
+def _source_digest() -> str:
+    """SHA-256 of this package's PyBullet sheet source files (a change to them invalidates cached calibrations)."""
+    import hashlib
+    from pathlib import Path
+
+    h = hashlib.sha256()
+    for p in sorted(Path(__file__).parent.glob("*.py")):
+        h.update(p.name.encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def _ringdown_k(obj: ObjectSpec, config: SheetConfig, tol: float, max_iter: int) -> tuple[float, float]:
+    """:func:`calibrated_k` by ring-downs, without the caches."""
     k = k_for_omega_n(obj, config)
     best = (k, math.nan)
     lo, hi = 0.0, math.inf  # bracket: omega_n(lo) < target < omega_n(hi)

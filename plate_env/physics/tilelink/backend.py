@@ -33,16 +33,29 @@ from plate_env.physics.tilelink.params import (
     allocate_outputs,
     common_vector,
 )
-from plate_env.physics.tilelink.pointmass import PointMassConfig, build_params, implicit_damping_matrix
-from plate_env.physics.tilelink.rigid import RIGID_LIMIT_CONFIG, RigidTileConfig
+from plate_env.physics.tilelink.pointmass import (
+    PointMassConfig,
+    build_params,
+    grid_damping_blocks,
+    grid_layout,
+    implicit_damping_matrix,
+)
+from plate_env.physics.tilelink.rigid import MODEL_CONFIGS, RigidTileConfig
 
-MODELS = ("pointmass", "rigid", "rigid_limit")
+MODELS = ("pointmass", "rigid", "rigid_limit", "rigid_fast")
+#: The models run by the rigid-tile kernel.
+RIGID_MODELS = ("rigid", "rigid_limit", "rigid_fast")
+#: Point-mass kernels: "v1" (dense damper, the numbers the shipped atlases were built with) and "v2" (the damper
+#: in the symmetry basis, faster; its omega_B against v1's: experiments/results/bench_kernel.md).
+KERNELS = ("v1", "v2")
 #: Largest time step measured stable for each model, s, and where: point mass, no blow-up over the 1600-probe
 #: stress map at <= 4e-4 s, 52 % ran away at 6e-4 s; rigid, every probe ran away at 4e-4 s; rigid_limit, the
-#: coarsest step measured (its rows at half the stiffness already run away at 2e-4 s).
+#: coarsest step measured (its rows at half the stiffness already run away at 2e-4 s); rigid_fast, with one sweep a
+#: step its rows ran away at 5e-5 s (experiments/results/rigid_fast.md).
 STABLE_DT = {"pointmass": (4e-4, "experiments/results/stress_tilelink_pointmass.md"),
              "rigid": (2e-4, "experiments/results/bench_models.md, rigid: omega_B against dt"),
-             "rigid_limit": (5e-5, "experiments/results/bench_models.md, rigid_limit: omega_B against dt")}
+             "rigid_limit": (5e-5, "experiments/results/bench_models.md, rigid_limit: omega_B against dt"),
+             "rigid_fast": (2.5e-5, "experiments/results/rigid_fast.md")}
 #: Probes per kernel call when a progress bar is shown.
 PROGRESS_CHUNK = 8
 
@@ -58,6 +71,21 @@ def _pointmass_params(obj: ObjectSpec, config: PointMassConfig):
 
 
 @lru_cache(maxsize=256)
+def _blocks(obj: ObjectSpec, config: PointMassConfig, dt: float) -> np.ndarray:
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return grid_damping_blocks(_pointmass_params(obj, config), dt)
+
+
+@lru_cache(maxsize=16)
+def _grid(diameter: float):
+    from plate_env.physics.tilelink.geometry import disc_geometry
+
+    return grid_layout(disc_geometry(diameter))
+
+
+@lru_cache(maxsize=256)
 def _ainv(obj: ObjectSpec, config: PointMassConfig, dt: float) -> np.ndarray:
     from threadpoolctl import threadpool_limits
 
@@ -70,9 +98,11 @@ class TileLinkPhysics:
 
     Args:
         model: ``"pointmass"`` (the fast point-mass reduction, default), ``"rigid"`` (52 rigid tiles with the
-            joints' held motions as stiff rows at 5000 rad/s) or ``"rigid_limit"`` (the same tiles with the rows
+            joints' held motions as stiff rows at 5000 rad/s), ``"rigid_limit"`` (the same tiles with the rows
             in their converged rigid limit, :data:`rigid.RIGID_LIMIT_CONFIG`, at dt = 2.5e-5 s: the paper's
-            model). Their speeds and first-hump fits: ``experiments/results/bench_models.md``.
+            model) or ``"rigid_fast"`` (the same model by small steps of one sweep each,
+            :data:`rigid.RIGID_FAST_CONFIG`; accuracy, speed: ``experiments/results/rigid_fast.md``).
+            Their speeds and first-hump fits: ``experiments/results/bench_models.md``.
         dt: time step, s; None takes the model's default (:data:`params.DEFAULT_DT`; its error against
             smaller steps: ``experiments/results/bench_physics.md`` and ``bench_models.md``).
         slip_limit: centre displacement (m, plate frame) beyond which a probe is unstable (the paper: 10 mm).
@@ -81,13 +111,19 @@ class TileLinkPhysics:
         record_interval_s: simulated seconds between recorded yaw/centre samples (rounded to whole steps, at
             least one); omega_B interpolates the records at the plate periods' boundaries, so this is part of
             a result's provenance (and of the sweep cache key, :func:`plate_env.run.sweeps.backend_tag`).
+        kernel: the point-mass kernel, one of :data:`KERNELS` ("v1" default: the numbers the shipped atlases were
+            built with; "v2": faster, omega_B within each probe's standard error of v1's, other bits). Part of
+            the sweep cache key when not "v1".
     """
 
     def __init__(self, model: str = "pointmass", dt: float | None = None, slip_limit: float = SLIP_LIMIT_M,
                  config: PointMassConfig | None = None, rigid_config: RigidTileConfig | None = None,
-                 contact: ContactLaw = PAPER_CONTACT, record_interval_s: float = DEFAULT_RECORD_INTERVAL_S) -> None:
+                 contact: ContactLaw = PAPER_CONTACT, record_interval_s: float = DEFAULT_RECORD_INTERVAL_S,
+                 kernel: str = "v1") -> None:
         if model not in MODELS:
             raise ValueError(f"unknown tilelink model {model!r}; choose one of {MODELS}")
+        if kernel not in KERNELS:
+            raise ValueError(f"unknown point-mass kernel {kernel!r}; choose one of {KERNELS}")
         if dt is None:
             dt = DEFAULT_DT[model]
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and 0.0 < dt <= 0.01):
@@ -101,12 +137,13 @@ class TileLinkPhysics:
         warn_above_stable_dt(float(dt), limit, f"the {model} model", source)
         self.name = "tilelink"
         self.model = model
+        self.kernel = kernel
         self.dt = float(dt)
         self.slip_limit = float(slip_limit)
         self.record_interval_s = float(record_interval_s)
         self.config = config or PointMassConfig()
         if rigid_config is None:
-            rigid_config = RIGID_LIMIT_CONFIG if model == "rigid_limit" else RigidTileConfig()
+            rigid_config = MODEL_CONFIGS.get(model, RigidTileConfig())
         self.rigid_config = rigid_config
         if not isinstance(contact, ContactLaw):
             raise TypeError(f"contact must be a ContactLaw, got {type(contact).__name__}")
@@ -130,7 +167,7 @@ class TileLinkPhysics:
 
     def run_arrays(self, probes: Sequence[ProbeSpec]) -> dict[str, np.ndarray]:
         """Run the kernel on a batch and return its raw arrays (parameters, traces, status, records)."""
-        if self.model in ("rigid", "rigid_limit"):
+        if self.model in RIGID_MODELS:
             from plate_env.physics.tilelink.rigid_kernels import run_rigid_arrays
 
             return run_rigid_arrays(probes, self.dt, self.slip_limit, config=self.rigid_config, law=self.contact,
@@ -138,6 +175,10 @@ class TileLinkPhysics:
         prm = np.stack([self._param_vector(s) for s in probes])
         geom = _pointmass_params(probes[0].obj, self.config).geom
         rest = np.stack([_pointmass_params(s.obj, self.config).geom.rest for s in probes])
+        if self.kernel == "v2":
+            blocks = np.stack([_blocks(s.obj, self.config, self.dt) for s in probes])
+            spacing = np.array([_pointmass_params(s.obj, self.config).geom.spacing for s in probes])
+            return run_v2_arrays(prm, blocks, rest, geom, _grid(probes[0].obj.diameter), spacing)
         ainv = np.stack([_ainv(s.obj, self.config, self.dt) for s in probes])
         return self.run_param_arrays(prm, ainv, rest, geom)
 
@@ -185,6 +226,23 @@ class TileLinkPhysics:
             if bar is not None:
                 bar.close()
         return results
+
+
+def run_v2_arrays(prm: np.ndarray, blocks: np.ndarray, rest: np.ndarray, geom, grid, spacing: np.ndarray
+                  ) -> dict[str, np.ndarray]:
+    """Run the v2 point-mass kernel on prepared arrays: ``blocks`` (B, 4, K, K) damper blocks, ``grid`` the
+    :class:`GridLayout` of ``geom``, ``spacing`` (B,) each probe's grid spacing, m."""
+    from plate_env.physics.tilelink import kernels_v2 as k2
+
+    out = allocate_outputs(prm)
+    pair_rest = spacing[:, None] * np.array([1.0, 1.0, math.sqrt(2.0), math.sqrt(2.0)])
+    kernel = k2.pointmass_batch_serial if len(prm) == 1 else k2.pointmass_batch_parallel
+    if grid.quad.shape[0] != k2.QUAD:
+        raise ValueError(f"the v2 kernel needs {k2.QUAD} mirror orbits of nodes, the geometry has "
+                         f"{grid.quad.shape[0]}")
+    kernel(prm, blocks, grid.slot, grid.quad, grid.masks, pair_rest, rest, geom.cells, out["yaw"], out["cu"],
+           out["cv"], out["status"], out["nrec"])
+    return out
 
 
 def result_from_arrays(spec: ProbeSpec, raw: dict[str, np.ndarray], b: int, dt: float, wall: float = 0.0

@@ -25,6 +25,7 @@ from plate_env.core.probe import Status
 from plate_env.physics.tilelink.contact import damped_normal_force as _damped_normal_force_py
 from plate_env.physics.tilelink.contact import friction_scale as _friction_scale_py
 from plate_env.physics.tilelink.contact import spring_force as _spring_force_py
+from plate_env.physics.tilelink.jit_cache import CACHE
 from plate_env.physics.tilelink.params import (
     P_AMP,
     P_BP,
@@ -51,16 +52,16 @@ from plate_env.physics.tilelink.params import (
     P_YAW0,
 )
 
-plate_state = numba.njit(cache=True, inline="always")(_plate_state_py)
-spring_force = numba.njit(cache=True, inline="always")(_spring_force_py)
-damped_normal_force = numba.njit(cache=True, inline="always")(_damped_normal_force_py)
-friction_scale = numba.njit(cache=True, inline="always")(_friction_scale_py)
+plate_state = numba.njit(cache=CACHE, inline="always")(_plate_state_py)
+spring_force = numba.njit(cache=CACHE, inline="always")(_spring_force_py)
+damped_normal_force = numba.njit(cache=CACHE, inline="always")(_damped_normal_force_py)
+friction_scale = numba.njit(cache=CACHE, inline="always")(_friction_scale_py)
 
 #: fastmath without the no-NaN/no-inf assumptions, so blow-ups are still detected.
 FAST = {"reassoc", "contract", "arcp", "nsz", "afn"}
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def observe(pos, rest, cells, x_plate, s_th, c_th, prev_yaw):
     """Plate-frame centre (u, v, w), unwrapped yaw about the plate normal, the disc normal's w and max |w|.
 
@@ -99,7 +100,7 @@ def observe(pos, rest, cells, x_plate, s_th, c_th, prev_yaw):
     return cu, cv, cw, yaw, nw
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def check_state(cu, cv, cw, nw, vmax2, prm):
     """The :class:`Status` of one observation (``Status.OK``: fine)."""
     if not (math.isfinite(cu) and math.isfinite(cv) and math.isfinite(cw) and math.isfinite(vmax2)):
@@ -115,7 +116,7 @@ def check_state(cu, cv, cw, nw, vmax2, prm):
     return Status.OK
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def record(x, rest, cells, x_plate, s_th, c_th, prev_yaw, vmax2, extra_status, prm, yaw_out, cu_out, cv_out, n_rec):
     """One record of any tile-link kernel: observe, check (``check_state`` first, then the model's own
     ``extra_status``) and, if still fine, write yaw and centre. Returns (status, yaw, records written)."""
@@ -131,7 +132,7 @@ def record(x, rest, cells, x_plate, s_th, c_th, prev_yaw, vmax2, extra_status, p
     return status, yaw, n_rec
 
 
-@numba.njit(cache=True, fastmath=FAST)
+@numba.njit(cache=CACHE, fastmath=FAST)
 def pointmass_probe(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out, cu_out, cv_out):
     """Simulate one point-mass probe; fills the traces and returns (status, records written)."""
     n = rest.shape[0]
@@ -251,7 +252,7 @@ def pointmass_probe(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out,
     return status, n_rec
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=CACHE, parallel=True)
 def pointmass_batch_parallel(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out, cu_out, cv_out,
                              status_out, nrec_out):
     """Run a batch of probes over threads (one probe per iteration)."""
@@ -262,7 +263,7 @@ def pointmass_batch_parallel(prm, ainv, rest, links, diagonals, triplets, cells,
         nrec_out[b] = r
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def pointmass_batch_serial(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out, cu_out, cv_out,
                            status_out, nrec_out):
     """The same batch on the calling thread (no threading overhead for single probes)."""

@@ -20,7 +20,7 @@ N_PARAMS = 23
 
 #: Default time step of each tile-link model, s. How far each is from its dt -> 0 value is measured in
 #: experiments/results/bench_physics.md (point mass) and experiments/results/bench_models.md (rigid tiles).
-DEFAULT_DT = {"pointmass": 2e-4, "rigid": 2e-4, "rigid_limit": 2.5e-5}
+DEFAULT_DT = {"pointmass": 2e-4, "rigid": 2e-4, "rigid_limit": 2.5e-5, "rigid_fast": 2.5e-5}
 
 #: Default record interval, s: yaw and centre are recorded about every millisecond of simulated time (a backend
 #: option, ``TileLinkPhysics(record_interval_s=...)``; what other intervals cost and save is in

@@ -102,3 +102,88 @@ def implicit_damping_matrix(params: PointMassParams, dt: float) -> np.ndarray:
     n = params.geom.n_nodes
     a = np.eye(n) + dt * params.eta_bending * params.k_bending / params.node_mass * params.laplacian
     return np.linalg.inv(a)
+
+
+#: Signs of an orbit's members (node, u-mirror, v-mirror, both) in its four parity combinations.
+PARITY_SIGNS = np.array([[1, 1, 1, 1], [1, -1, 1, -1], [1, 1, -1, -1], [1, -1, -1, 1]], dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class GridLayout:
+    """The disc's nodes on the padded 8 x 8 grid of the v2 kernel (:mod:`kernels_v2`).
+
+    ``slot`` (N,): each node's index in the padded slot array; ``masks`` (7, G): 1 where a joint leaves a slot in
+    each of the four directions, where a triplet is centred in each of the two, and where a node sits; ``quad``
+    (N/4, 4): the slots of each orbit of four mirror images (a node with u < 0, v < 0, its mirror in u, in v, in
+    both), in the order of the damper blocks' rows.
+    """
+
+    slot: np.ndarray
+    masks: np.ndarray
+    quad: np.ndarray
+
+
+def grid_layout(geom: DiscGeometry) -> GridLayout:
+    """Place ``geom``'s nodes on the v2 kernel's grid and mark its joints, triplets and nodes there; checks that
+    the joints and triplets marked are exactly ``geom``'s."""
+    from plate_env.physics.tilelink import kernels_v2 as k2
+
+    side = k2.SIDE
+    cols = np.rint(geom.rest[:, 0] / geom.spacing + (side - 1) / 2).astype(np.int64)
+    rows = np.rint(geom.rest[:, 1] / geom.spacing + (side - 1) / 2).astype(np.int64)
+    slot = k2.PAD + side * rows + cols
+    node_at = {(int(c), int(r)): k for k, (c, r) in enumerate(zip(cols, rows, strict=True))}
+    masks = np.zeros((7, k2.SLOTS + 2 * k2.PAD))
+    masks[k2.M_NODE, slot] = 1.0
+    steps = {1: (1, 0), side: (0, 1), side + 1: (1, 1), side - 1: (-1, 1)}
+    found: dict[str, set] = {"links": set(), "diagonals": set(), "triplets": set()}
+    for (c, r), k in node_at.items():
+        for p, o in enumerate(k2.PAIR_OFFSETS):
+            dc, dr = steps[o]
+            b = node_at.get((c + dc, r + dr))
+            if b is None:
+                continue
+            cell = [node_at.get((min(c, c + dc) + ic, r + jr)) for ic in (0, 1) for jr in (0, 1)]
+            if p < 2 or all(q is not None for q in cell):  # a diagonal exists where its cell's four nodes do
+                masks[p, slot[k]] = 1.0
+                found["links" if p < 2 else "diagonals"].add(frozenset((k, b)))
+        for t, o in enumerate(k2.TRIPLET_OFFSETS):
+            dc, dr = steps[o]
+            a, b = node_at.get((c - dc, r - dr)), node_at.get((c + dc, r + dr))
+            if a is not None and b is not None:
+                masks[4 + t, slot[k]] = 1.0
+                found["triplets"].add((frozenset((a, b)), k))
+    assert found["links"] == {frozenset(map(int, e)) for e in geom.links}, "links do not match the grid"
+    assert found["diagonals"] == {frozenset(map(int, e)) for e in geom.diagonals}, "diagonals do not match the grid"
+    assert found["triplets"] == {(frozenset((int(a), int(c))), int(b)) for a, b, c in geom.triplets}, \
+        "triplets do not match the grid"
+    half = side // 2
+    quad = [[k2.PAD + side * rr + cc for rr, cc in ((r, c), (r, side - 1 - c), (side - 1 - r, c),
+                                                   (side - 1 - r, side - 1 - c))]
+            for r in range(half) for c in range(half) if (c, r) in node_at]
+    quad_arr = np.asarray(quad, dtype=np.int64)
+    assert sorted(quad_arr.ravel().tolist()) == sorted(slot.tolist()), "the nodes are not mirror symmetric"
+    return GridLayout(slot=slot, masks=masks, quad=quad_arr)
+
+
+def grid_damping_blocks(params: PointMassParams, dt: float) -> np.ndarray:
+    """The implicit damper ``(I + dt eta k_b / m L)^-1`` in the v2 kernel's layout (4, K, K): one block per
+    parity of the grid's mirror flips over the K orbits of :attr:`GridLayout.quad`, ``[p, q, o]`` block p's
+    entry (o, q).
+
+    ``L`` commutes with both flips, so in the orthonormal basis ``1/2 sum_k s_pk e_{orbit[k]}`` of each orbit
+    ``I + c L`` is block diagonal and each block is inverted on its own.
+    """
+    geom = params.geom
+    n = geom.n_nodes
+    a = np.eye(n) + dt * params.eta_bending * params.k_bending / params.node_mass * params.laplacian
+    layout = grid_layout(geom)
+    node_of = {int(s): k for k, s in enumerate(layout.slot)}
+    blocks = np.zeros((4, len(layout.quad), len(layout.quad)))
+    for p, signs in enumerate(PARITY_SIGNS):
+        basis = np.zeros((n, len(layout.quad)))
+        for o, members in enumerate(layout.quad):
+            for sign, member in zip(signs, members, strict=True):
+                basis[node_of[int(member)], o] = 0.5 * sign
+        blocks[p] = np.linalg.inv(basis.T @ a @ basis).T
+    return blocks

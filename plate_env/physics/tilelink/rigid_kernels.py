@@ -39,6 +39,7 @@ import numpy as np
 from plate_env.core.probe import SLIP_LIMIT_M, ProbeSpec, Status
 from plate_env.physics.tilelink import contact
 from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
+from plate_env.physics.tilelink.jit_cache import CACHE
 from plate_env.physics.tilelink.kernels import (
     FAST,
     damped_normal_force,
@@ -85,14 +86,14 @@ from plate_env.physics.tilelink.rigid import RigidTileConfig, RigidTileParams, b
 N_RIGID_PARAMS = N_PARAMS + 17
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, ux, uy, uz):
     """``I_world^-1 u`` of a thin symmetric plate with unit normal n: ``u / I_xx + (1/I_zz - 1/I_xx)(n.u) n``."""
     s = dinv * (nx * ux + ny * uy + nz * uz)
     return ux * ixx_inv + s * nx, uy * ixx_inv + s * ny, uz * ixx_inv + s * nz
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _turn(w, i, lx, ly, lz, nx, ny, nz, ixx_inv, dinv):
     """Add ``I^-1 l`` to tile ``i``'s angular velocity (l: angular impulse, N m s; n: the tile's normal)."""
     dx, dy, dz = _apply_inv_inertia(nx, ny, nz, ixx_inv, dinv, lx, ly, lz)
@@ -101,7 +102,7 @@ def _turn(w, i, lx, ly, lz, nx, ny, nz, ixx_inv, dinv):
     w[i, 2] += dz
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _push(v, w, i, fx, fy, fz, rx, ry, rz, lx, ly, lz, nx, ny, nz, inv_m, ixx_inv, dinv):
     """Apply the impulse f (N s) at lever r (m) from the centre, plus the angular impulse l (N m s), to tile ``i``.
     Callers pass -f, -l for the other side of a joint."""
@@ -112,7 +113,7 @@ def _push(v, w, i, fx, fy, fz, rx, ry, rz, lx, ly, lz, nx, ny, nz, inv_m, ixx_in
           dinv)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _row_constants(prm, dt):
     """Each joint row's stiffness ``k`` (rows: 0 compression, 1 edge, 2 normal, 3 bending, 4 rotation about n) and
     the backward-Euler factors of its spring-damper: ``gamma = 1 / (dt (dt k + c))``, ``k / (dt k + c)``."""
@@ -137,7 +138,7 @@ def _row_constants(prm, dt):
     return rk, gam, kfac
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _place_tiles(prm, rest, x, q):
     """The start state: flat at the rest depth, turned by the initial yaw, shifted by the initial offset."""
     cy = math.cos(prm[P_YAW0])
@@ -150,7 +151,7 @@ def _place_tiles(prm, rest, x, q):
         q[i, 3] = math.sin(0.5 * prm[P_YAW0])
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _tile_axes(q, ax):
     """Each tile's axes in the world from its unit quaternion: e1 (0:3), e2 (3:6), normal (6:9)."""
     for i in range(q.shape[0]):
@@ -166,7 +167,7 @@ def _tile_axes(q, ax):
         ax[i, 8] = 1.0 - 2.0 * (qx * qx + qy * qy)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _energy(x, v, w, ax, jc, rk, m, ixx, izz, grav, hh, kc, s_th, c_th):
     """(largest squared tile speed, the disc's mechanical energy in J, lowest plate-normal component of a tile
     normal). Energy: kinetic + gravitational + contact-spring (k/3.2 a^3.2 at each corner) + joint-elastic."""
@@ -199,7 +200,7 @@ def _energy(x, v, w, ax, jc, rk, m, ixx, izz, grav, hh, kc, s_th, c_th):
     return vmax2, energy, tile_w_min
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _check_and_record(step, prm, x, v, w, ax, jc, rk, rest, cells, xp, s_th, c_th, yaw, e0, work, work_abs,
                       excess_max, bend_max, yaw_out, cu_out, cv_out, n_rec):
     """Stage 1, every record: the energy check (RUNAWAY when the energy exceeds its start plus the plate's work
@@ -224,7 +225,7 @@ def _check_and_record(step, prm, x, v, w, ax, jc, rk, rest, cells, xp, s_th, c_t
     return status, yaw, n_rec, e0, excess_max, energy - e0
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _gravity_and_gyroscopic(v, w, ax, dt, grav, ixx, izz, ixx_inv, dinv):
     """Integrator step 1 (explicit): gravity, and the gyroscopic torque ``-w x (I w)``."""
     for i in range(v.shape[0]):
@@ -243,7 +244,7 @@ def _gravity_and_gyroscopic(v, w, ax, dt, grav, ixx, izz, ixx_inv, dinv):
         w[i, 2] += dt * dz
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _translation_block(j, rax, ray, raz, rbx, rby, rbz, nax, nay, naz, nbx, nby, nbz, t1x, t1y, t1z, t2x, t2y, t2z,
                        nnx, nny, nnz, inv_m, ixx_inv, dinv, gam, jkt):
     """Inverse of joint ``j``'s 3x3 translation block ``K = (2/m) I + sum (r x e_i) . I^-1 (r x e_j) + gamma``
@@ -292,7 +293,7 @@ def _translation_block(j, rax, ray, raz, rbx, rby, rbz, nax, nay, naz, nbx, nby,
     jkt[j, 5] = (k00 * k11 - k01 * k01) * idet
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _rotation_block(j, nax, nay, naz, nbx, nby, nbz, t2x, t2y, t2z, nnx, nny, nnz, ixx_inv, dinv, gam, jkr):
     """Inverse of joint ``j``'s 2x2 rotation block over (t2, n): ``e_i . (Ia^-1 + Ib^-1) e_j + gamma``, stored
     as (xx, xy, yy) in ``jkr[j]``."""
@@ -309,7 +310,7 @@ def _rotation_block(j, nax, nay, naz, nbx, nby, nbz, t2x, t2y, t2z, nnx, nny, nn
     jkr[j, 2] = r00 * idet
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _joint_setup(refresh, x, v, w, ax, links, link_dir, hh, inv_m, ixx_inv, dinv, gam, kfac, jra, jrb, jfr, jkt,
                  jkr, jb, jc, pacc, bend_max):
     """Stage 2, every step: each joint's frame (t1 along the link, n the mean normal, t2 = n x t1), lever arms,
@@ -385,7 +386,7 @@ def _joint_setup(refresh, x, v, w, ax, links, link_dir, hh, inv_m, ixx_inv, dinv
     return bend_max
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _active_corners(x, ax, hh, s_th, c_th, th_dot, xp_dot, kc, inv_m, ixx_inv, dinv, ctile, cdat, cimp):
     """Stage 3, every step: the tile corners below the plate (geometry frozen for the step), visited
     corner-major so that consecutive Gauss-Seidel updates touch different tiles. Fills per active corner its
@@ -438,7 +439,7 @@ def _active_corners(x, ax, hh, s_th, c_th, th_dot, xp_dot, kc, inv_m, ixx_inv, d
     return n_act
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _contact_pass(n_act, ctile, cdat, cimp, v, w, ax, s_th, c_th, dt, cc, mus, muk, vt, inv_m, ixx_inv, dinv):
     """Stage 4a, one Gauss-Seidel sweep over the active corners: each corner's impulse is taken off its tile and
     re-evaluated with the shared contact law (implicit normal damper, Coulomb stick/slip), then applied again."""
@@ -490,7 +491,7 @@ def _contact_pass(n_act, ctile, cdat, cimp, v, w, ax, s_th, c_th, dt, cc, mus, m
         _push(v, w, i, jx, jy, jz, rx, ry, rz, 0.0, 0.0, 0.0, nx, ny, nz, inv_m, ixx_inv, dinv)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _joint_pass(it, links, jra, jrb, jfr, jkt, jkr, jb, gam, pacc, v, w, ax, inv_m, ixx_inv, dinv):
     """Stage 4b, one block Gauss-Seidel sweep over the joints (direction alternating with ``it`` to avoid an
     ordering bias): the 3 translation rows solved together, then the 2 rotation rows with the updated angular
@@ -542,7 +543,7 @@ def _joint_pass(it, links, jra, jrb, jfr, jkt, jkr, jb, gam, pacc, v, w, ax, inv
         _turn(w, b, lx, ly, lz, nbx, nby, nbz, ixx_inv, dinv)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _plate_work(n_act, cimp, cdat, work, work_abs):
     """The plate's work on the disc through this step's contact impulses (impulse . plate surface velocity), J,
     added to the running total and to the running total of its absolute values."""
@@ -553,7 +554,7 @@ def _plate_work(n_act, cimp, cdat, work, work_abs):
     return work, work_abs
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=CACHE, inline="always")
 def _integrate(x, v, q, w, dt):
     """Stage 5: positions and unit quaternions advance with the new velocities and angular velocities."""
     for i in range(x.shape[0]):
@@ -573,7 +574,7 @@ def _integrate(x, v, q, w, dt):
         q[i, 3] = nz_ * ln
 
 
-@numba.njit(cache=True, fastmath=FAST)
+@numba.njit(cache=CACHE, fastmath=FAST)
 def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag):
     """Simulate one rigid-tile probe; fills the traces and ``diag`` and returns (status, records written).
 
@@ -655,7 +656,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
     return status, n_rec
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=CACHE, parallel=True)
 def rigid_batch_parallel(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag, status_out, nrec_out):
     """Run a batch of probes over threads (one probe per iteration)."""
     for b in numba.prange(prm.shape[0]):
@@ -664,7 +665,7 @@ def rigid_batch_parallel(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_
         nrec_out[b] = r
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def rigid_batch_serial(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag, status_out, nrec_out):
     """The same batch on the calling thread (no threading overhead for single probes)."""
     for b in range(prm.shape[0]):

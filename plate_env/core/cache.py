@@ -1,0 +1,85 @@
+"""A disk cache of arrays derived from shipped data (spline coefficients of atlases and forward-model responses).
+
+Entries are keyed by the SHA-256 of everything they are computed from: :data:`CACHE_VERSION` (raised when the code
+that computes an entry changes), the numpy and scipy versions, and the inputs' own bytes (the atlas arrays, the
+grid): an entry is found only for exactly the inputs it was made from, so a stale one is never used. Each entry is
+a directory of ``.npy`` files written under a temporary name and renamed into place (a crash leaves no half entry);
+an unreadable entry is rebuilt. Large entries are memory-mapped read-only (a probe reads the slices it needs).
+
+Where: ``$PLATE_ENV_CACHE_DIR``, else ``$XDG_CACHE_HOME/plate_env``, else ``~/.cache/plate_env``;
+``PLATE_ENV_CACHE_DIR=off`` disables it (everything is computed in memory, as before). Deleting the directory is
+always safe.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+#: Raise when the computation of a cached entry changes (old entries are then never found again).
+CACHE_VERSION = 1
+
+
+def cache_dir() -> Path | None:
+    """The cache directory, or None when caching is off (``PLATE_ENV_CACHE_DIR=off``)."""
+    env = os.environ.get("PLATE_ENV_CACHE_DIR")
+    if env is not None:
+        return None if env.strip().lower() in ("", "off", "0", "none") else Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "plate_env"
+
+
+def content_key(*parts) -> str:
+    """SHA-256 (hex) of the cache version, the numpy/scipy versions and ``parts`` (arrays by dtype, shape and bytes;
+    anything else by its ``repr``)."""
+    import scipy
+
+    h = hashlib.sha256(f"plate_env-cache-v{CACHE_VERSION} numpy {np.__version__} scipy {scipy.__version__}".encode())
+    for p in parts:
+        if isinstance(p, np.ndarray):
+            a = np.ascontiguousarray(p)
+            h.update(f"array {a.dtype.str} {a.shape}".encode())
+            h.update(a.tobytes())
+        else:
+            h.update(f"value {p!r}".encode())
+        h.update(b"|")
+    return h.hexdigest()
+
+
+def cached_arrays(kind: str, key: str, build: Callable[[], dict[str, np.ndarray]], mmap: bool = False,
+                  note: str | None = None) -> dict[str, np.ndarray]:
+    """The arrays of entry ``kind``/``key``: read from the cache, or ``build()`` them, store them and return them.
+    ``mmap``: read large arrays memory-mapped (read-only). ``note``: printed to stderr before a build (a slow one:
+    the user sees what the wait is for)."""
+    root = cache_dir()
+    if root is None:
+        return build()
+    entry = root / f"{kind}-{key}"
+    if entry.is_dir():
+        try:
+            return {p.stem: np.load(p, mmap_mode="r" if mmap else None, allow_pickle=False)
+                    for p in sorted(entry.glob("*.npy"))}
+        except (OSError, ValueError):  # unreadable: rebuilt below
+            shutil.rmtree(entry, ignore_errors=True)
+    if note:
+        print(f"plate-env: {note} (once; cached in {root})", file=sys.stderr, flush=True)
+    arrays = build()
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{kind}-", dir=root))
+        for name, arr in arrays.items():
+            np.save(tmp / f"{name}.npy", np.asarray(arr), allow_pickle=False)
+        try:
+            tmp.rename(entry)
+        except OSError:  # another process stored it first: theirs is the same
+            shutil.rmtree(tmp, ignore_errors=True)
+    except OSError as exc:  # a read-only or full disk: computed, not cached
+        print(f"plate-env: cannot write the cache {root}: {exc}", file=sys.stderr, flush=True)
+    return arrays

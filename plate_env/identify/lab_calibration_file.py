@@ -1,0 +1,330 @@
+"""A lab calibration as a file (``plate-env calibrate`` writes it, ``plate-env fit --calibration`` reads it).
+
+CAL.json is one JSON object::
+
+    schema            "plate-env/lab-calibration"        what this file is
+    schema_version    1                                    the layout (a reader refuses any other)
+    package_version   the plate-env version that wrote it  (a reader refuses another version)
+    commit            git commit of the writer if known, else null
+    inputs_sha256     hash of the references' probes and known omega_n (what it was fitted from)
+    forward           the forward model whose members read the sweeps (e.g. "lab")
+    members           each member's atlas files (the order the posterior's member indices refer to)
+    known             {"a_p_deg", "b_p_mm", "mass_g", "diameter_mm"}: the set-up it holds for; data at another
+                      amplitude, B_p, mass or diameter are refused
+    references        [{"object", "omega_n_rad_s", "n_probes"}]
+    scatter_prior     {"median", "log_sd"}: the prior over the lab's scatter (learned across labs)
+    posterior         {"pivot", "member", "a", "b", "sigma", "weight", "n_refs", "ref_range"}
+    assumes           what the calibration assumes, in words
+    content_sha256    sha256 of the canonical JSON of every other field: a file edited by hand is refused
+
+Pure apart from :func:`save` and :func:`load`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import subprocess
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.estimate import Estimate
+from plate_env.identify.forward import ForwardModel, Member, _conditioned
+from plate_env.identify.lab_calibration import (
+    LabPosterior,
+    ScatterPrior,
+    fit_lab,
+    member_readings,
+    predict,
+)
+from plate_env.surrogate.catalog import registry_member_atlases
+from plate_env.surrogate.conditioning import KnownInputs
+
+SCHEMA = "plate-env/lab-calibration"
+SCHEMA_VERSION = 1
+#: The scatter prior a calibration ships with: log-normal, median and sd of log sigma, learned across labs (each
+#: source read through the other sources' members with all its objects as references, b = 1: the point mass 0.60,
+#: rigid_limit 0.41; median their geometric mean. experiments/results/calibration_study.json, `priors`).
+SCATTER_PRIOR = ScatterPrior(median=0.5, log_sd=0.75)
+#: References are refused outside this omega_n range (rad/s): the range every shipped forward model's members cover
+#: (the identification prior is 3.5pi-33pi).
+REF_RANGE_PI = (3.5, 33.0)
+ASSUMES = ("Every disc read with this file is swept on the same plate and set-up as the references (amplitude, "
+           "B_p, mass, diameter as recorded). The lab's unknowns are shared by its discs: which member describes the "
+           "plate, and a map log omega_n = c + a + b (u - c) from that member's reading u, with a scatter sigma "
+           "(normal in log omega_n) no member explains; b = 1 (a slope fitted from 3-5 references did worse). The "
+           "intervals hold on discs like the references (the study: experiments/results/calibration_study.md).")
+
+
+class CalibrationError(ValueError):
+    """A calibration that cannot be made or used: the message names the value and what is allowed."""
+
+
+@dataclass(frozen=True)
+class LabCalibration:
+    """What a lab's references taught (see the module docstring for the fields)."""
+
+    forward: str
+    members: tuple[tuple[str, ...], ...]
+    a_p_deg: float
+    known: KnownInputs
+    references: tuple[tuple[str, float, int], ...]
+    scatter_prior: ScatterPrior
+    posterior: LabPosterior
+    inputs_sha256: str
+    package_version: str
+    commit: str | None = None
+
+    def to_json(self) -> dict:
+        post = self.posterior
+        body = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "package_version": self.package_version,
+                "commit": self.commit, "inputs_sha256": self.inputs_sha256, "forward": self.forward,
+                "members": [list(m) for m in self.members],
+                "known": {"a_p_deg": self.a_p_deg, "b_p_mm": self.known.b_p * 1e3, "mass_g": self.known.mass * 1e3,
+                          "diameter_mm": self.known.diameter * 1e3},
+                "references": [{"object": o, "omega_n_rad_s": w, "n_probes": n} for o, w, n in self.references],
+                "scatter_prior": {"median": self.scatter_prior.median, "log_sd": self.scatter_prior.log_sd},
+                "posterior": {"pivot": post.pivot, "member": list(post.member), "a": list(post.a), "b": list(post.b),
+                              "sigma": list(post.sigma), "weight": list(post.weight), "n_refs": post.n_refs,
+                              "ref_range": list(post.ref_range)},
+                "assumes": ASSUMES}
+        return {**body, "content_sha256": content_hash(body)}
+
+    @classmethod
+    def from_json(cls, d: dict, where: str = "calibration") -> LabCalibration:
+        if not isinstance(d, dict) or d.get("schema") != SCHEMA:
+            raise CalibrationError(f"{where}: not a plate-env lab calibration (schema {SCHEMA!r})")
+        if d.get("schema_version") != SCHEMA_VERSION:
+            raise CalibrationError(f"{where}: schema_version {d.get('schema_version')!r}, this plate-env reads "
+                                   f"{SCHEMA_VERSION}: run plate-env calibrate again")
+        if d.get("package_version") != package_version():
+            raise CalibrationError(f"{where}: written by plate-env {d.get('package_version')!r}, this is "
+                                   f"{package_version()}: run plate-env calibrate again with this version")
+        body = {k: v for k, v in d.items() if k != "content_sha256"}
+        if d.get("content_sha256") != content_hash(body):
+            raise CalibrationError(f"{where}: content hash does not match (the file was edited by hand or damaged): "
+                                   "run plate-env calibrate again")
+        k, p = d["known"], d["posterior"]
+        post = LabPosterior(tuple("+".join(m) for m in d["members"]), float(p["pivot"]), tuple(p["member"]),
+                            tuple(p["a"]), tuple(p["b"]), tuple(p["sigma"]), tuple(p["weight"]), int(p["n_refs"]),
+                            tuple(p["ref_range"]))
+        return cls(forward=d["forward"], members=tuple(tuple(m) for m in d["members"]), a_p_deg=float(k["a_p_deg"]),
+                   known=KnownInputs(b_p=k["b_p_mm"] * 1e-3, mass=k["mass_g"] * 1e-3,
+                                     diameter=k["diameter_mm"] * 1e-3),
+                   references=tuple((r["object"], float(r["omega_n_rad_s"]), int(r["n_probes"]))
+                                    for r in d["references"]),
+                   scatter_prior=ScatterPrior(**d["scatter_prior"]), posterior=post,
+                   inputs_sha256=d["inputs_sha256"], package_version=d["package_version"], commit=d.get("commit"))
+
+
+def package_version() -> str:
+    """The installed plate-env's version (the distribution's metadata: plate_env.__version__ lives in the edge
+    layer)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("plate-env")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def content_hash(body: dict) -> str:
+    return hashlib.sha256(json.dumps(body, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def inputs_hash(tables: Sequence[ProbeTable], omega_n: Sequence[float]) -> str:
+    h = hashlib.sha256()
+    for t, w in zip(tables, omega_n, strict=True):
+        h.update(json.dumps({"omega_n": float(w), "probes": t.to_rows()}, sort_keys=True).encode())
+    return h.hexdigest()
+
+
+def lab_members(forward: str, known: KnownInputs) -> tuple[ForwardModel, tuple[tuple[str, ...], ...]]:
+    """The members of a shipped forward model that exist for ``known`` (each conditioned on it) and their atlas
+    files; CalibrationError when none does."""
+    files, members = [], []
+    for atlases in registry_member_atlases(forward):
+        try:
+            atlas = _conditioned(tuple(atlases), known)
+        except ValueError:
+            continue
+        files.append(tuple(atlases))
+        members.append(Member(atlas, float(atlas.provenance["sigma_model_deg_s"])))
+    if not members:
+        raise CalibrationError(f"forward model {forward!r} has no member for B_p {known.b_p * 1e3:g} mm, mass "
+                               f"{known.mass * 1e3:g} g, diameter {known.diameter * 1e3:g} mm")
+    return ForwardModel(forward, tuple(members)), tuple(files)
+
+
+def _commit() -> str | None:
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5,
+                             cwd=Path(__file__).parent)
+        return out.stdout.strip() or None if out.returncode == 0 else None
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def check_references(objects: Sequence[str], omega_n: Sequence[float]) -> None:
+    """CalibrationError unless there is at least one reference and every known omega_n is finite and inside
+    :data:`REF_RANGE_PI`."""
+    if not objects:
+        raise CalibrationError("no reference discs: give at least one (K = 1 gives wide intervals; 3 or more fit the "
+                               "slope)")
+    lo, hi = (x * math.pi for x in REF_RANGE_PI)
+    for o, w in zip(objects, omega_n, strict=True):
+        if not (math.isfinite(w) and lo <= w <= hi):
+            raise CalibrationError(f"reference {o!r}: omega_n_rad_s = {w:g} is outside the identifiable range "
+                                   f"{lo:.1f}-{hi:.1f} rad/s ({REF_RANGE_PI[0]:g}pi-{REF_RANGE_PI[1]:g}pi)")
+
+
+def calibrate(tables: Sequence[ProbeTable], omega_n: Sequence[float], objects: Sequence[str], a_p_deg: float,
+              known: KnownInputs, forward: str = "lab", prior: ScatterPrior = SCATTER_PRIOR) -> LabCalibration:
+    """Fit a lab calibration from reference sweeps of discs of known omega_n (rad/s), all at amplitude
+    ``a_p_deg`` and on the set-up ``known``."""
+    check_references(objects, omega_n)
+    if len(set(objects)) != len(objects):
+        raise CalibrationError(f"reference names repeat: {sorted(objects)}; one sweep table per disc")
+    for o, t in zip(objects, tables, strict=True):
+        amps = sorted({round(float(a), 6) for a in t.a_p_deg})
+        if amps != [round(float(a_p_deg), 6)]:
+            raise CalibrationError(f"reference {o!r} has probes at A_p {amps} deg; a calibration holds for one "
+                                   f"amplitude (--amp {a_p_deg:g})")
+    fm, files = lab_members(forward, known)
+    readings = [member_readings(fm, t) for t in tables]
+    for o, r in zip(objects, readings, strict=True):
+        if not r.available.any():
+            raise CalibrationError(f"reference {o!r}: no member of {forward!r} describes its probes")
+    post = fit_lab(readings, np.log(np.asarray(omega_n, dtype=float)), ["+".join(f) for f in files], prior)
+    return LabCalibration(forward, files, float(a_p_deg), known,
+                          tuple((o, float(w), len(t)) for o, w, t in zip(objects, omega_n, tables, strict=True)),
+                          prior, post, inputs_hash(tables, omega_n), package_version(), _commit())
+
+
+def check_data(cal: LabCalibration, table: ProbeTable, known: KnownInputs) -> None:
+    """CalibrationError when the data's amplitude or set-up differ from the calibration's."""
+    amps = sorted({round(float(a), 6) for a in table.a_p_deg})
+    if amps != [round(cal.a_p_deg, 6)]:
+        raise CalibrationError(f"the data have A_p {amps} deg, the calibration holds for A_p = {cal.a_p_deg:g} deg "
+                               "only: calibrate at the data's amplitude")
+    for name, unit, scale in (("b_p", "mm", 1e3), ("mass", "g", 1e3), ("diameter", "mm", 1e3)):
+        a, b = getattr(known, name), getattr(cal.known, name)
+        if not math.isclose(abs(a), abs(b), rel_tol=0.02):
+            raise CalibrationError(f"the data's {name} = {abs(a) * scale:g} {unit}, the calibration's = "
+                                   f"{abs(b) * scale:g} {unit}: calibrate on the data's set-up")
+
+
+def identify_calibrated(table: ProbeTable, cal: LabCalibration, known: KnownInputs | None = None) -> Estimate:
+    """omega_n of a disc read through a lab calibration (an :class:`Estimate`, method ``"calibrated"``)."""
+    known = known or cal.known
+    check_data(cal, table, known)
+    fm, files = lab_members(cal.forward, cal.known)
+    if files != cal.members:
+        raise CalibrationError(f"the calibration's members {['+'.join(f) for f in cal.members]} are not this "
+                               f"plate-env's {['+'.join(f) for f in files]}: run plate-env calibrate again")
+    base = {"method": "calibrated", "n_probes": len(table), "n_unstable": int(table.unstable.sum()),
+            "forward": f"{cal.forward} calibrated by {len(cal.references)} reference(s)"}
+    p = predict(cal.posterior, member_readings(fm, table))
+    if not p.ok:
+        return Estimate(ok=False, reason=p.reason, **base)
+    return Estimate(ok=True, omega_n=p.omega_n, omega_n_stderr=0.5 * (p.ci68[1] - p.ci68[0]), omega_n_ci68=p.ci68,
+                    omega_n_ci95=p.ci95, **base)
+
+
+def save(cal: LabCalibration, path: str | Path) -> None:
+    Path(path).write_text(json.dumps(cal.to_json(), indent=1) + "\n")
+
+
+#: ``--calibration paper``: the paper's published numbers as the reference set (package data, written by
+#: ``python experiments/calibration_study.py paper``).
+PAPER = "paper"
+PAPER_FILE = "calibration_paper.json"
+
+
+def load(path: str | Path) -> LabCalibration:
+    """Read CAL.json (or the shipped ``"paper"`` calibration); CalibrationError (naming the file) when it is not
+    one, is from another version, or was edited."""
+    if str(path) == PAPER:
+        from importlib import resources
+
+        path = Path(str(resources.files("plate_env") / "data" / PAPER_FILE))
+    try:
+        d = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise CalibrationError(f"{path}: cannot read a calibration: {exc}") from None
+    try:
+        return LabCalibration.from_json(d, str(path))
+    except (KeyError, TypeError) as exc:
+        raise CalibrationError(f"{path}: malformed calibration ({exc})") from None
+
+
+REF_COLUMNS = ("object", "omega_n_rad_s", "mass_g")
+
+
+def read_reference_csv(path: str | Path, a_p_deg: float | None = None) -> tuple[list[str], list[float], list,
+                                                                                 list[float | None]]:
+    """A references file: the ``fit`` columns plus ``object`` (a reference disc's name) and ``omega_n_rad_s`` (its
+    known omega_n), optionally ``mass_g`` per object. Returns (objects, omega_n, tables, masses in g or None), in
+    the order the discs first appear. CalibrationError naming the line for a missing column or an omega_n that
+    differs between one disc's rows; the sweep columns are checked by
+    :func:`plate_env.core.probe_table.read_lab_csv`."""
+    import csv
+    import io
+    import tempfile
+
+    from plate_env.core.probe_table import read_lab_csv
+
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CalibrationError(f"{path}: cannot read: {exc}") from None
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    rows = list(csv.reader(lines))
+    if not rows:
+        raise CalibrationError(f"{path}: empty file")
+    header = [h.strip() for h in rows[0]]
+    for col in ("object", "omega_n_rad_s"):
+        if col not in header:
+            raise CalibrationError(f"{path}: line 1: missing column {col!r} (each reference disc's name and its known "
+                                   f"omega_n, rad/s); header is {header}")
+    keep = [i for i, h in enumerate(header) if h not in REF_COLUMNS]
+    groups: dict[str, list[list[str]]] = {}
+    omega: dict[str, float] = {}
+    mass: dict[str, float | None] = {}
+    for lineno, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise CalibrationError(f"{path}: line {lineno}: {len(row)} fields, the header has {len(header)}")
+        cells = dict(zip(header, (c.strip() for c in row), strict=True))
+        name = cells["object"]
+        if not name:
+            raise CalibrationError(f"{path}: line {lineno}: empty object name")
+        try:
+            w = float(cells["omega_n_rad_s"])
+            m = float(cells["mass_g"]) if cells.get("mass_g") else None
+        except ValueError:
+            raise CalibrationError(f"{path}: line {lineno}: omega_n_rad_s / mass_g must be numbers") from None
+        if name in omega and (omega[name] != w or mass[name] != m):
+            raise CalibrationError(f"{path}: line {lineno}: {name!r} has another omega_n_rad_s or mass_g than on its "
+                                   "first row")
+        omega.setdefault(name, w)
+        mass.setdefault(name, m)
+        groups.setdefault(name, []).append([row[i] for i in keep])
+    tables = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, body in groups.items():
+            buf = io.StringIO()
+            csv.writer(buf).writerows([[header[i] for i in keep], *body])
+            one = Path(tmp) / "sweep.csv"
+            one.write_text(buf.getvalue())
+            try:
+                tables.append(read_lab_csv(one, a_p_deg=a_p_deg))
+            except ValueError as exc:
+                raise CalibrationError(f"{path}: object {name!r}: {str(exc).replace(str(one) + ': ', '')}") from None
+    names = list(groups)
+    return names, [omega[n] for n in names], tables, [mass[n] for n in names]

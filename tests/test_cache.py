@@ -1,0 +1,122 @@
+"""The disk cache of spline coefficients: cached results equal fresh ones bit for bit, other inputs never hit an
+entry made from different ones (a stale entry is never used), an unreadable entry is rebuilt, ``off`` writes none."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from plate_env.core.cache import cache_dir, content_key
+from plate_env.surrogate.atlas import Atlas, load_atlas_file
+
+
+def _fresh(atlas: Atlas) -> Atlas:
+    """The same arrays in a new instance (its in-memory interpolators empty)."""
+    return dataclasses.replace(atlas)
+
+
+@pytest.fixture
+def atlas() -> Atlas:
+    return _fresh(load_atlas_file("atlas_tilelink_rigid_limit_f2.npz"))
+
+
+def _points(atlas: Atlas, n: int = 50):
+    rng = np.random.default_rng(0)
+    return (rng.uniform(atlas.f_hz[0], atlas.f_hz[-1], n),
+            np.exp(rng.uniform(math.log(atlas.omega_n[0]), math.log(atlas.omega_n[-1]), n)),
+            rng.uniform(atlas.alpha[0], atlas.alpha[-1], n))
+
+
+def test_cached_atlas_spline_equals_scipys_interpolator(atlas, tmp_path, monkeypatch):
+    from scipy.interpolate import RegularGridInterpolator
+    from scipy.sparse.linalg import spsolve
+
+    monkeypatch.setenv("PLATE_ENV_CACHE_DIR", str(tmp_path))
+    f, w, a = _points(atlas)
+    pts = np.stack([f, np.log(w), a], -1)
+    ref = RegularGridInterpolator((atlas.f_hz, np.log(atlas.omega_n), atlas.alpha), atlas.mean[:, 0], method="cubic",
+                                  solver=spsolve)(pts)
+    first = atlas.predict(f, 3.0, w, a)[0]  # builds and stores
+    assert len(list(tmp_path.glob("atlas-spline-*"))) == 3
+    second = _fresh(atlas).predict(f, 3.0, w, a)[0]  # read back from disk
+    assert np.array_equal(first, ref) and np.array_equal(second, ref)
+
+
+def test_response_from_cache_equals_computed_and_other_inputs_miss(atlas, tmp_path, monkeypatch):
+    from plate_env.identify.forward import Member
+    from plate_env.identify.inference import member_response
+
+    w = np.geomspace(atlas.omega_n[0], atlas.omega_n[-1], 40)
+    a = np.linspace(atlas.alpha[0], atlas.alpha[-1], 5)
+    monkeypatch.setenv("PLATE_ENV_CACHE_DIR", "off")
+    assert cache_dir() is None
+    plain = member_response(Member(_fresh(atlas), 1.0), 3.0, w, a)[0](17.3)
+    monkeypatch.setenv("PLATE_ENV_CACHE_DIR", str(tmp_path))
+    built = member_response(Member(_fresh(atlas), 1.0), 3.0, w, a)[0](17.3)
+    entries = sorted(tmp_path.glob("response-*"))
+    assert len(entries) == 1
+    read = member_response(Member(_fresh(atlas), 1.0), 3.0, w, a)[0](17.3)
+    for x, y, z in zip(plain, built, read, strict=True):
+        assert np.array_equal(x, y) and np.array_equal(x, z)
+    # a changed atlas (one value) or another grid: another entry, never the old one
+    changed = dataclasses.replace(atlas, mean=atlas.mean + np.where(np.arange(atlas.mean.size).reshape(
+        atlas.mean.shape) == 7, 1.0, 0.0))
+    monkeypatch.setenv("PLATE_ENV_CACHE_DIR", "off")
+    want = member_response(Member(_fresh(changed), 1.0), 3.0, w, a)[0](17.3)
+    monkeypatch.setenv("PLATE_ENV_CACHE_DIR", str(tmp_path))
+    got = member_response(Member(_fresh(changed), 1.0), 3.0, w, a)[0](17.3)
+    assert len(list(tmp_path.glob("response-*"))) == 2
+    assert all(np.array_equal(x, y) for x, y in zip(want, got, strict=True))
+    assert not np.array_equal(got[0], read[0])
+    member_response(Member(_fresh(atlas), 1.0), 3.0, w[:-1], a)
+    assert len(list(tmp_path.glob("response-*"))) == 3
+
+
+def test_unreadable_entry_is_rebuilt(atlas, tmp_path, monkeypatch):
+    from plate_env.identify.forward import Member
+    from plate_env.identify.inference import member_response
+
+    monkeypatch.setenv("PLATE_ENV_CACHE_DIR", str(tmp_path))
+    w = np.geomspace(atlas.omega_n[0], atlas.omega_n[-1], 30)
+    a = np.linspace(atlas.alpha[0], atlas.alpha[-1], 4)
+    good = member_response(Member(_fresh(atlas), 1.0), 3.0, w, a)[0](21.0)
+    (entry,) = tmp_path.glob("response-*")
+    for p in entry.glob("*.npy"):
+        p.write_bytes(b"not an array")
+    again = member_response(Member(_fresh(atlas), 1.0), 3.0, w, a)[0](21.0)
+    assert all(np.array_equal(x, y) for x, y in zip(good, again, strict=True))
+
+
+def test_content_key_depends_on_every_byte():
+    x = np.arange(5.0)
+    y = x.copy()
+    y[3] = np.nextafter(y[3], 10)
+    assert content_key("k", x) == content_key("k", x.copy())
+    assert content_key("k", x) != content_key("k", y)
+    assert content_key("k", x) != content_key("k", x.astype(np.float32))
+    assert content_key("k", 3.0) != content_key("k", 12.0)
+
+
+def test_pybullet_calibration_is_read_back_and_keyed_by_object(tmp_path, monkeypatch):
+    pytest.importorskip("pybullet")
+    from plate_env.core.objects import ObjectSpec
+    from plate_env.physics.pybullet_sheet import calibrate
+    from plate_env.physics.pybullet_sheet.scene import SheetConfig
+
+    calls = []
+
+    def fake(obj, config, tol, max_iter):
+        calls.append(obj.omega_n)
+        return 1.0 + obj.omega_n, obj.omega_n * 1.001
+
+    monkeypatch.setenv("PLATE_ENV_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(calibrate, "_ringdown_k", fake)
+    run = calibrate.calibrated_k.__wrapped__  # past the per-process cache: the disk's
+    a, b = ObjectSpec(omega_n=40.0, alpha=0.7), ObjectSpec(omega_n=41.0, alpha=0.7)
+    first = run(a, SheetConfig())
+    assert run(a, SheetConfig()) == first == (41.0, 40.0 * 1.001) and calls == [40.0]
+    assert run(b, SheetConfig()) == (42.0, 41.0 * 1.001) and calls == [40.0, 41.0]
+    assert run(a, SheetConfig(), tol=0.01) and calls == [40.0, 41.0, 40.0]

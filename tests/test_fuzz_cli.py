@@ -1,0 +1,144 @@
+"""Fuzzing the command line (issue 28): hypothesis draws CLI arguments and lab-CSV contents; whatever they are,
+``plate-env`` answers with an exit code in {0, 1, 2, 130}, never a traceback, and with ``--json`` its stdout is
+strict JSON (no ``NaN``/``Infinity``).
+
+In-process calls of :func:`plate_env.cli.main` (no interpreter start per example), a bounded number of examples,
+``derandomize=True`` (the same examples on every run: a failure reproduces), ``deadline=None`` (a shared machine's
+load varies). Commands that run physics are fuzzed on the fast ``atlas`` backend with at most a few probes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tempfile
+from pathlib import Path
+
+import pytest
+
+hypothesis = pytest.importorskip("hypothesis")
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from plate_env.cli import main  # noqa: E402
+
+ALLOWED = {0, 1, 2, 130}
+FUZZ = settings(max_examples=40, deadline=None, derandomize=True, database=None,
+                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+
+
+def _refuse(name: str):
+    raise ValueError(f"non-standard JSON constant {name}")
+
+
+def _run(argv: list[str], capsys) -> tuple[int, str, str]:
+    capsys.readouterr()
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse: --help, --version, a usage error
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _check(argv: list[str], code: int, out: str, err: str) -> None:
+    assert code in ALLOWED, (argv, code, err)
+    assert "Traceback" not in err and "Traceback" not in out, (argv, err)
+    assert "internal error" not in err, (argv, err)
+    if "--json" in argv and code in (0, 1):
+        json.loads(out, parse_constant=_refuse)
+
+
+# ------------------------------------------------------------------------------------------- values
+NUMBERS = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=64).map(repr),
+                    st.integers(-10 ** 6, 10 ** 6).map(str),
+                    st.sampled_from(["", " ", "nan", "-inf", "1e400", "-0", "10pi", "-10pi", "π", "1e-320", "abc",
+                                     "0x10", "1_000", "²", "12,18", "3:", "10:40:1e-320", "\x00", "🦀", "--json"]))
+OPTIONS = {
+    "probe": ["--freq", "--omega-n", "--alpha", "--mass-g", "--amp", "--bp", "--settle", "--measure", "--dt",
+              "--object", "--model"],
+    "sweep": ["--freqs", "--omega-n", "--alpha", "--mass-g", "--amp", "--bp", "--settle", "--measure", "--dt",
+              "--object", "--model", "--chunk", "--executor", "--plot", "--csv", "--cache"],
+}
+#: Sweeps stay small: at most three probes (or a refused --freqs).
+FREQS = st.one_of(st.lists(st.floats(5.0, 45.0).map(lambda f: f"{f:.1f}"), min_size=1, max_size=3).map(",".join),
+                  NUMBERS)
+
+
+@st.composite
+def cli_args(draw):
+    command = draw(st.sampled_from(sorted(OPTIONS)))
+    argv = [command, "--physics", "atlas"]
+    for opt in draw(st.lists(st.sampled_from(OPTIONS[command]), max_size=4, unique=True)):
+        value = draw(NUMBERS)
+        if opt in ("--plot", "--csv", "--cache"):
+            value = draw(st.sampled_from(["/nonexistent/x.png", "/dev/zero", ".", "", "out.txt"]))
+        if opt == "--executor":
+            value = draw(st.sampled_from(["pool:²", "pool:0", "ray://", "nope", "inprocess", "local"]))
+        argv += [opt, value]
+    if command == "probe" and "--freq" not in argv:
+        argv += ["--freq", draw(st.sampled_from(["20", "-1", "nan", "1e9"]))]
+    if command == "sweep":
+        if "--freqs" not in argv:
+            argv += ["--freqs", draw(FREQS)]
+        else:  # a drawn --freqs may ask for many probes: keep only the refused forms, else three probes
+            i = argv.index("--freqs")
+            if "," not in argv[i + 1]:
+                argv[i + 1] = argv[i + 1] if argv[i + 1] in ("", "abc", "10:40:1e-320", "3:") else "15,20,25"
+        argv.append("--no-progress")
+    if draw(st.booleans()):
+        argv.append("--json")
+    return argv
+
+
+CELLS = st.one_of(st.floats(allow_nan=True, allow_infinity=True).map(repr), st.integers(-10 ** 9, 10 ** 9).map(str),
+                  st.sampled_from(["", "x", "true", "1", "0", "NaN", "1e400", "-5", "\"", "20", "45", "3"]),
+                  st.text(max_size=5))
+COLUMNS = ["f_p_hz", "omega_b_deg_s", "stderr_deg_s", "a_p_deg", "unstable", "extra", ""]
+
+
+@st.composite
+def lab_csv(draw):
+    header = draw(st.lists(st.sampled_from(COLUMNS), min_size=1, max_size=6))
+    if draw(st.booleans()):  # mostly a valid header, so the rows are what is fuzzed
+        header = ["f_p_hz", "omega_b_deg_s"] + draw(st.lists(st.sampled_from(COLUMNS[2:5]), max_size=3, unique=True))
+    n = draw(st.integers(0, 12))
+    rows = []
+    for i in range(n):
+        if draw(st.integers(0, 3)) == 0:
+            rows.append([draw(CELLS) for _ in header])
+        else:  # a plausible row with one cell perhaps spoiled
+            good = {"f_p_hz": f"{10 + 2.5 * i:g}", "omega_b_deg_s": f"{draw(st.floats(-800, 800)):.2f}",
+                    "stderr_deg_s": "0.5", "a_p_deg": "3", "unstable": "0"}
+            rows.append([good.get(h, "1") for h in header])
+    text = "\n".join(",".join(r) for r in [header, *rows]) + "\n"
+    if draw(st.booleans()):
+        text = "\ufeff" + text
+    return text
+
+
+# ------------------------------------------------------------------------------------------- tests
+@FUZZ
+@given(argv=cli_args())
+def test_fuzz_cli_arguments(argv, capsys, monkeypatch, tmp_path):
+    monkeypatch.delenv("PLATE_ENV_TRACEBACK", raising=False)
+    monkeypatch.chdir(tmp_path)  # files an example writes land here (a directory that outlives every example)
+    code, out, err = _run(argv, capsys)
+    _check(argv, code, out, err)
+
+
+@FUZZ
+@given(text=lab_csv(), method=st.sampled_from([["--method", "lorentz"], ["--forward", "tilelink/pointmass"]]),
+       amp=st.sampled_from([[], ["--amp", "3"], ["--amp", "12"], ["--amp", "nan"], ["--amp", "-3"]]),
+       as_json=st.booleans())
+def test_fuzz_fit_csv_contents(text, method, amp, as_json, capsys, monkeypatch):
+    monkeypatch.delenv("PLATE_ENV_TRACEBACK", raising=False)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "sweep.csv"
+        path.write_text(text, encoding="utf-8")
+        argv = ["fit", str(path), *method, *amp, *(["--json"] if as_json else [])]
+        code, out, err = _run(argv, capsys)
+    _check(argv, code, out, err)
+    if code == 0 and as_json:
+        d = json.loads(out)
+        assert d["ok"] is True and math.isfinite(d["omega_n_rad_s"])
