@@ -3,7 +3,7 @@ once the response has passed its peak (the last two probes below the highest; an
 
 import numpy as np
 
-from plate_env.protocol import Agent, Probe
+from plate_env.env.protocol import Agent, Probe
 
 
 class SweepAgent(Agent):

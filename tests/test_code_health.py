@@ -202,8 +202,7 @@ def test_the_project_imports_no_old_module_path():
     old = []
     for name, (path, tree) in _sources(PACKAGE, "agents", "experiments", "tests", "examples").items():
         old += sorted({f"{path.relative_to(ROOT)}: {m}" for m in _imports(name, path, tree) if m in moved})
-    # the README shows examples/sweep_agent.py verbatim (tests/test_benchmark.py): it moves with the README
-    assert old == ["examples/sweep_agent.py: plate_env.protocol"]
+    assert old == []
 
 
 def test_the_core_does_not_import_the_agents():

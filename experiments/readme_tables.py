@@ -1,0 +1,272 @@
+"""The measured tables of README.md and docs/*.md, rendered from their result files (the source of truth).
+
+    python experiments/readme_tables.py            # rewrite every table between its markers
+    python experiments/readme_tables.py --check    # exit 1 and name each table that differs from its result file
+
+A table lives between ``<!-- table: NAME -->`` and ``<!-- /table -->``; NAME is a key of ``TABLES``, whose entry
+names the JSON file in experiments/results/ it is rendered from. Nothing here measures anything: it only formats
+numbers that experiments/*.py wrote (each file's own script regenerates it), so a number in the docs cannot drift
+from its result. tests/test_readme.py runs the check.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "experiments" / "results"
+#: The markdown files whose tables are checked: the README and every docs page.
+PAGES = ("README.md", "docs")
+MARKER = re.compile(r"<!-- table: (?P<name>[\w.-]+) -->\n(?P<body>.*?)<!-- /table -->", re.S)
+
+
+# ------------------------------------------------------------------------------------------------ formatting
+def _stat(d: dict, scale: float = 1.0, digits: int = 1, unit: str = "", interval: bool = True) -> str:
+    """``value [lo, hi]`` of a ``{"value", "ci95"}`` statistic (plate_env.scoring.Stat.to_dict)."""
+    def num(x: float) -> str:
+        return "inf" if math.isinf(x) else f"{x * scale:.{digits}f}"
+    if not interval:
+        return f"{num(d['value'])}{unit}"
+    lo, hi = d["ci95"]
+    return f"{num(d['value'])}{unit} [{num(lo)}, {num(hi)}]"
+
+
+def _dist(sigma: float, nu: float) -> str:
+    """A discrepancy's law and scale: normal (nu infinite), Cauchy (nu 1) or Student-t."""
+    name = "normal" if math.isinf(nu) else "Cauchy" if nu == 1 else f"t({nu:g})"
+    return f"{name} {sigma:.2f}"
+
+
+def _table(head: list[str], rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def _load(name: str) -> dict:
+    return json.loads((RESULTS / name).read_text())
+
+
+def _score_cells(s: dict, interval_width: bool = False) -> list[str]:
+    """median error, p90, 68 % and 95 % coverage, median 95 % width of a plate_env.scoring.Scores dict."""
+    return [_stat(s["median_error"], 100, 1, " %"), _stat(s["p90_error"], 100, 1, " %"),
+            _stat(s["coverage68"], 1, 2), _stat(s["coverage95"], 1, 2),
+            _stat(s["width95"], 100, 0, " %", interval=interval_width)]
+
+
+SCORE_HEAD = ["median error", "p90", "68 % coverage", "95 % coverage", "median 95 % width"]
+
+
+# ------------------------------------------------------------------------------------------------ tables
+def forward_models_within() -> str:
+    d = _load("forward_models_within.json")
+    b = d["bayes"]
+    rows = [[label, str(d["fit"][key]["n"]), *_score_cells(d["fit"][key])]
+            for label, key in (("`fit`, 10-40 Hz sweep at 3°", "3"), ("`fit`, 3° + 12° sweeps", "3+12"),
+                               ("`fit`, 12° sweep alone", "12"))]
+    rows.append([f"`identify --agent bayes` ({b['probes']:.1f} probes, {b['sim_s']:.0f} simulated s)", str(b["n"]),
+                 *_score_cells(b)])
+    return _table(["identification", "objects", *SCORE_HEAD], rows)
+
+
+def forward_models_within_sampling() -> str:
+    d = _load("forward_models_within.json")
+    rows = []
+    for part, what in (("fit_more", "120 more test objects (seed 210)"), ("fit_pooled", "both test sets pooled"),
+                       ("fit_calibration_in_sample", "calibration set (in sample)")):
+        for key, s in d[part].items():
+            rows.append([f"{key.replace('+', '° + ')}°, {what}", str(s["n"]), *_score_cells(s)])
+    return _table(["sweeps", "objects", *SCORE_HEAD], rows)
+
+
+def forward_models_nuisance() -> str:
+    d = _load("forward_models_nuisance.json")
+    rows = [[f"{label}, discrepancy {_dist(s['sigma_eps'], s['eps_nu'])}", *_score_cells(s),
+             _stat(s["no_estimate"], 1, 2, interval=False)] for label, s in d.items()]
+    return _table(["forward model", *SCORE_HEAD, "no estimate"], rows)
+
+
+FAMILY = {"pointmass": "point mass", "rigid": "rigid_limit", "pybullet": "PyBullet"}
+
+
+def forward_models_lomo() -> str:
+    d = _load("forward_models_lomo.json")
+    rows = []
+    for fam, s in d["lomo"].items():
+        rows.append([f"{FAMILY[fam]} ({s['n']})",
+                     f"{_dist(s['offset_sigma'], s['offset_nu'])} + {_dist(s['sigma_eps'], s['eps_nu'])}",
+                     *_score_cells(s), _stat(s["no_estimate"], 1, 2, interval=False)])
+    for fam, s in d["lomo"].items():
+        o = s["object_level"]
+        rows.append([f"*object-level fit:* {FAMILY[fam]}", _dist(o["sigma_eps"], o["eps_nu"]), *_score_cells(o),
+                     _stat(o["no_estimate"], 1, 2, interval=False)])
+    return _table(["data left out", "discrepancy (offset + scatter)", *SCORE_HEAD, "no estimate"], rows)
+
+
+def forward_models_lab() -> str:
+    lab = _load("forward_models_lomo.json")["lab"]
+    return _table(["shipped `lab` forward model", "offset between models", "scatter of objects"],
+                  [[" + ".join(FAMILY[m] for m in lab["models"]), _dist(lab["offset_sigma"], lab["offset_nu"]),
+                    _dist(lab["sigma_eps"], lab["eps_nu"])]])
+
+
+def forward_models_paper() -> str:
+    d = _load("forward_models_paper.json")
+    rows = []
+    for r in d["rows"]:
+        ests = ", ".join(f"{e['omega_n_pi']:.2f} [{e['omega_n_ci95_rad_s'][0] / math.pi:.2f}, "
+                         f"{e['omega_n_ci95_rad_s'][1] / math.pi:.2f}]" if e["ok"] else f"no estimate ({e['reason']})"
+                         for e in r["estimates"])
+        amps = r["amplitudes"].replace("+", "° + ")
+        rows.append([f"{r['object']} ({r['mass_g']:g} g, {r['omega_n_pi']:.2f}π)", f"{amps}°", f"`{r['forward']}`",
+                     ests])
+    return _table(["object (mass, true ω_n)", "sweeps", "forward model", "ω̂_n [95 %] of 3 placements, π rad/s"],
+                  rows)
+
+
+def forward_models_lorentz() -> str:
+    d = _load("forward_models_lorentz.json")
+    rows = []
+    for label, c in d["lines"].items():
+        name = " + ".join(FAMILY[f] for f in label.split(" + "))
+        name = f"all ({name}, shipped as `lab`)" if " + " in label else name
+        rows.append([name, str(c["n"]), f"{c['p1'] / math.pi:.2f} ± {c['p1_se'] / math.pi:.2f}",
+                     f"{c['q1'] / math.pi:.1f} ± {c['q1_se'] / math.pi:.1f}", f"{c['r2']:.2f}",
+                     f"{c['resid_std'] / math.pi:.1f}"])
+    return _table(["Eq. (10) line from", "sweeps that fit", "p1 (π rad/s per Hz)", "q1 (π rad/s)", "R²",
+                   "residual sd (π rad/s)"], rows)
+
+
+def forward_models_lorentz_lomo() -> str:
+    d = _load("forward_models_lorentz.json")
+    rows = [[f"{FAMILY[fam]} ({s['n']})", *_score_cells(s), _stat(s["no_estimate"], 1, 2, interval=False)]
+            for fam, s in d["lomo"].items()]
+    return _table(["data left out (line from the other two)", *SCORE_HEAD, "no estimate"], rows)
+
+
+def forward_models_choice() -> str:
+    """The README's guide to ``--forward``: what each shipped forward model's intervals held in its study."""
+    within = _load("forward_models_within.json")["fit"]["3"]
+    nuis = _load("forward_models_nuisance.json")["nuisance family (9 members, evidence)"]
+    lomo = _load("forward_models_lomo.json")["lomo"]
+    cov = ", ".join(f"{FAMILY[f]} {_stat(s['coverage95'], 1, 2, interval=False)}" for f, s in lomo.items())
+    err = ", ".join(f"{FAMILY[f]} {_stat(s['median_error'], 100, 0, ' %', interval=False)}" for f, s in lomo.items())
+    wid = ", ".join(f"{FAMILY[f]} {_stat(s['width95'], 100, 0, ' %', interval=False)}" for f, s in lomo.items())
+    rows = [["`tilelink/pointmass`", "data from the point-mass simulator, every value known (study `within`)",
+             _stat(within["median_error"], 100, 1, " %", interval=False),
+             _stat(within["coverage95"], 1, 2, interval=False), _stat(within["width95"], 100, 0, " %", False)],
+            ["`lab`'s 9 point-mass members alone", "point-mass data, joint and contact values unknown (`nuisance`)",
+             _stat(nuis["median_error"], 100, 1, " %", interval=False),
+             _stat(nuis["coverage95"], 1, 2, interval=False), _stat(nuis["width95"], 100, 0, " %", False)],
+            ["`lab` (default)", "data of unknown origin, a real plate: each simulator left out in turn (`lomo`)",
+             err, cov, wid]]
+    return _table(["`--forward`", "for", "median error", "95 % coverage", "median 95 % width"], rows)
+
+
+def _leaderboard(suite: str, full: bool) -> str:
+    d = _load(f"leaderboard_{suite}.json")
+    rows = []
+    for rank, a in enumerate(d["agents"], 1):
+        at = {b["budget_s"]: b for b in a["budgets"]}
+        last = at[max(at)]
+        cells = [str(rank), f"`{a['label']}`", _stat(a["area"], 100, 1)]
+        if full:
+            cells += [_stat(at[b]["median_error"], 100, 1) for b in sorted(at)[:-1]]
+        cells += [_stat(last["median_error"], 100, 1), _stat(last["p90_error"], 100, 1),
+                  " / ".join(_stat(last[c], 100, 0, interval=full) for c in ("coverage68", "coverage95")),
+                  _stat(last["no_estimate"], 100, 0, interval=full), f"{last['probes_mean']:.1f}"]
+        if full:
+            cells.append(f"{a['seconds_per_decision']['value']:.2g}")
+        rows.append(cells)
+    budgets = sorted(b["budget_s"] for b in d["agents"][0]["budgets"])
+    head = ["rank", "agent", f"area: mean median error over 0-{budgets[-1]:g} s (%)"]
+    if full:
+        head += [f"median error @ {b:g} s (%)" for b in budgets[:-1]]
+    head += [f"median error @ {budgets[-1]:g} s (%)", f"p90 @ {budgets[-1]:g} s (%)", "coverage 68 / 95 (%)",
+             "no estimate (%)", "probes"]
+    if full:
+        head.append("wall s per decision")
+    caption = f"Suite `{suite}` ({d['agents'][0]['n']} objects; sha256 {d['suite_sha256'][:12]}).\n\n" if full else ""
+    return caption + _table(head, rows)
+
+
+def _paired(suite: str) -> str:
+    d = _load(f"leaderboard_{suite}.json")
+    paired = d["paired_against_leader"]
+    budgets = sorted({float(b) for p in paired.values() for b in p})
+    rows = [[f"`{agent}`", *(_stat(p[f"{b:g}"], 100, 1) for b in budgets)] for agent, p in paired.items()]
+    return _table([f"agent - `{d['leader']}` (points)", *(f"@ {b:g} s" for b in budgets)], rows)
+
+
+#: Every generated table: its name in the markers, the result file it is rendered from, and the renderer.
+TABLES: dict[str, tuple[str, Callable[[], str]]] = {
+    "forward_models_within": ("forward_models_within.json", forward_models_within),
+    "forward_models_within_sampling": ("forward_models_within.json", forward_models_within_sampling),
+    "forward_models_nuisance": ("forward_models_nuisance.json", forward_models_nuisance),
+    "forward_models_lomo": ("forward_models_lomo.json", forward_models_lomo),
+    "forward_models_lab": ("forward_models_lomo.json", forward_models_lab),
+    "forward_models_paper": ("forward_models_paper.json", forward_models_paper),
+    "forward_models_lorentz": ("forward_models_lorentz.json", forward_models_lorentz),
+    "forward_models_lorentz_lomo": ("forward_models_lorentz.json", forward_models_lorentz_lomo),
+    "forward_models_choice": ("forward_models_{within,nuisance,lomo}.json", forward_models_choice),
+    "leaderboard_tilelink-v0": ("leaderboard_tilelink-v0.json", lambda: _leaderboard("tilelink-v0", False)),
+    "leaderboard_tilelink-v0_full": ("leaderboard_tilelink-v0.json", lambda: _leaderboard("tilelink-v0", True)),
+    "leaderboard_tilelink-v0_paired": ("leaderboard_tilelink-v0.json", lambda: _paired("tilelink-v0")),
+    "leaderboard_atlas-v0": ("leaderboard_atlas-v0.json", lambda: _leaderboard("atlas-v0", False)),
+}
+
+
+def render(name: str) -> str:
+    """The table ``name`` from its result file, with a line naming that file."""
+    if name not in TABLES:
+        raise KeyError(f"unknown table {name!r}; known: {', '.join(TABLES)}")
+    source, fn = TABLES[name]
+    return (f"{fn()}\n\n<sub>Rendered from `experiments/results/{source}` by `python experiments/readme_tables.py`; "
+            "do not edit by hand.</sub>\n")
+
+
+def pages(root: Path = ROOT) -> list[Path]:
+    """README.md and every markdown page under docs/."""
+    out = []
+    for p in PAGES:
+        path = root / p
+        out += sorted(path.rglob("*.md")) if path.is_dir() else [path] if path.exists() else []
+    return out
+
+
+def splice(text: str) -> str:
+    """``text`` with every marked table re-rendered."""
+    return MARKER.sub(lambda m: f"<!-- table: {m['name']} -->\n{render(m['name'])}<!-- /table -->", text)
+
+
+def stale(text: str) -> list[str]:
+    """Names of the marked tables of ``text`` that differ from their result files."""
+    return [m["name"] for m in MARKER.finditer(text) if m["body"] != render(m["name"])]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--check", action="store_true", help="only check; exit 1 naming each table that drifted")
+    args = ap.parse_args(argv)
+    bad = 0
+    for path in pages():
+        text = path.read_text()
+        if args.check:
+            for name in stale(text):
+                print(f"{path.relative_to(ROOT)}: table {name!r} differs from experiments/results/"
+                      f"{TABLES[name][0]}; run python experiments/readme_tables.py", file=sys.stderr)
+                bad += 1
+        elif splice(text) != text:
+            path.write_text(splice(text))
+            print(f"rewrote {path.relative_to(ROOT)}")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
