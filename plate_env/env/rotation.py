@@ -390,12 +390,13 @@ class PlateRotationEnv(gym.Env):
 
     def estimate(self) -> Estimate:
         """The current omega_n estimate from the probes so far (method atlas: the episode's incremental posterior,
-        :class:`plate_env.identify.posterior_state.PosteriorState`, brought up to date with the probes not in it)."""
+        :class:`plate_env.identify.posterior_state.PosteriorState`, brought up to date with the probes not in it;
+        with a lab calibration: the probes read through it, :func:`plate_env.identify.identify`)."""
         from plate_env.identify import identify
 
         if not self._rows:
             return Estimate(ok=False, method=self.method, reason="no probes")
-        if self.method == "atlas":
+        if self.method == "atlas" and self.calibration is None:
             state = self.posterior_state()
             if isinstance(state, str):
                 return Estimate(ok=False, method=self.method, reason=state)
@@ -403,7 +404,7 @@ class PlateRotationEnv(gym.Env):
                 state.add_table(self.table(), start=state.n_probes)
             return state.estimate()
         try:
-            if self.calibration is not None:
+            if self.calibration is not None:  # read through the lab's calibration (not incremental)
                 return identify(self.table(), calibration=self.calibration, known=self.known_inputs())
             return identify(self.table(), method=self.method, physics=self.source, model=self.model,
                             known=self.known_inputs())
