@@ -229,7 +229,7 @@ def episodes(args, fm: ForwardModel, seed: int) -> list[dict]:
 
 # --------------------------------------------------------------------------------------------------- families
 #: The unknown joint values of the point-mass members (zeta_bending x k_inplane N/m); the nominal one is the
-#: shipped dense atlas, the others experiments/grids/pointmass_member.json (`build_atlas.py --nuisance`).
+#: shipped dense atlas, the others plate_env/data/grids/pointmass_member.json (`build_atlas.py --nuisance`).
 NUISANCE_MEMBERS = [(zb, ki) for zb in (0.05, 0.1, 0.2) for ki in (100, 300, 1000) if (zb, ki) != (0.1, 300)]
 #: The rigid-tile family's member is the paper-faithful `rigid_limit` model's atlas (10-40 Hz in 2 Hz steps, 2
 #: repeats: experiments/results/atlas_tilelink_rigid_limit_f2.md), the model that made the family's data; the fast
@@ -533,7 +533,7 @@ def stage_lorentz(args) -> None:
 
 
 # --------------------------------------------------------------------------------------------------- ship
-#: The point-mass atlases along the mass axis (grids experiments/grids/pointmass_m*.json): the nominal member of
+#: The point-mass atlases along the mass axis (grids plate_env/data/grids/pointmass_m*.json): the nominal member of
 #: every point-mass forward model is conditioned on the lab's mass between them.
 MASS_ATLASES = ["atlas_tilelink_pointmass_m5.npz", "atlas_tilelink_pointmass_m8.2.npz", "atlas_tilelink_pointmass.npz",
                 "atlas_tilelink_pointmass_m23.2.npz", "atlas_tilelink_pointmass_m40.npz"]
