@@ -82,6 +82,34 @@ def test_build_atlas_refuses_a_value_off_the_grid_before_any_probe(tmp_path, cap
     assert not out.exists() and list(tmp_path.iterdir()) == []
 
 
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_build_forward_models_writes_the_shipped_registry_byte_for_byte(tmp_path):
+    out = tmp_path / "fm.json"
+    within, lomo = (ROOT / "experiments" / "results" / f"forward_models_{s}.json" for s in ("within", "lomo"))
+    argv = ["forward-models", "--within", str(within), "--lomo", str(lomo), "--out", str(out)]
+    assert main(["build", *argv]) == 0
+    shipped = resources.files("plate_env") / "data" / "forward_models.json"
+    assert out.read_bytes() == shipped.read_bytes()
+    record = json.loads(Path(f"{out}.provenance.json").read_text())
+    _record_ok(record, argv)
+    assert record["inputs"] == {"within": str(within), "lomo": str(lomo)}
+    # the fitted values come from the results: another within sigma_eps gives another registry
+    changed = {**json.loads(within.read_text()), "sigma_eps": 0.5}
+    (tmp_path / "w.json").write_text(json.dumps(changed))
+    assert main(["build", "forward-models", "--within", str(tmp_path / "w.json"), "--lomo", str(lomo),
+                 "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["tilelink/pointmass"]["sigma_eps"] == 0.5
+
+
+def test_build_forward_models_refuses_a_missing_result_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "fm.json"
+    assert main(["build", "forward-models", "--within", str(tmp_path / "no.json"), "--lomo", "x.json",
+                 "--out", str(out)]) == 2
+    assert "no.json" in capsys.readouterr().err and not out.exists()
+
+
 def test_every_shipped_grid_file_is_package_data():
     grids = resources.files("plate_env") / "data" / "grids"
     assert {"pointmass_m13.6.json", "pybullet.json"} <= {p.name for p in grids.iterdir()}

@@ -1,5 +1,5 @@
-"""``plate-env build suite|atlas``: rebuild a shipped artifact from the installed package. Every artifact written
-records the command, the package version and the git commit (:mod:`plate_env.build.provenance`)."""
+"""``plate-env build suite|atlas|forward-models``: rebuild a shipped artifact from the installed package. Every
+artifact written records the command, the package version and the git commit (:mod:`plate_env.build.provenance`)."""
 
 from __future__ import annotations
 
@@ -9,12 +9,13 @@ from collections.abc import Sequence
 from plate_env.run.executor import add_executor_argument
 
 #: What ``plate-env build`` can rebuild.
-ARTIFACTS = ("suite", "atlas")
+ARTIFACTS = ("suite", "atlas", "forward-models")
 
 
 def add_build_parser(sub) -> None:
     """The ``build`` command and its artifacts on the CLI's subparsers ``sub``."""
-    b = sub.add_parser("build", help="rebuild a shipped artifact (suite, atlas) from the installed package")
+    b = sub.add_parser("build", help="rebuild a shipped artifact (suite, atlas, forward-models) from the installed "
+                       "package")
     kinds = b.add_subparsers(dest="artifact", required=True)
     s = kinds.add_parser("suite", help="write an evaluation suite exactly as shipped (plate_env/data/suites)")
     s.add_argument("name", help="the suite (atlas-v0, tilelink-v0, pybullet-v0)")
@@ -46,6 +47,14 @@ def add_build_parser(sub) -> None:
     a.add_argument("--cache-dir", default=".", help="finished chunks are appended to CACHE_DIR/atlas_<name>.jsonl; "
                    "re-running resumes from it")
     a.add_argument("--report", default=None, help="also write the build's markdown report here")
+    f = kinds.add_parser("forward-models", help="write the forward-model registry (plate_env/data/forward_models.json) "
+                         "from the measured numbers of experiments/forward_models.py's within and lomo stages")
+    f.add_argument("--within", required=True, help="the within stage's numbers (experiments/results/"
+                   "forward_models_within.json)")
+    f.add_argument("--lomo", required=True, help="the lomo stage's numbers (experiments/results/"
+                   "forward_models_lomo.json)")
+    f.add_argument("--out", required=True, help="the registry to write; the build record goes to "
+                   "OUT.provenance.json")
 
 
 def _pairs(values: Sequence[str], what: str) -> dict[str, str]:
@@ -109,6 +118,12 @@ def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
 
         done = build_suite(args.name, args.out, record)
         print(f"wrote {args.out} (suite {args.name}, sha256 {done['sha256']}) and {args.out}.provenance.json")
+        return 0
+    if args.artifact == "forward-models":
+        from plate_env.build.forward_models import build_forward_models
+
+        reg = build_forward_models(args.within, args.lomo, args.out, record)
+        print(f"wrote {args.out} ({', '.join(reg)}) and {args.out}.provenance.json")
         return 0
     from plate_env.build.atlas import build_atlas
 
