@@ -7,7 +7,7 @@ models left out; write the shipped registry (plate_env/data/forward_models.json)
     python experiments/forward_models.py lomo                       # leave one model out
     python experiments/forward_models.py paper                      # the paper's three objects at 12 deg
     python experiments/forward_models.py lorentz                    # the paper's method across models
-    python experiments/forward_models.py ship                       # write the registry from the measurements
+    python experiments/forward_models.py ship                       # = plate-env build forward-models
 
 Every stage reads sweeps through the resumable caches (``plate_env.benchmarks.EvalSet``; ``--executor`` for the
 slow models), writes ``experiments/results/forward_models_<stage>.md`` and a JSON of its numbers beside it, and
@@ -29,6 +29,7 @@ import numpy as np
 
 from plate_env.bench.scoring import Scores, discrepancies, score
 from plate_env.build.eval_sets import EvalSet, run_eval_set
+from plate_env.build.forward_models import FAMILIES
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify.forward import ForwardModel, Member, load_forward_model
 from plate_env.identify.inference import (
@@ -228,18 +229,7 @@ def episodes(args, fm: ForwardModel, seed: int) -> list[dict]:
 
 
 # --------------------------------------------------------------------------------------------------- families
-#: The unknown joint values of the point-mass members (zeta_bending x k_inplane N/m); the nominal one is the
-#: shipped dense atlas, the others experiments/grids/pointmass_member.json (`build_atlas.py --nuisance`).
-NUISANCE_MEMBERS = [(zb, ki) for zb in (0.05, 0.1, 0.2) for ki in (100, 300, 1000) if (zb, ki) != (0.1, 300)]
-#: The rigid-tile family's member is the paper-faithful `rigid_limit` model's atlas (10-40 Hz in 2 Hz steps, 2
-#: repeats: experiments/results/atlas_tilelink_rigid_limit_f2.md), the model that made the family's data; the fast
-#: `rigid` model's atlas (atlas_tilelink_rigid.npz) read those data 69 % off (median) before it.
-FAMILIES = {
-    "pointmass": ["atlas_tilelink_pointmass.npz"] + [f"atlas_tilelink_pointmass_zb{zb:g}_ki{ki:g}.npz"
-                                                     for zb, ki in NUISANCE_MEMBERS],
-    "rigid": ["atlas_tilelink_rigid_limit_f2.npz"],
-    "pybullet": ["atlas_pybullet_pybullet.npz"],
-}
+# NUISANCE_MEMBERS, FAMILIES, MASS_ATLASES: plate_env.build.forward_models (the registry's builder).
 
 
 def member(name: str) -> Member:
@@ -533,62 +523,13 @@ def stage_lorentz(args) -> None:
 
 
 # --------------------------------------------------------------------------------------------------- ship
-#: The point-mass atlases along the mass axis (grids experiments/grids/pointmass_m*.json): the nominal member of
-#: every point-mass forward model is conditioned on the lab's mass between them.
-MASS_ATLASES = ["atlas_tilelink_pointmass_m5.npz", "atlas_tilelink_pointmass_m8.2.npz", "atlas_tilelink_pointmass.npz",
-                "atlas_tilelink_pointmass_m23.2.npz", "atlas_tilelink_pointmass_m40.npz"]
-
-
-def _entry(members: list[list[str]], sigma_eps: float, provenance: dict, nu: float = math.inf,
-           offset: tuple[float, float] = (0.0, math.inf)) -> dict:
-    out = {"members": [{"atlases": atlases} for atlases in members], "sigma_eps": sigma_eps,
-           "pooling": "evidence", "provenance": provenance}
-    if math.isfinite(nu):
-        out["eps_nu"] = nu
-    if offset[0] > 0:
-        out["offset_sigma"], out["offset_nu"] = offset
-    return out
-
-
 def stage_ship(args) -> None:
-    """Write plate_env/data/forward_models.json from the measured numbers of the other stages."""
-    from plate_env.surrogate.atlas import load_atlas_file
+    """Write plate_env/data/forward_models.json from the measured numbers of the within and lomo stages
+    (``plate-env build forward-models``)."""
+    from plate_env.cli import main as cli_main
 
-    within = json.loads((RESULTS / "forward_models_within.json").read_text())
-    lomo = json.loads((RESULTS / "forward_models_lomo.json").read_text())
-    masses = [f for f in MASS_ATLASES if (Path("plate_env/data") / f).exists()]
-
-    def self_discrepancy(fam: str) -> tuple[float, float]:
-        eps, sd = (np.array(lomo["cross"][f"{fam}->{fam}"][k]) for k in ("eps", "sd"))
-        return fit_discrepancy(eps, sd)
-
-    cite = "experiments/results/forward_models_{}.md (python experiments/forward_models.py {})"
-    rigid, pyb = self_discrepancy("rigid"), self_discrepancy("pybullet")
-    registry = {
-        "tilelink/pointmass": _entry([masses], within["sigma_eps"], {"sigma_eps": cite.format("within", "within")},
-                                     within.get("eps_nu", math.inf)),
-        "tilelink/rigid_limit": _entry([FAMILIES["rigid"]], rigid[1],
-                                       {"sigma_eps": "held-out rigid_limit sweeps through its atlas, "
-                                                     + cite.format("lomo", "lomo")}, rigid[0]),
-        "pybullet/pybullet": _entry([FAMILIES["pybullet"]], pyb[1],
-                                    {"sigma_eps": "held-out PyBullet sweeps through its atlas, "
-                                                  + cite.format("lomo", "lomo")}, pyb[0]),
-        "lab": _entry([masses] + [[f] for f in FAMILIES["pointmass"][1:] + FAMILIES["rigid"]
-                                   + FAMILIES["pybullet"]],
-                      lomo["lab"]["sigma_eps"],
-                      {"sigma_eps": "offset between models and the objects' scatter, from every model's data "
-                                    "through every other model (plate_env.inference.family_discrepancy), "
-                                    + cite.format("lomo", "lomo"),
-                       "members": "point mass (nominal along the mass axis, 8 nuisance members), rigid tiles, "
-                                  "PyBullet sheet"},
-                      lomo["lab"]["eps_nu"], (lomo["lab"]["offset_sigma"], lomo["lab"]["offset_nu"])),
-    }
-    for entry in registry.values():
-        for m in entry["members"]:
-            for f in m["atlases"]:
-                load_atlas_file(f)  # every file exists and loads
-    REGISTRY.write_text(json.dumps(registry, indent=1) + "\n")
-    print(json.dumps(registry, indent=1))
+    sys.exit(cli_main(["build", "forward-models", "--within", str(RESULTS / "forward_models_within.json"),
+                       "--lomo", str(RESULTS / "forward_models_lomo.json"), "--out", str(REGISTRY)]))
 
 
 def main() -> None:

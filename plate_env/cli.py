@@ -1,5 +1,5 @@
-"""``plate-env`` command line: identify, probe, sweep, fit, bench. ``--json`` on every command prints one JSON
-document."""
+"""``plate-env`` command line: identify, probe, sweep, fit, calibrate, bench, build. ``--json`` on every command
+prints one JSON document."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from plate_env.build.commands import add_build_parser, run_build
 from plate_env.core import checks
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import ObjectSpec, preset
@@ -255,6 +256,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--calibration", default=None, help="a lab calibration (CAL.json from plate-env calibrate): read "
                    "the data through what the lab's reference discs taught")
     _add_calibrate(sub)
+    add_build_parser(sub)
     for p in sub.choices.values():  # --help shows every default
         p.formatter_class = _DefaultsFormatter
     return parser
@@ -753,7 +755,8 @@ def _print_identify(res) -> None:
 
 
 COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep, "fit": _cmd_fit, "identify": _cmd_identify,
-            "bench": _cmd_bench, "calibrate": _cmd_calibrate}
+            "bench": _cmd_bench, "calibrate": _cmd_calibrate,
+            "build": lambda args: run_build(args, args.argv[1:])}
 
 
 #: A command-line token that is a negative value, not an option: "-10pi", "-1e-3", "-inf", "-.5".
@@ -780,7 +783,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run one command. Exit codes: 0 done, 1 no estimate, 2 bad input (one line naming it), 3 an internal error
     (one line; ``PLATE_ENV_TRACEBACK=1`` shows the traceback), 130 interrupted (finished probes are printed)."""
     parser = build_parser()
-    args = parser.parse_args(_join_negative_values(list(sys.argv[1:] if argv is None else argv)))
+    raw = _join_negative_values(list(sys.argv[1:] if argv is None else argv))
+    args = parser.parse_args(raw)
+    args.argv = raw
     with warnings.catch_warnings():
         warnings.showwarning = _warn_one_line
         try:

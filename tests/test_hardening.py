@@ -353,7 +353,7 @@ def test_item20_an_error_says_each_reason_once(tmp_path, capsys):
     csv.write_text("f_p_hz,omega_b_deg_s\n20,100\n25,200\n30,100\n")
     assert main(["fit", str(csv), "--amp", "3", "--mass-g", "100"]) == 2
     err = capsys.readouterr().err
-    assert err.count("build_atlas.py") == 1 and err.count("\n") == 1 and len(err) < 700, err
+    assert err.count("plate-env build atlas") == 1 and err.count("\n") == 1 and len(err) < 700, err
 
 
 def test_item23_a_pool_larger_than_the_machine_is_capped_with_a_note():

@@ -108,7 +108,7 @@ def test_unknown_suite_names_the_shipped_ones():
         load_suite("tilelink-v9")
 
 
-def test_suite_files_are_what_make_suites_writes():
+def test_suite_files_are_what_make_suites_writes():  # the checkout script over plate_env.build.suites
     done = subprocess.run([sys.executable, "experiments/make_suites.py", "--check"], cwd=ROOT, capture_output=True,
                           text=True)
     assert done.returncode == 0, done.stdout + done.stderr

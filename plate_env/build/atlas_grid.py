@@ -5,7 +5,7 @@
                        cache="experiments/cache/atlas_x.jsonl", executor="ray")
 
 ``results`` is an object array shaped (n_f, n_a, n_omega, n_alpha, repeats) of :class:`ProbeResult`, ready for
-:func:`plate_env.surrogate.atlas.atlas_from_repeats`. Used by ``experiments/build_atlas.py``.
+:func:`plate_env.surrogate.atlas.atlas_from_repeats`. Used by :mod:`plate_env.build.atlas` (``plate-env build atlas``).
 
 A grid file is JSON with ``f_p_hz``, ``a_p_deg``, ``omega_n_pi`` (units of pi rad/s), ``alpha_deg`` (lists of
 numbers; ``f_p_hz`` may also be ``"start:stop:step"``, inclusive) and optionally ``settle_s``, ``measure_s`` and the
@@ -133,11 +133,25 @@ def grid_probes(grid: AtlasGrid, repeats: int, rng: np.random.Generator, placed:
 
 def run_grid(backend: BackendSpec, grid: AtlasGrid, repeats: int, seed: int, cache: str | Path | None,
              executor: Executor | str | None = None, chunk: int | None = None, placed: bool = True,
-             sweeps: bool = False, progress: bool = True, desc: str = "atlas") -> np.ndarray:
+             sweeps: bool = False, progress: bool = True, desc: str = "atlas",
+             nodes: tuple[Sequence[int], ...] | None = None) -> np.ndarray:
     """Every grid probe's result (object array shaped ``grid.shape(repeats)``), run through ``executor`` with the
     resumable cache (:func:`plate_env.run.sweeps.run_cached`). ``chunk`` defaults to one sweep (``len(grid.f_hz)``)
-    with ``sweeps``, else 128 in-process and 16 on workers (many chunks to spread, each still a batch)."""
+    with ``sweeps``, else 128 in-process and 16 on workers (many chunks to spread, each still a batch).
+
+    ``nodes``: only the nodes at these indices per axis (f, A_p, omega_n, alpha), each probe placed as in the whole
+    grid's build (the placements are drawn for every probe in grid order, the others are not run); the result is
+    shaped by the selection."""
     order, specs = grid_probes(grid, repeats, np.random.default_rng(seed), placed=placed, sweeps=sweeps)
+    shape = grid.shape(repeats)
+    if nodes is not None:
+        if len(nodes) != 4:
+            raise ValueError(f"nodes: expected index lists for 4 axes (f, A_p, omega_n, alpha), got {len(nodes)}")
+        where = [{i: k for k, i in enumerate(ix)} for ix in nodes]
+        kept = [(tuple(w[i] for w, i in zip(where, ix[:4], strict=True)) + ix[4:], s)
+                for ix, s in zip(order, specs, strict=True) if all(i in w for w, i in zip(where, ix[:4], strict=True))]
+        order, specs = [k for k, _ in kept], [s for _, s in kept]
+        shape = (*map(len, nodes), repeats)
     if chunk is None:
         in_process = executor in (None, "inprocess") or getattr(executor, "name", "") == "inprocess"
         if executor in (None, "local"):
@@ -146,7 +160,7 @@ def run_grid(backend: BackendSpec, grid: AtlasGrid, repeats: int, seed: int, cac
             in_process = default_local(backend) == "inprocess"
         chunk = len(grid.f_hz) if sweeps else (128 if in_process else 16)
     results = run_cached(backend, specs, cache, chunk=chunk, progress=progress, desc=desc, executor=executor)
-    out = np.empty(grid.shape(repeats), dtype=object)
+    out = np.empty(shape, dtype=object)
     for idx, r in zip(order, results, strict=True):
         out[idx] = r
     return out

@@ -1,10 +1,10 @@
 """The response atlas: omega_B mean, spread and instability probability on a grid over (f_p, A_p, omega_n, alpha).
 
-Built by ``experiments/build_atlas.py`` from repeated probes of a real backend (each repeat places the disc at a
-random yaw and offset, as a real experiment would), shipped as package data (``.npz`` with provenance), and
-interpolated smoothly: tensor-product cubic splines along f_p, log omega_n and alpha (the spline of scipy's
-RegularGridInterpolator "cubic"), passing exactly through the grid values; spreads are clipped at 0 and
-instability probabilities to [0, 1] where the spline overshoots. (Its "pchip" variant would not overshoot but
+Built by ``plate-env build atlas`` (:mod:`plate_env.build.atlas`) from repeated probes of a real backend (each
+repeat places the disc at a random yaw and offset, as a real experiment would), shipped as package data (``.npz``
+with provenance), and interpolated smoothly: tensor-product cubic splines along f_p, log omega_n and alpha (the
+spline of scipy's RegularGridInterpolator "cubic"), passing exactly through the grid values; spreads are clipped at 0
+and instability probabilities to [0, 1] where the spline overshoots. (Its "pchip" variant would not overshoot but
 evaluates ~700x slower: 4.4 s against 6 ms for 20,000 points, measured.) Plate amplitudes are not interpolated:
 a query must use one of the atlas's amplitudes.
 """
@@ -314,7 +314,7 @@ def load_atlas(physics: str = "tilelink", model: str = "pointmass") -> Atlas:
         return load_atlas_file(atlas_file(physics, model))
     except FileNotFoundError:
         raise ValueError(f"no atlas shipped for physics {physics!r} model {model!r} "
-                         f"(run experiments/build_atlas.py --physics {physics} --model {model})") from None
+                         f"(build one: plate-env build atlas --physics {physics} --model {model})") from None
 
 
 @lru_cache(maxsize=32)

@@ -50,7 +50,8 @@ def atlas_inputs(atlas: Atlas) -> KnownInputs:
 
 
 #: How to make an atlas that is missing (said once per message).
-BUILD_HINT = "build one for these inputs with experiments/build_atlas.py"
+BUILD_HINT = ("build one for these inputs with plate-env build atlas --grid GRID.json (a grid file naming "
+              "mass_g, b_p_mm, diameter_mm)")
 #: Relative tolerance when matching a lab's B_p, diameter or mass to an atlas's.
 INPUT_RTOL = 0.02
 

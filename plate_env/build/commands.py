@@ -1,0 +1,136 @@
+"""``plate-env build suite|atlas|forward-models``: rebuild a shipped artifact from the installed package. Every
+artifact written records the command, the package version and the git commit (:mod:`plate_env.build.provenance`)."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+
+from plate_env.run.executor import add_executor_argument
+
+#: What ``plate-env build`` can rebuild.
+ARTIFACTS = ("suite", "atlas", "forward-models")
+
+
+def add_build_parser(sub) -> None:
+    """The ``build`` command and its artifacts on the CLI's subparsers ``sub``."""
+    b = sub.add_parser("build", help="rebuild a shipped artifact (suite, atlas, forward-models) from the installed "
+                       "package")
+    kinds = b.add_subparsers(dest="artifact", required=True)
+    s = kinds.add_parser("suite", help="write an evaluation suite exactly as shipped (plate_env/data/suites)")
+    s.add_argument("name", help="the suite (atlas-v0, tilelink-v0, pybullet-v0)")
+    s.add_argument("--out", required=True, help="the suite file to write; the build record goes to "
+                   "OUT.provenance.json")
+    a = kinds.add_parser("atlas", help="probe a physics backend over a grid and write its response atlas (.npz)")
+    a.add_argument("--physics", default="tilelink", help="tilelink or pybullet")
+    a.add_argument("--model", default="pointmass", help="tile-link model (pointmass, rigid, rigid_limit, ...)")
+    a.add_argument("--grid", default=None, help="a named grid (tilelink, pybullet), a shipped grid "
+                   "(plate_env/data/grids: pointmass_m13.6 is the shipped tilelink/pointmass atlas's) or a grid "
+                   ".json file (default: pybullet for --physics pybullet, else tilelink)")
+    a.add_argument("--repeats", type=int, default=3, help="placed repeats per grid node")
+    a.add_argument("--seed", type=int, default=0, help="seed of the placements (and of the held-out points)")
+    a.add_argument("--held-out", type=int, default=None, help="live probes at held-out points that score the atlas "
+                   "and fit its sigma_model (default 120; 0 for pybullet)")
+    a.add_argument("--select", action="append", default=[], metavar="AXIS=V1,V2",
+                   help="build only the grid nodes with these values on an axis (f_p_hz, a_p_deg, omega_n_pi, "
+                   "alpha_deg; repeatable), each placed as in the whole grid's build")
+    a.add_argument("--nuisance", default=None, help="tile-link joint/contact values, e.g. "
+                   "'zeta_bending=0.05,k_inplane=1000' (plate_env.physics.nuisance.Nuisance fields)")
+    a.add_argument("--backend-option", action="append", default=[], metavar="KEY=VALUE",
+                   help="a backend option, e.g. n_layer=150 or dt=4e-4 for pybullet (repeatable)")
+    add_executor_argument(a)
+    a.add_argument("--chunk", type=int, default=None, help="probes per chunk (default: a sweep for pybullet, 128 "
+                   "in-process, 16 on workers)")
+    a.add_argument("--name", default=None, help="file the cache (and default output) as atlas_NAME")
+    a.add_argument("--out", default=None, help="the atlas to write (default atlas_<physics>_<model>.npz, or "
+                   "atlas_NAME.npz, here)")
+    a.add_argument("--cache-dir", default=".", help="finished chunks are appended to CACHE_DIR/atlas_<name>.jsonl; "
+                   "re-running resumes from it")
+    a.add_argument("--report", default=None, help="also write the build's markdown report here")
+    f = kinds.add_parser("forward-models", help="write the forward-model registry (plate_env/data/forward_models.json) "
+                         "from the measured numbers of experiments/forward_models.py's within and lomo stages")
+    f.add_argument("--within", required=True, help="the within stage's numbers (experiments/results/"
+                   "forward_models_within.json)")
+    f.add_argument("--lomo", required=True, help="the lomo stage's numbers (experiments/results/"
+                   "forward_models_lomo.json)")
+    f.add_argument("--out", required=True, help="the registry to write; the build record goes to "
+                   "OUT.provenance.json")
+
+
+def _pairs(values: Sequence[str], what: str) -> dict[str, str]:
+    out = {}
+    for kv in values:
+        key, sep, value = kv.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise ValueError(f"{what} {kv!r}: expected KEY=VALUE")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _number(text: str, what: str) -> float:
+    try:
+        return int(text) if text.lstrip("-").isdigit() else float(text)
+    except ValueError:
+        raise ValueError(f"{what}: {text!r} is not a number") from None
+
+
+def atlas_job(args: argparse.Namespace, record: dict):
+    """The :class:`~plate_env.build.atlas.AtlasJob` of ``plate-env build atlas``'s arguments (checked first)."""
+    from plate_env.build.atlas import AtlasJob, resolve_grid
+    from plate_env.physics.nuisance import Nuisance
+
+    if args.repeats < 1:
+        raise ValueError(f"--repeats {args.repeats}: needs at least 1")
+    if args.held_out is not None and args.held_out < 0:
+        raise ValueError(f"--held-out {args.held_out}: needs 0 or more")
+    if args.chunk is not None and args.chunk < 1:
+        raise ValueError(f"--chunk {args.chunk}: needs at least 1")
+    nuisance = None
+    if args.nuisance:
+        try:
+            nuisance = Nuisance(**{k: float(v) for k, v in _pairs(args.nuisance.split(","), "--nuisance").items()})
+        except TypeError as exc:
+            raise ValueError(f"--nuisance {args.nuisance!r}: {exc}") from None
+    options = {k: _number(v, f"--backend-option {k}")
+               for k, v in _pairs(args.backend_option, "--backend-option").items()}
+    select = {k: tuple(_number(x, f"--select {k}") for x in v.split(","))
+              for k, v in _pairs(args.select, "--select").items()}
+    job = AtlasJob(physics=args.physics, model=args.model, grid_name=args.grid, repeats=args.repeats, seed=args.seed,
+                   held_out=args.held_out, nuisance=nuisance, options=options, executor=args.executor,
+                   chunk=args.chunk, name=args.name, out=args.out, cache_dir=args.cache_dir, report=args.report,
+                   select=select, record=record)
+    if select:
+        from plate_env.build.atlas import select_grid
+
+        select_grid(resolve_grid(job.grid_label()), select)  # an unknown axis or value is refused before any probe
+    else:
+        resolve_grid(job.grid_label())
+    return job
+
+
+def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    """Run ``plate-env build``; ``argv`` are the arguments after ``build`` (recorded in the artifact)."""
+    from plate_env.build.provenance import build_record
+
+    record = build_record(argv)
+    if args.artifact == "suite":
+        from plate_env.build.suites import build_suite
+
+        done = build_suite(args.name, args.out, record)
+        print(f"wrote {args.out} (suite {args.name}, sha256 {done['sha256']}) and {args.out}.provenance.json")
+        return 0
+    if args.artifact == "forward-models":
+        from plate_env.build.forward_models import build_forward_models
+
+        reg = build_forward_models(args.within, args.lomo, args.out, record)
+        print(f"wrote {args.out} ({', '.join(reg)}) and {args.out}.provenance.json")
+        return 0
+    from plate_env.build.atlas import build_atlas
+
+    atlas, out, lines = build_atlas(atlas_job(args, record))
+    print("\n".join(lines))
+    print(f"wrote {out} ({atlas.mean.size} nodes)")
+    return 0
+
+
+__all__: Sequence[str] = ("ARTIFACTS", "add_build_parser", "atlas_job", "run_build")

@@ -1,0 +1,111 @@
+"""The forward-model registry's builder: ``plate-env build forward-models --within W.json --lomo L.json --out F``
+writes ``plate_env/data/forward_models.json`` from the measured numbers of ``experiments/forward_models.py``'s
+``within`` and ``lomo`` stages (``experiments/results/forward_models_{within,lomo}.json``): each model's members
+(shipped atlases) and its fitted discrepancy. The fitted values live in those result files, not here.
+
+The registry is read as a mapping of model names, so the build record (command, version, commit) goes to a file
+beside it, ``F.provenance.json``, and the registry stays byte-identical to the shipped one.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from importlib import resources
+from pathlib import Path
+
+from plate_env.identify.inference import fit_discrepancy
+from plate_env.surrogate.atlas import load_atlas_file
+
+#: The unknown joint values of the point-mass members (zeta_bending x k_inplane N/m); the nominal one is the
+#: shipped dense atlas, the others grid plate_env/data/grids/pointmass_member.json (``--nuisance``).
+NUISANCE_MEMBERS = [(zb, ki) for zb in (0.05, 0.1, 0.2) for ki in (100, 300, 1000) if (zb, ki) != (0.1, 300)]
+#: The atlases of each model family: the rigid-tile family's member is the paper-faithful ``rigid_limit`` model's
+#: atlas (10-40 Hz in 2 Hz steps, 2 repeats: experiments/results/atlas_tilelink_rigid_limit_f2.md).
+FAMILIES = {
+    "pointmass": ["atlas_tilelink_pointmass.npz"] + [f"atlas_tilelink_pointmass_zb{zb:g}_ki{ki:g}.npz"
+                                                     for zb, ki in NUISANCE_MEMBERS],
+    "rigid": ["atlas_tilelink_rigid_limit_f2.npz"],
+    "pybullet": ["atlas_pybullet_pybullet.npz"],
+}
+#: The point-mass atlases along the mass axis (grids plate_env/data/grids/pointmass_m*.json): the nominal member of
+#: every point-mass forward model is conditioned on the lab's mass between them.
+MASS_ATLASES = ["atlas_tilelink_pointmass_m5.npz", "atlas_tilelink_pointmass_m8.2.npz", "atlas_tilelink_pointmass.npz",
+                "atlas_tilelink_pointmass_m23.2.npz", "atlas_tilelink_pointmass_m40.npz"]
+
+
+def _entry(members: list[list[str]], sigma_eps: float, provenance: dict, nu: float = math.inf,
+           offset: tuple[float, float] = (0.0, math.inf)) -> dict:
+    out = {"members": [{"atlases": atlases} for atlases in members], "sigma_eps": sigma_eps,
+           "pooling": "evidence", "provenance": provenance}
+    if math.isfinite(nu):
+        out["eps_nu"] = nu
+    if offset[0] > 0:
+        out["offset_sigma"], out["offset_nu"] = offset
+    return out
+
+
+def registry(within: dict, lomo: dict) -> dict:
+    """The registry from the ``within`` and ``lomo`` stages' numbers (their JSON documents). Pure but for checking
+    that every member's atlas ships (ValueError naming one that does not)."""
+    shipped = resources.files("plate_env") / "data"
+    masses = [f for f in MASS_ATLASES if (shipped / f).is_file()]
+
+    def self_discrepancy(fam: str) -> tuple[float, float]:
+        import numpy as np
+
+        eps, sd = (np.array(lomo["cross"][f"{fam}->{fam}"][k]) for k in ("eps", "sd"))
+        return fit_discrepancy(eps, sd)
+
+    cite = "experiments/results/forward_models_{}.md (python experiments/forward_models.py {})"
+    rigid, pyb = self_discrepancy("rigid"), self_discrepancy("pybullet")
+    out = {
+        "tilelink/pointmass": _entry([masses], within["sigma_eps"], {"sigma_eps": cite.format("within", "within")},
+                                     within.get("eps_nu", math.inf)),
+        "tilelink/rigid_limit": _entry([FAMILIES["rigid"]], rigid[1],
+                                       {"sigma_eps": "held-out rigid_limit sweeps through its atlas, "
+                                                     + cite.format("lomo", "lomo")}, rigid[0]),
+        "pybullet/pybullet": _entry([FAMILIES["pybullet"]], pyb[1],
+                                    {"sigma_eps": "held-out PyBullet sweeps through its atlas, "
+                                                  + cite.format("lomo", "lomo")}, pyb[0]),
+        "lab": _entry([masses] + [[f] for f in FAMILIES["pointmass"][1:] + FAMILIES["rigid"]
+                                   + FAMILIES["pybullet"]],
+                      lomo["lab"]["sigma_eps"],
+                      {"sigma_eps": "offset between models and the objects' scatter, from every model's data "
+                                    "through every other model (plate_env.inference.family_discrepancy), "
+                                    + cite.format("lomo", "lomo"),
+                       "members": "point mass (nominal along the mass axis, 8 nuisance members), rigid tiles, "
+                                  "PyBullet sheet"},
+                      lomo["lab"]["eps_nu"], (lomo["lab"]["offset_sigma"], lomo["lab"]["offset_nu"])),
+    }
+    for entry in out.values():
+        for m in entry["members"]:
+            for f in m["atlases"]:
+                try:
+                    load_atlas_file(f)
+                except FileNotFoundError:
+                    raise ValueError(f"forward model member {f!r} is not shipped (build it: plate-env build atlas "
+                                     "...)") from None
+    return out
+
+
+def _read(path: str | Path, stage: str) -> dict:
+    try:
+        return json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{stage} results {str(path)!r}: {exc} (written by python experiments/forward_models.py "
+                         f"{stage})") from None
+
+
+def build_forward_models(within: str | Path, lomo: str | Path, out: str | Path, record: dict) -> dict:
+    """Write the registry from the stages' result files to ``out`` and the build record, with the inputs' paths, to
+    ``out`` + ``.provenance.json``; returns the registry. Nothing is written when an input is missing or bad."""
+    reg = registry(_read(within, "within"), _read(lomo, "lomo"))
+    Path(out).write_text(json.dumps(reg, indent=1) + "\n")
+    record = {**record, "artifact": "forward-models", "inputs": {"within": str(within), "lomo": str(lomo)}}
+    Path(f"{out}.provenance.json").write_text(json.dumps(record, indent=1) + "\n")
+    return reg
+
+
+__all__: Sequence[str] = ("FAMILIES", "MASS_ATLASES", "NUISANCE_MEMBERS", "build_forward_models", "registry")

@@ -1,0 +1,115 @@
+"""``plate-env build``: a shipped artifact rebuilt from the installed package equals the committed one, and records
+its command, version and commit."""
+
+from __future__ import annotations
+
+import json
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from plate_env.bench.suites import PINNED, content_hash, suite_dir, suite_names
+from plate_env.cli import main
+from plate_env.surrogate.atlas import Atlas, load_atlas_file
+
+
+def _record_ok(record: dict, argv: list[str]) -> None:
+    from plate_env.identify.lab_calibration_file import package_version
+
+    assert record["command"] == "plate-env build " + " ".join(argv)
+    assert record["plate_env"] == package_version() != "unknown"
+    commit = record["commit"]  # a git checkout here (an installed wheel records None)
+    assert commit is None or (len(commit.removesuffix("+dirty")) == 40 and int(commit[:40], 16) >= 0)
+
+
+@pytest.mark.parametrize("name", suite_names())
+def test_build_suite_writes_the_shipped_suite_byte_for_byte(name, tmp_path):
+    out = tmp_path / f"{name}.json"
+    argv = ["suite", name, "--out", str(out)]
+    assert main(["build", *argv]) == 0
+    assert out.read_bytes() == (suite_dir() / f"{name}.json").read_bytes()
+    record = json.loads(Path(f"{out}.provenance.json").read_text())
+    _record_ok(record, argv)
+    assert record["sha256"] == content_hash(json.loads(out.read_text())) == PINNED[name]
+
+
+def test_build_suite_refuses_an_unknown_suite_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "x.json"
+    assert main(["build", "suite", "tilelink-v9", "--out", str(out)]) == 2
+    assert "tilelink-v9" in capsys.readouterr().err and not out.exists()
+    assert not Path(f"{out}.provenance.json").exists()
+
+
+#: A slice of the shipped point-mass atlas (grid plate_env/data/grids/pointmass_m13.6.json, 4 repeats, seed 0):
+#: 12 nodes, 48 probes (seconds), every node with a stable repeat, one with a single stable repeat.
+SLICE = ["--select", "f_p_hz=10,25", "--select", "a_p_deg=3", "--select", "omega_n_pi=1.4,5.0277,45",
+         "--select", "alpha_deg=26,48.8"]
+
+
+def test_build_atlas_rebuilds_nodes_of_the_shipped_atlas_bit_for_bit(tmp_path):
+    shipped = load_atlas_file("atlas_tilelink_pointmass.npz")
+    prov = shipped.provenance
+    assert (prov["repeats"], prov["seed"], Path(prov["grid"]).stem) == (4, 0, "pointmass_m13.6")
+    out = tmp_path / "slice.npz"
+    argv = ["atlas", "--grid", "pointmass_m13.6", "--repeats", "4", "--seed", "0", "--held-out", "0", *SLICE,
+            "--out", str(out), "--cache-dir", str(tmp_path)]
+    assert main(["build", *argv]) == 0
+    built = Atlas.load(out)
+    _record_ok(built.provenance["built_by"], argv)
+    ix = np.ix_([list(shipped.f_hz).index(f) for f in built.f_hz], [list(shipped.a_p_deg).index(a) for a in
+                built.a_p_deg], [int(np.argmin(abs(shipped.omega_n - w))) for w in built.omega_n],
+                [int(np.argmin(abs(shipped.alpha - a))) for a in built.alpha])
+    assert np.allclose(shipped.omega_n[ix[2].ravel()], built.omega_n, rtol=1e-12)
+    n_stable = np.rint((1 - built.p_unstable) * 4)
+    assert built.mean.shape == (2, 1, 3, 2) and n_stable.min() >= 1 and (n_stable == 1).sum() == 1
+    # as stored (float32): the instability share and the mean of every node, the spread of every node with two
+    # or more stable repeats. A node with one stable repeat gets at least the median spread over the whole grid's
+    # nodes (atlas_from_repeats), which a slice cannot know: not compared.
+    for key in ("p_unstable", "mean"):
+        assert np.array_equal(getattr(shipped, key)[ix], getattr(built, key).astype(np.float32).astype(float)), key
+    multi = n_stable >= 2
+    assert np.array_equal(shipped.spread[ix][multi], built.spread.astype(np.float32).astype(float)[multi])
+
+
+def test_build_atlas_refuses_a_value_off_the_grid_before_any_probe(tmp_path, capsys):
+    out = tmp_path / "a.npz"
+    assert main(["build", "atlas", "--grid", "pointmass_m13.6", "--select", "omega_n_pi=1.5", "--out", str(out),
+                 "--cache-dir", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "omega_n_pi = 1.5" in err and "not on the grid" in err
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_build_forward_models_writes_the_shipped_registry_byte_for_byte(tmp_path):
+    out = tmp_path / "fm.json"
+    within, lomo = (ROOT / "experiments" / "results" / f"forward_models_{s}.json" for s in ("within", "lomo"))
+    argv = ["forward-models", "--within", str(within), "--lomo", str(lomo), "--out", str(out)]
+    assert main(["build", *argv]) == 0
+    shipped = resources.files("plate_env") / "data" / "forward_models.json"
+    assert out.read_bytes() == shipped.read_bytes()
+    record = json.loads(Path(f"{out}.provenance.json").read_text())
+    _record_ok(record, argv)
+    assert record["inputs"] == {"within": str(within), "lomo": str(lomo)}
+    # the fitted values come from the results: another within sigma_eps gives another registry
+    changed = {**json.loads(within.read_text()), "sigma_eps": 0.5}
+    (tmp_path / "w.json").write_text(json.dumps(changed))
+    assert main(["build", "forward-models", "--within", str(tmp_path / "w.json"), "--lomo", str(lomo),
+                 "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["tilelink/pointmass"]["sigma_eps"] == 0.5
+
+
+def test_build_forward_models_refuses_a_missing_result_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "fm.json"
+    assert main(["build", "forward-models", "--within", str(tmp_path / "no.json"), "--lomo", "x.json",
+                 "--out", str(out)]) == 2
+    assert "no.json" in capsys.readouterr().err and not out.exists()
+
+
+def test_every_shipped_grid_file_is_package_data():
+    grids = resources.files("plate_env") / "data" / "grids"
+    assert {"pointmass_m13.6.json", "pybullet.json"} <= {p.name for p in grids.iterdir()}
