@@ -10,6 +10,7 @@ import math
 import os
 import re
 import sys
+import time
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -521,6 +522,8 @@ def _fit_report(est, table) -> list[str]:
 
 #: Most rows ``fit`` reads (what one sweep may make; the posterior's cost grows with the rows).
 MAX_FIT_ROWS = MAX_SWEEP_PROBES
+#: From this many rows ``fit`` says on stderr what it computes and how long it took.
+FIT_PROGRESS_ROWS = 200
 #: ``fit``'s known inputs when not given (the paper's set-up and disc).
 FIT_KNOWN = {"bp": PAPER_SETUP.b_p_mm, "mass_g": PAPER_SETUP.mass_g, "diameter_mm": PAPER_SETUP.diameter_mm}
 #: Options of ``fit`` that only one method reads (refused with the other, never dropped silently).
@@ -648,10 +651,18 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     table = read_lab_csv(args.csv, a_p_deg=args.amp)
     if len(table) > MAX_FIT_ROWS:
         raise CliError(f"{args.csv}: {len(table)} rows; fit takes at most {MAX_FIT_ROWS} (the most a sweep makes: the "
-                       "posterior's time grows with the rows, ~16 ms a row on the lab model); average repeated "
-                       "frequencies or split the file")
+                       "predictive check replicates every row 4000 times, and the posterior's time grows with the "
+                       "distinct rows, ~16 ms each on the lab model); average repeated frequencies or split the file")
     model = args.model or ("lab" if args.physics == "lab" else "pointmass")
+    t0 = time.perf_counter()
+    if args.method == "atlas" and len(table) >= FIT_PROGRESS_ROWS:
+        from plate_env.identify.inference import distinct_probes
+
+        print(f"fit: {len(table)} rows, {distinct_probes(table)} distinct (exact repeats computed once); computing "
+              f"the posterior and its predictive check ...", file=sys.stderr, flush=True)
     est = identify(table, method=args.method, physics=args.physics, model=model, forward=args.forward, known=known)
+    if args.method == "atlas" and len(table) >= FIT_PROGRESS_ROWS:
+        print(f"fit: done in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
     if args.json:
         print(json.dumps({"file": str(args.csv), "physics": args.physics, "model": model, "calibrated": False,
                           **est.to_dict()}), flush=True)

@@ -595,3 +595,45 @@ def test_item14_a_subnormal_frequency_step_is_refused_by_name(capsys):
     assert main(["sweep", "--physics", "atlas", "--freqs", "10:40:1e-320", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "--freqs '10:40:1e-320'" in err and "at most 2000" in err
+
+
+def test_item11_exact_repeats_are_computed_once_and_give_the_per_row_likelihood(monkeypatch):
+    """30 exact copies of each row of a sweep (plus rows at the same frequencies with other omega_B, which are not
+    merged): the likelihood evaluates each distinct row once, and equals the sum of the rows' own terms."""
+    from plate_env.identify import inference
+
+    fm = load_forward_model("tilelink/pointmass")
+    m = fm.members[0]
+    base = _honest_sweep(31.4, 40.0, 3.0, seed=3)
+    other = ProbeTable.from_arrays(base.f_p_hz, base.a_p_deg, base.omega_b_deg_s * 1.01 + 0.5, base.stderr_deg_s,
+                                   base.unstable)
+    table = ProbeTable.concat(*([base] * 30), other)
+    assert inference.distinct_probes(table) == 2 * len(base)
+    w, a = fm.grid(inference.N_OMEGA, inference.N_ALPHA)
+    calls = []
+    real = inference.probe_log_likelihood
+    monkeypatch.setattr(inference, "probe_log_likelihood", lambda *x: calls.append(1) or real(*x))
+    ll, skipped = inference.member_log_likelihood(m, table, w, a)
+    assert len(calls) == 2 * len(base) and skipped == 0
+    monkeypatch.setattr(inference, "probe_log_likelihood", real)
+    # the reference: every row's own term, summed row by row (what main computed)
+    ref = sum(inference.member_log_likelihood(m, table, w, a, only=np.arange(len(table)) == k)[0]
+              for k in range(len(table)))
+    finite = np.isfinite(ref)
+    assert np.array_equal(finite, np.isfinite(ll))
+    np.testing.assert_allclose(ll[finite], ref[finite], rtol=1e-9, atol=1e-6)
+
+
+def test_item11_fit_says_on_stderr_what_a_long_fit_computes(tmp_path, capsys):
+    from plate_env.cli import FIT_PROGRESS_ROWS, main
+
+    base = _honest_sweep(31.4, 40.0, 3.0, seed=3)
+    rows = "".join(f"{f:.4f},{0.0 if u else y:.4f},{e:.4f},{int(u)}\n" for f, y, e, u in
+                   zip(base.f_p_hz, base.omega_b_deg_s, base.stderr_deg_s, base.unstable, strict=True))
+    copies = -(-FIT_PROGRESS_ROWS // len(base))
+    csv = tmp_path / "repeats.csv"
+    csv.write_text("f_p_hz,omega_b_deg_s,stderr_deg_s,unstable\n" + rows * copies)
+    assert main(["fit", str(csv), "--amp", "3", "--forward", "tilelink/pointmass", "--json"]) in (0, 1)
+    out, err = capsys.readouterr()
+    json.loads(out)
+    assert f"fit: {copies * len(base)} rows, {len(base)} distinct" in err and "fit: done in" in err
