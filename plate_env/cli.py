@@ -684,7 +684,12 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     if plot is not None:
         from plate_env.plotting import plot_fit
 
-        plot_fit(table, est, str(plot))
+        fm = None
+        if est.method == "atlas" and est.ok:
+            from plate_env.identify.forward import load_forward_model
+
+            fm = load_forward_model(args.forward, known)
+        plot_fit(table, est, str(plot), fm)
         _say_plot(args, plot)
     return 0 if est.ok else 1
 
@@ -718,6 +723,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         res = run_episode(env, agent, seed=args.seed,
                           options={"omega_n": obj.omega_n, "alpha": obj.alpha, "mass": obj.mass},
                           on_probe=None if args.json else show)
+        plot_fm = _estimate_forward(env, agent) if plot is not None else None  # the plot's curve at the estimate
     except KeyboardInterrupt:  # the probes so far were shown as they finished; with --json, print them now
         done = env.unwrapped.table()
         if args.json:
@@ -735,9 +741,24 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     if plot is not None:
         from plate_env.plotting import plot_fit
 
-        plot_fit(res.probes, est, str(plot))
+        plot_fit(res.probes, est, str(plot), plot_fm)
         _say_plot(args, plot)
     return 0 if est.ok else 1
+
+
+def _estimate_forward(env, agent):
+    """The forward model an episode's atlas estimate was computed with (the agent's own, else the env's), or None
+    (the Lorentz method, a lab calibration, a physics without one)."""
+    from plate_env.env.episode import estimate_model_of
+
+    e = env.unwrapped
+    if e.method != "atlas" or e.calibration is not None:
+        return None
+    fm = estimate_model_of(agent)
+    if fm is None:
+        state = e.posterior_state()
+        fm = None if isinstance(state, str) else state.fm
+    return fm
 
 
 def _intervals(est) -> str:

@@ -637,3 +637,58 @@ def test_item11_fit_says_on_stderr_what_a_long_fit_computes(tmp_path, capsys):
     out, err = capsys.readouterr()
     json.loads(out)
     assert f"fit: {copies * len(base)} rows, {len(base)} distinct" in err and "fit: done in" in err
+
+
+def _plotted_lines(monkeypatch, table, est, fm):
+    """The lines plot_fit draws on its data axes (the figure is captured, not written)."""
+    import plate_env.plotting as plotting
+
+    figs = []
+    monkeypatch.setattr(plotting, "save_figure", lambda fig, path, dpi=100: figs.append(fig))
+    plotting.plot_fit(table, est, "unused.png", fm)
+    return figs[0].axes[0].get_lines()
+
+
+def test_item19_atlas_plots_draw_the_forward_models_curve_at_the_estimate(monkeypatch):
+    from plate_env.identify.inference import identify_atlas
+
+    fm = load_forward_model("tilelink/pointmass")
+    table = _honest_sweep(31.4, 40.0, 3.0, seed=3)
+    est = identify_atlas(table, fm)
+    assert est.ok
+    curves = [ln for ln in _plotted_lines(monkeypatch, table, est, fm) if "at the estimate" in str(ln.get_label())]
+    assert len(curves) == 1
+    f, y = (np.asarray(v, float) for v in curves[0].get_data())
+    assert f.min() == table.f_p_hz.min() and f.max() == table.f_p_hz.max()
+    m = fm.members[0]
+    np.testing.assert_allclose(y, m.atlas.predict(f, 3.0, est.omega_n, est.alpha)[0], rtol=1e-9)
+    # the curve the estimate promises follows the data: the stable probes' median miss is within a few model scales
+    st = ~table.unstable
+    at = np.interp(table.f_p_hz[st], f, y)
+    scale = np.sqrt(m.atlas.predict(table.f_p_hz[st], 3.0, est.omega_n, est.alpha)[1] ** 2 + m.sigma_model ** 2)
+    assert np.median(np.abs(table.omega_b_deg_s[st] - at) / scale) < 2.0
+    # no estimate: no curve claimed
+    bad = identify_atlas(ProbeTable.from_arrays(table.f_p_hz, 3.0, 100 * table.omega_b_deg_s, table.stderr_deg_s,
+                                                table.unstable), fm)
+    assert not bad.ok
+    assert not [ln for ln in _plotted_lines(monkeypatch, table, bad, fm) if "at the estimate" in str(ln.get_label())]
+
+
+def test_item19_fit_and_identify_plots_get_the_forward_model(tmp_path, monkeypatch, capsys):
+    import plate_env.plotting as plotting
+    from plate_env.cli import main
+
+    got = []
+    monkeypatch.setattr(plotting, "plot_fit", lambda table, est, path, fm=None: got.append((est, fm)))
+    base = _honest_sweep(31.4, 40.0, 3.0, seed=3)
+    csv = tmp_path / "s.csv"
+    csv.write_text("f_p_hz,omega_b_deg_s,stderr_deg_s,unstable\n" + "".join(
+        f"{f:.4f},{0.0 if u else y:.4f},{e:.4f},{int(u)}\n"
+        for f, y, e, u in zip(base.f_p_hz, base.omega_b_deg_s, base.stderr_deg_s, base.unstable, strict=True)))
+    assert main(["fit", str(csv), "--amp", "3", "--forward", "tilelink/pointmass", "--plot",
+                 str(tmp_path / "f.png")]) == 0
+    assert main(["identify", "--physics", "atlas", "--omega-n", "10pi", "--alpha", "45", "--seed", "0",
+                 "--plot", str(tmp_path / "i.png")]) == 0
+    capsys.readouterr()
+    for est, fm in got:
+        assert est.ok and fm is not None and fm.members and est.forward == fm.name

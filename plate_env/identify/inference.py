@@ -376,6 +376,22 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> Pr
     return PredictiveCheck(statistic=t_obs, p_value=p_value, n_probes=n, member=m.label, worst=worst)
 
 
+def predicted_curve(fm: ForwardModel, est: Estimate, f_hz: np.ndarray, a_p_deg: float) -> tuple[np.ndarray, str] | None:
+    """``(omega_B [deg/s] at f_hz, member label)``: the forward model's mean response at the estimate (omega_n_hat,
+    alpha_hat) and amplitude ``a_p_deg``, from the member of highest posterior weight (the curve the estimate says
+    the data follow). None when ``est`` is not an atlas point estimate (no estimate, a bound, the Lorentz method)
+    or that member has no atlas at this amplitude. f_p outside the atlas is clipped to it (``Atlas.predict``)."""
+    if not est.ok or est.method != "atlas" or est.alpha is None:
+        return None
+    post = est.posterior
+    i = int(np.argmax(post.member_weights)) if post is not None and post.member_weights else 0
+    m = fm.members[i]
+    if not np.any(np.isclose(m.atlas.a_p_deg, abs(a_p_deg), atol=1e-6)):
+        return None
+    mean = m.atlas.predict(np.asarray(f_hz, float), abs(a_p_deg), est.omega_n, est.alpha)[0]
+    return np.asarray(mean, float), m.label
+
+
 def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:
     """omega_n and alpha as posterior medians of ``fm``, with equal-tailed 68 % / 95 % intervals; a bound (``ok``
     False) when the posterior piles against the edge of the identifiable range; no estimate when a probe lies
