@@ -692,3 +692,43 @@ def test_item19_fit_and_identify_plots_get_the_forward_model(tmp_path, monkeypat
     capsys.readouterr()
     for est, fm in got:
         assert est.ok and fm is not None and fm.members and est.forward == fm.name
+
+
+@pytest.mark.parametrize("field, value", [
+    ("omega_n_true", float("nan")), ("omega_n_true", None), ("omega_n_true", "missing"), ("omega_n_true", 1e400),
+    ("probe_sim_s", [float("inf")]), ("wall_s", -5.0), ("prefix.omega_n", float("nan")),
+    ("prefix.ci95", [0.0, float("inf")]), ("probes.stderr_deg_s", float("inf")), ("probes.stderr_deg_s", -5.0),
+    ("probes.omega_b_deg_s", None)])
+def test_item13_a_bench_cache_line_with_a_bad_field_is_skipped_naming_file_and_line(tmp_path, field, value):
+    import json as js
+
+    from plate_env.bench.runner import evaluate
+    from plate_env_agents import make_agent
+
+    cache = tmp_path / "b.jsonl"
+    good = evaluate(make_agent("grid"), "atlas-v0", cache=cache, limit=2)
+    import warnings
+
+    with warnings.catch_warnings():  # the records bench writes load without a warning
+        warnings.simplefilter("error", UserWarning)
+        evaluate(make_agent("grid"), "atlas-v0", cache=cache, limit=2)
+    lines = cache.read_text().splitlines()
+    d = js.loads(lines[1])
+    name = field.split(".")[-1]
+    if field.startswith("prefix."):
+        d["prefix"][0][name] = value
+    elif field.startswith("probes."):
+        d["probes"][0][{"omega_b_deg_s": 2, "stderr_deg_s": 3}[name]] = value
+    elif value == "missing":
+        del d[field]
+    elif field == "probe_sim_s":
+        d[field][0] = value[0]
+    else:
+        d[field] = value
+    lines[1] = js.dumps(d).replace("1e+400", "1e400")
+    cache.write_text("\n".join(lines) + "\n")
+    with pytest.warns(UserWarning, match=rf"b\.jsonl: line 2: \S*{name}"):
+        again = evaluate(make_agent("grid"), "atlas-v0", cache=cache, limit=2)
+    assert [e.omega_n_true for e in again.episodes] == [e.omega_n_true for e in good.episodes]
+    assert ([[x.omega_n for x in e.prefix] for e in again.episodes]
+            == [[x.omega_n for x in e.prefix] for e in good.episodes])  # the bad record's episode ran again
