@@ -61,6 +61,26 @@ def test_item1_an_object_above_the_identifiable_range_gets_no_confident_number()
     assert "not a sweep 'tilelink/pointmass' can explain" in est.reason and "p-value" in est.reason
 
 
+def test_item1_why_no_bound_the_estimate_models_posterior_is_not_at_the_edge():
+    """The evidence for docs/hardening.md's decision (no bound for the 60pi object): the posterior of the model the
+    agent estimates with holds almost nothing near the top of the identifiable range (45pi) -- it sits at ~18pi, so
+    a bound "omega_n > 45pi" is not what that posterior says -- while the plain model piles there and fails the
+    check too. Either way the data are ones no atlas object makes (p < 1e-3)."""
+    from plate_env.identify.inference import posterior, predictive_check
+    from plate_env_agents.bayes import BayesAgent
+
+    agent = BayesAgent()
+    agent.fm = load_forward_model("tilelink/pointmass")
+    table = _table(ABOVE_RANGE_60PI)
+    for fm, top_mass in ((agent.estimate_model(), (0.0, 1e-3)), (agent.fm, (0.5, 1.0))):
+        post = posterior(fm, table)
+        marg = post.marginal_omega() / post.marginal_omega().sum()
+        near_top = float(marg[post.omega_n > 40 * math.pi].sum())
+        assert top_mass[0] <= near_top <= top_mass[1], (fm.name, near_top)
+        assert not predictive_check(fm, table, post).passed
+        assert not identify(table, forward=fm).ok
+
+
 def test_item2_a_friction_angle_outside_the_atlas_is_flagged():
     rows = [(f, 3.0, w, se, u) for f, w, se, u in ALPHA_80_3DEG]
     est = identify(_table(rows), forward="tilelink/pointmass")  # main: 1.5pi +- 0.25 for a 10pi object
