@@ -652,7 +652,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     if len(table) > MAX_FIT_ROWS:
         raise CliError(f"{args.csv}: {len(table)} rows; fit takes at most {MAX_FIT_ROWS} (the most a sweep makes: the "
                        "predictive check replicates every row 4000 times, and the posterior's time grows with the "
-                       "distinct rows, ~16 ms each on the lab model); average repeated frequencies or split the file")
+                       "distinct rows, ~6 ms each on the lab model); average repeated frequencies or split the file")
     model = args.model or ("lab" if args.physics == "lab" else "pointmass")
     t0 = time.perf_counter()
     if args.method == "atlas" and len(table) >= FIT_PROGRESS_ROWS:
