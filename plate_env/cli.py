@@ -10,6 +10,7 @@ import math
 import os
 import re
 import sys
+import time
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -523,6 +524,8 @@ def _fit_report(est, table) -> list[str]:
 
 #: Most rows ``fit`` reads (what one sweep may make; the posterior's cost grows with the rows).
 MAX_FIT_ROWS = MAX_SWEEP_PROBES
+#: From this many rows ``fit`` says on stderr what it computes and how long it took.
+FIT_PROGRESS_ROWS = 200
 #: ``fit``'s known inputs when not given (the paper's set-up and disc).
 FIT_KNOWN = {"bp": PAPER_SETUP.b_p_mm, "mass_g": PAPER_SETUP.mass_g, "diameter_mm": PAPER_SETUP.diameter_mm}
 #: Options of ``fit`` that only one method reads (refused with the other, never dropped silently).
@@ -650,10 +653,18 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     table = read_lab_csv(args.csv, a_p_deg=args.amp)
     if len(table) > MAX_FIT_ROWS:
         raise CliError(f"{args.csv}: {len(table)} rows; fit takes at most {MAX_FIT_ROWS} (the most a sweep makes: the "
-                       "posterior's time grows with the rows, ~16 ms a row on the lab model); average repeated "
-                       "frequencies or split the file")
+                       "predictive check replicates every row 4000 times, and the posterior's time grows with the "
+                       "distinct rows, ~6 ms each on the lab model); average repeated frequencies or split the file")
     model = args.model or ("lab" if args.physics == "lab" else "pointmass")
+    t0 = time.perf_counter()
+    if args.method == "atlas" and len(table) >= FIT_PROGRESS_ROWS:
+        from plate_env.identify.inference import distinct_probes
+
+        print(f"fit: {len(table)} rows, {distinct_probes(table)} distinct (exact repeats computed once); computing "
+              f"the posterior and its predictive check ...", file=sys.stderr, flush=True)
     est = identify(table, method=args.method, physics=args.physics, model=model, forward=args.forward, known=known)
+    if args.method == "atlas" and len(table) >= FIT_PROGRESS_ROWS:
+        print(f"fit: done in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
     if args.json:
         print(json.dumps({"file": str(args.csv), "physics": args.physics, "model": model, "calibrated": False,
                           **est.to_dict()}), flush=True)
@@ -675,7 +686,12 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     if plot is not None:
         from plate_env.plotting import plot_fit
 
-        plot_fit(table, est, str(plot))
+        fm = None
+        if est.method == "atlas" and est.ok:
+            from plate_env.identify.forward import load_forward_model
+
+            fm = load_forward_model(args.forward, known)
+        plot_fit(table, est, str(plot), fm)
         _say_plot(args, plot)
     return 0 if est.ok else 1
 
@@ -709,6 +725,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         res = run_episode(env, agent, seed=args.seed,
                           options={"omega_n": obj.omega_n, "alpha": obj.alpha, "mass": obj.mass},
                           on_probe=None if args.json else show)
+        plot_fm = _estimate_forward(env, agent) if plot is not None else None  # the plot's curve at the estimate
     except KeyboardInterrupt:  # the probes so far were shown as they finished; with --json, print them now
         done = env.unwrapped.table()
         if args.json:
@@ -726,9 +743,24 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     if plot is not None:
         from plate_env.plotting import plot_fit
 
-        plot_fit(res.probes, est, str(plot))
+        plot_fit(res.probes, est, str(plot), plot_fm)
         _say_plot(args, plot)
     return 0 if est.ok else 1
+
+
+def _estimate_forward(env, agent):
+    """The forward model an episode's atlas estimate was computed with (the agent's own, else the env's), or None
+    (the Lorentz method, a lab calibration, a physics without one)."""
+    from plate_env.env.episode import estimate_model_of
+
+    e = env.unwrapped
+    if e.method != "atlas" or e.calibration is not None:
+        return None
+    fm = estimate_model_of(agent)
+    if fm is None:
+        state = e.posterior_state()
+        fm = None if isinstance(state, str) else state.fm
+    return fm
 
 
 def _intervals(est) -> str:

@@ -53,8 +53,10 @@ def plot_sweep(results: Sequence[ProbeResult], path: str, title: str = "") -> No
     save_figure(fig, path, dpi=110)
 
 
-def plot_fit(table, est, path: str) -> None:
-    """Data, the fitted Lorentzian per amplitude (lorentz) and the omega_n estimate or posterior (atlas)."""
+def plot_fit(table, est, path: str, fm=None) -> None:
+    """Data; per amplitude the fitted curve: the Lorentzian (lorentz) or, for an atlas estimate and its forward model
+    ``fm``, the model's mean omega_B at the estimate (:func:`plate_env.identify.inference.predicted_curve`); and the
+    omega_n estimate with the posterior (atlas)."""
     import math
 
     import numpy as np
@@ -71,6 +73,13 @@ def plot_fit(table, est, path: str) -> None:
         if fit is not None and fit.ok:
             ff = np.linspace(table.f_p_hz[sel].min(), table.f_p_hz[sel].max(), 200)
             ax.plot(ff, fit.predict(ff), "-", label=f"Eq. 9: f0 = {fit.f0:.2f} Hz, R^2 = {fit.r2:.3f}")
+        if fm is not None:
+            from plate_env.identify.inference import predicted_curve
+
+            ff = np.linspace(table.f_p_hz[sel].min(), table.f_p_hz[sel].max(), 200)
+            curve = predicted_curve(fm, est, ff, amp)
+            if curve is not None:
+                ax.plot(ff, curve[0], "-", label=f"{curve[1]} at the estimate, A_p = {amp:g} deg")
     ax.set_xlabel("$f_p$ [Hz]")
     ax.set_ylabel(r"$\omega_B$ [deg/s]")
     ax.grid(alpha=0.3)

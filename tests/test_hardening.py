@@ -61,6 +61,26 @@ def test_item1_an_object_above_the_identifiable_range_gets_no_confident_number()
     assert "not a sweep 'tilelink/pointmass' can explain" in est.reason and "p-value" in est.reason
 
 
+def test_item1_why_no_bound_the_estimate_models_posterior_is_not_at_the_edge():
+    """The evidence for docs/hardening.md's decision (no bound for the 60pi object): the posterior of the model the
+    agent estimates with holds almost nothing near the top of the identifiable range (45pi) -- it sits at ~18pi, so
+    a bound "omega_n > 45pi" is not what that posterior says -- while the plain model piles there and fails the
+    check too. Either way the data are ones no atlas object makes (p < 1e-3)."""
+    from plate_env.identify.inference import posterior, predictive_check
+    from plate_env_agents.bayes import BayesAgent
+
+    agent = BayesAgent()
+    agent.fm = load_forward_model("tilelink/pointmass")
+    table = _table(ABOVE_RANGE_60PI)
+    for fm, top_mass in ((agent.estimate_model(), (0.0, 1e-3)), (agent.fm, (0.5, 1.0))):
+        post = posterior(fm, table)
+        marg = post.marginal_omega() / post.marginal_omega().sum()
+        near_top = float(marg[post.omega_n > 40 * math.pi].sum())
+        assert top_mass[0] <= near_top <= top_mass[1], (fm.name, near_top)
+        assert not predictive_check(fm, table, post).passed
+        assert not identify(table, forward=fm).ok
+
+
 def test_item2_a_friction_angle_outside_the_atlas_is_flagged():
     rows = [(f, 3.0, w, se, u) for f, w, se, u in ALPHA_80_3DEG]
     est = identify(_table(rows), forward="tilelink/pointmass")  # main: 1.5pi +- 0.25 for a 10pi object
@@ -595,3 +615,140 @@ def test_item14_a_subnormal_frequency_step_is_refused_by_name(capsys):
     assert main(["sweep", "--physics", "atlas", "--freqs", "10:40:1e-320", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "--freqs '10:40:1e-320'" in err and "at most 2000" in err
+
+
+def test_item11_exact_repeats_are_computed_once_and_give_the_per_row_likelihood(monkeypatch):
+    """30 exact copies of each row of a sweep (plus rows at the same frequencies with other omega_B, which are not
+    merged): the likelihood evaluates each distinct row once, and equals the sum of the rows' own terms."""
+    from plate_env.identify import inference
+
+    fm = load_forward_model("tilelink/pointmass")
+    m = fm.members[0]
+    base = _honest_sweep(31.4, 40.0, 3.0, seed=3)
+    other = ProbeTable.from_arrays(base.f_p_hz, base.a_p_deg, base.omega_b_deg_s * 1.01 + 0.5, base.stderr_deg_s,
+                                   base.unstable)
+    table = ProbeTable.concat(*([base] * 30), other)
+    assert inference.distinct_probes(table) == 2 * len(base)
+    w, a = fm.grid(inference.N_OMEGA, inference.N_ALPHA)
+    calls = []
+    real = inference.probe_log_likelihood
+    monkeypatch.setattr(inference, "probe_log_likelihood", lambda *x: calls.append(1) or real(*x))
+    ll, skipped = inference.member_log_likelihood(m, table, w, a)
+    assert len(calls) == 2 * len(base) and skipped == 0
+    monkeypatch.setattr(inference, "probe_log_likelihood", real)
+    # the reference: every row's own term, summed row by row (what main computed)
+    ref = sum(inference.member_log_likelihood(m, table, w, a, only=np.arange(len(table)) == k)[0]
+              for k in range(len(table)))
+    finite = np.isfinite(ref)
+    assert np.array_equal(finite, np.isfinite(ll))
+    np.testing.assert_allclose(ll[finite], ref[finite], rtol=1e-9, atol=1e-6)
+
+
+def test_item11_fit_says_on_stderr_what_a_long_fit_computes(tmp_path, capsys):
+    from plate_env.cli import FIT_PROGRESS_ROWS, main
+
+    base = _honest_sweep(31.4, 40.0, 3.0, seed=3)
+    rows = "".join(f"{f:.4f},{0.0 if u else y:.4f},{e:.4f},{int(u)}\n" for f, y, e, u in
+                   zip(base.f_p_hz, base.omega_b_deg_s, base.stderr_deg_s, base.unstable, strict=True))
+    copies = -(-FIT_PROGRESS_ROWS // len(base))
+    csv = tmp_path / "repeats.csv"
+    csv.write_text("f_p_hz,omega_b_deg_s,stderr_deg_s,unstable\n" + rows * copies)
+    assert main(["fit", str(csv), "--amp", "3", "--forward", "tilelink/pointmass", "--json"]) in (0, 1)
+    out, err = capsys.readouterr()
+    json.loads(out)
+    assert f"fit: {copies * len(base)} rows, {len(base)} distinct" in err and "fit: done in" in err
+
+
+def _plotted_lines(monkeypatch, table, est, fm):
+    """The lines plot_fit draws on its data axes (the figure is captured, not written)."""
+    import plate_env.plotting as plotting
+
+    figs = []
+    monkeypatch.setattr(plotting, "save_figure", lambda fig, path, dpi=100: figs.append(fig))
+    plotting.plot_fit(table, est, "unused.png", fm)
+    return figs[0].axes[0].get_lines()
+
+
+def test_item19_atlas_plots_draw_the_forward_models_curve_at_the_estimate(monkeypatch):
+    from plate_env.identify.inference import identify_atlas
+
+    fm = load_forward_model("tilelink/pointmass")
+    table = _honest_sweep(31.4, 40.0, 3.0, seed=3)
+    est = identify_atlas(table, fm)
+    assert est.ok
+    curves = [ln for ln in _plotted_lines(monkeypatch, table, est, fm) if "at the estimate" in str(ln.get_label())]
+    assert len(curves) == 1
+    f, y = (np.asarray(v, float) for v in curves[0].get_data())
+    assert f.min() == table.f_p_hz.min() and f.max() == table.f_p_hz.max()
+    m = fm.members[0]
+    np.testing.assert_allclose(y, m.atlas.predict(f, 3.0, est.omega_n, est.alpha)[0], rtol=1e-9)
+    # the curve the estimate promises follows the data: the stable probes' median miss is within a few model scales
+    st = ~table.unstable
+    at = np.interp(table.f_p_hz[st], f, y)
+    scale = np.sqrt(m.atlas.predict(table.f_p_hz[st], 3.0, est.omega_n, est.alpha)[1] ** 2 + m.sigma_model ** 2)
+    assert np.median(np.abs(table.omega_b_deg_s[st] - at) / scale) < 2.0
+    # no estimate: no curve claimed
+    bad = identify_atlas(ProbeTable.from_arrays(table.f_p_hz, 3.0, 100 * table.omega_b_deg_s, table.stderr_deg_s,
+                                                table.unstable), fm)
+    assert not bad.ok
+    assert not [ln for ln in _plotted_lines(monkeypatch, table, bad, fm) if "at the estimate" in str(ln.get_label())]
+
+
+def test_item19_fit_and_identify_plots_get_the_forward_model(tmp_path, monkeypatch, capsys):
+    import plate_env.plotting as plotting
+    from plate_env.cli import main
+
+    got = []
+    monkeypatch.setattr(plotting, "plot_fit", lambda table, est, path, fm=None: got.append((est, fm)))
+    base = _honest_sweep(31.4, 40.0, 3.0, seed=3)
+    csv = tmp_path / "s.csv"
+    csv.write_text("f_p_hz,omega_b_deg_s,stderr_deg_s,unstable\n" + "".join(
+        f"{f:.4f},{0.0 if u else y:.4f},{e:.4f},{int(u)}\n"
+        for f, y, e, u in zip(base.f_p_hz, base.omega_b_deg_s, base.stderr_deg_s, base.unstable, strict=True)))
+    assert main(["fit", str(csv), "--amp", "3", "--forward", "tilelink/pointmass", "--plot",
+                 str(tmp_path / "f.png")]) == 0
+    assert main(["identify", "--physics", "atlas", "--omega-n", "10pi", "--alpha", "45", "--seed", "0",
+                 "--plot", str(tmp_path / "i.png")]) == 0
+    capsys.readouterr()
+    for est, fm in got:
+        assert est.ok and fm is not None and fm.members and est.forward == fm.name
+
+
+@pytest.mark.parametrize("field, value", [
+    ("omega_n_true", float("nan")), ("omega_n_true", None), ("omega_n_true", "missing"), ("omega_n_true", 1e400),
+    ("probe_sim_s", [float("inf")]), ("wall_s", -5.0), ("prefix.omega_n", float("nan")),
+    ("prefix.ci95", [0.0, float("inf")]), ("probes.stderr_deg_s", float("inf")), ("probes.stderr_deg_s", -5.0),
+    ("probes.omega_b_deg_s", None)])
+def test_item13_a_bench_cache_line_with_a_bad_field_is_skipped_naming_file_and_line(tmp_path, field, value):
+    import json as js
+
+    from plate_env.bench.runner import evaluate
+    from plate_env_agents import make_agent
+
+    cache = tmp_path / "b.jsonl"
+    good = evaluate(make_agent("grid"), "atlas-v0", cache=cache, limit=2)
+    import warnings
+
+    with warnings.catch_warnings():  # the records bench writes load without a warning
+        warnings.simplefilter("error", UserWarning)
+        evaluate(make_agent("grid"), "atlas-v0", cache=cache, limit=2)
+    lines = cache.read_text().splitlines()
+    d = js.loads(lines[1])
+    name = field.split(".")[-1]
+    if field.startswith("prefix."):
+        d["prefix"][0][name] = value
+    elif field.startswith("probes."):
+        d["probes"][0][{"omega_b_deg_s": 2, "stderr_deg_s": 3}[name]] = value
+    elif value == "missing":
+        del d[field]
+    elif field == "probe_sim_s":
+        d[field][0] = value[0]
+    else:
+        d[field] = value
+    lines[1] = js.dumps(d).replace("1e+400", "1e400")
+    cache.write_text("\n".join(lines) + "\n")
+    with pytest.warns(UserWarning, match=rf"b\.jsonl: line 2: \S*{name}"):
+        again = evaluate(make_agent("grid"), "atlas-v0", cache=cache, limit=2)
+    assert [e.omega_n_true for e in again.episodes] == [e.omega_n_true for e in good.episodes]
+    assert ([[x.omega_n for x in e.prefix] for e in again.episodes]
+            == [[x.omega_n for x in e.prefix] for e in good.episodes])  # the bad record's episode ran again

@@ -37,6 +37,7 @@ times aside) -- as far as the agent itself keeps no state across episodes beyond
 from __future__ import annotations
 
 import json
+import math
 import pickle
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -173,17 +174,76 @@ class BenchInterrupted(KeyboardInterrupt):
         self.cache = cache
 
 
+def _numbers_problem(name: str, v, lo: float = -math.inf, length: int | None = None) -> str | None:
+    """Why ``v`` is not a list (of ``length`` items, when given) of finite numbers >= ``lo``, else None."""
+    from plate_env.run.sweeps import number_problem
+
+    if not isinstance(v, list) or (length is not None and len(v) != length):
+        return f"{name} = {v!r} is not a list of {length or 'some'} numbers"
+    return next((p for i, x in enumerate(v) if (p := number_problem(f"{name}[{i}]", x, lo))), None)
+
+
+def episode_record_problem(d: dict) -> str | None:
+    """Why a bench-cache record cannot be loaded (a field missing, of the wrong type, non-finite or out of range;
+    a probe count that differs between its lists), else None."""
+    from plate_env.run.sweeps import number_problem
+
+    problems = [number_problem("index", d.get("index"), 0, integral=True),
+                number_problem("seed", d.get("seed"), 0, integral=True),
+                number_problem("omega_n_true", d.get("omega_n_true"), 1e-300),
+                _numbers_problem("probe_sim_s", d.get("probe_sim_s"), 0.0),
+                _numbers_problem("decision_wall_s", d.get("decision_wall_s"), 0.0),
+                number_problem("wall_s", d.get("wall_s"), 0.0)]
+    if (p := next((p for p in problems if p), None)):
+        return p
+    n = len(d["probe_sim_s"])
+    prefix, probes = d.get("prefix"), d.get("probes")
+    if not isinstance(prefix, list) or len(prefix) != n:
+        return f"prefix is not a list of {n} estimates (one per probe)"
+    if not isinstance(probes, list) or len(probes) != n:
+        return f"probes is not a list of {n} probes"
+    for i, e in enumerate(prefix):
+        if not isinstance(e, dict) or not isinstance(e.get("ok"), bool) or not isinstance(e.get("method"), str):
+            return f"prefix[{i}] = {e!r} is not an estimate (ok, method, omega_n, ci68, ci95, bound, reason)"
+        p = (number_problem(f"prefix[{i}].omega_n", e.get("omega_n"))
+             or _numbers_problem(f"prefix[{i}].ci68", e.get("ci68"), length=2)
+             or _numbers_problem(f"prefix[{i}].ci95", e.get("ci95"), length=2))
+        b = e.get("bound")
+        if p is None and b is not None and not (isinstance(b, list) and len(b) == 2 and isinstance(b[0], str)
+                                                 and number_problem("", b[1]) is None):
+            p = f"prefix[{i}].bound = {b!r} is not [side, omega_n]"
+        if p is None and not (e.get("reason") is None or isinstance(e.get("reason"), str)):
+            p = f"prefix[{i}].reason = {e.get('reason')!r} is not a string or null"
+        if p:
+            return p
+    for i, q in enumerate(probes):
+        p = (None if isinstance(q, list) and len(q) == 5 and isinstance(q[4], bool)
+             else f"probes[{i}] = {q!r} is not [f_p_hz, a_p_deg, omega_b_deg_s, stderr_deg_s, unstable]")
+        p = p or (number_problem(f"probes[{i}].f_p_hz", q[0], 1e-300) or number_problem(f"probes[{i}].a_p_deg", q[1])
+                  or number_problem(f"probes[{i}].omega_b_deg_s", q[2])
+                  or number_problem(f"probes[{i}].stderr_deg_s", q[3], 0.0))
+        if p:
+            return p
+    return None
+
+
 def _load_records(path: Path, key: str) -> dict[int, Episode]:
-    from plate_env.run.sweeps import read_records
+    """The cache's episodes of run ``key`` by index. A record with a bad field is skipped with a warning naming the
+    file, line and field (its episode runs again), never loaded."""
+    import warnings
+
+    from plate_env.run.sweeps import numbered_records
 
     out: dict[int, Episode] = {}
-    for d in read_records(path):
+    for lineno, d in numbered_records(path):
         if d.get("key") != key:
             continue
-        try:
-            out[int(d["index"])] = Episode.from_record(d)
-        except (KeyError, TypeError, ValueError):
-            continue  # a record of another format
+        problem = episode_record_problem(d)
+        if problem:
+            warnings.warn(f"{path}: line {lineno}: {problem}; the record is skipped (its episode runs again)",
+                          stacklevel=2)
+            continue
+        out[int(d["index"])] = Episode.from_record(d)
     return out
 
 

@@ -158,20 +158,43 @@ def member_log_likelihood(member: Member, table: ProbeTable, w: np.ndarray, a: n
     steps = member.blur / math.log(w[1] / w[0])
     rows = member_rows(member, w)
     sub = w[rows]
+    counts: dict[tuple, int] = {}
+    inside: dict[tuple[float, float], bool] = {}
     for k in range(len(table)):
         if only is not None and not only[k]:
             continue
-        f, amp = float(table.f_p_hz[k]), float(table.a_p_deg[k])
-        if member_domain(member, f, amp) is not None:
+        key = probe_key(table, k)
+        if key[:2] not in inside:
+            inside[key[:2]] = member_domain(member, *key[:2]) is None
+        if not inside[key[:2]]:
             skipped += 1
             continue
-        if sub.size == 0:
-            continue
+        counts[key] = counts.get(key, 0) + 1
+    if sub.size == 0:
+        return total, skipped
+    for (f, amp, y, e, unstable), n in counts.items():  # exact repeats: one term times their count (same product)
         mu, s, p = member_response(member, amp, sub, a)[0](f)
-        total[rows] += blurred(probe_log_likelihood(mu, s, p, float(table.omega_b_deg_s[k]),
-                                                    float(table.stderr_deg_s[k]), bool(table.unstable[k]),
-                                                    member.sigma_model, member.atlas.n_repeats), steps)
+        total[rows] += n * blurred(probe_log_likelihood(mu, s, p, y, e, unstable, member.sigma_model,
+                                                        member.atlas.n_repeats), steps)
     return total, skipped
+
+
+def probe_key(table: ProbeTable, k: int) -> tuple[float, float, float, float, bool]:
+    """Row ``k``'s ``(f_p_hz, a_p_deg, omega_b_deg_s, stderr_deg_s, unstable)``: rows with equal keys are exact
+    repeats, whose log-likelihood terms are equal, so the likelihood computes one and multiplies it by their count.
+
+    Only exact repeats are pooled. Rows at one (f_p, A_p) with different omega_B are *not* merged into their
+    inverse-variance weighted mean: for Gaussian errors that product equals the mean's likelihood (up to a
+    constant) for the measurement-error part only, but here each row's term is a Student-t of scale^2
+    ``spread^2 + stderr^2 + sigma_model^2`` -- the atlas spread and the model error enter every row independently
+    -- times its own stable/unstable flag, so merging would change the posterior (docs/hardening.md, item 11)."""
+    return (float(table.f_p_hz[k]), float(table.a_p_deg[k]), float(table.omega_b_deg_s[k]),
+            float(table.stderr_deg_s[k]), bool(table.unstable[k]))
+
+
+def distinct_probes(table: ProbeTable) -> int:
+    """How many distinct rows (:func:`probe_key`) a table has: the likelihood's cost grows with these."""
+    return len({probe_key(table, k) for k in range(len(table))})
 
 
 # ----------------------------------------------------------------------------------------------- posterior
@@ -261,8 +284,10 @@ def posterior(fm: ForwardModel, table: ProbeTable, n_omega: int = N_OMEGA, n_alp
     lls, skipped = zip(*(member_log_likelihood(m, table, w, a) for m in fm.members), strict=True)
     evidence = None
     if len(fm.members) > 1 and any(skipped):
-        common = np.array([all(member_domain(m, float(f), float(amp)) is None for m in fm.members)
-                           for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)], dtype=bool)
+        places = {(float(f), float(amp)) for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)}
+        in_all = {fa: all(member_domain(m, *fa) is None for m in fm.members) for fa in places}
+        common = np.array([in_all[float(f), float(amp)] for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)],
+                          dtype=bool)
         evidence = [member_log_likelihood(m, table, w, a, only=common)[0] for m in fm.members]
     return pool(fm, w, a, lls, skipped, evidence)
 
@@ -293,8 +318,10 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> Pr
     m = fm.members[i]
     w, a = post.omega_n, post.alpha
     sub = w[member_rows(m, w)]
+    places = {(float(f), float(amp)) for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)}
+    in_m = {fa: member_domain(m, *fa) is None for fa in places}
     idx = np.array([k for k, (f, amp) in enumerate(zip(table.f_p_hz, table.a_p_deg, strict=True))
-                    if member_domain(m, float(f), float(amp)) is None], dtype=int)
+                    if in_m[float(f), float(amp)]], dtype=int)
     n = idx.size
     if n == 0 or sub.size == 0:
         return PredictiveCheck(statistic=0.0, p_value=1.0, n_probes=0, member=m.label, worst=None)
@@ -309,25 +336,32 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> Pr
     # CHECK_BLURS blur scales along log omega_n (none for a member without blur)
     reach = int(round(CHECK_BLURS * m.blur / math.log(w[1] / w[0]))) if len(w) > 1 else 0
     total = np.zeros((sub.size, a.size))
-    for k in idx:  # the surprise of every grid object, probe by probe (memory stays one grid)
-        z, pu = terms(k)
-        one = _surprise((z ** 2)[..., None], np.array([not table.unstable[k]]), pu[..., None])
+    counts: dict[tuple, list[int]] = {}
+    for k in idx:
+        counts.setdefault(probe_key(table, int(k)), []).append(int(k))
+    for ks in counts.values():  # the surprise of every grid object, probe by probe (exact repeats computed once)
+        z, pu = terms(ks[0])
+        one = _surprise((z ** 2)[..., None], np.array([not table.unstable[ks[0]]]), pu[..., None])
         if reach > 0:
             from scipy.ndimage import minimum_filter1d
 
             one = minimum_filter1d(one, 2 * reach + 1, axis=0, mode="nearest")
-        total += one
+        total += len(ks) * one
     total = np.where(member_coverage(m, sub, a), total, np.inf)
     c = np.unravel_index(int(np.argmin(total)), total.shape)
     stable = ~table.unstable[idx]
     rows_c = slice(max(c[0] - reach, 0), c[0] + reach + 1)
     z, p_c = [], []
+    best: dict[tuple, tuple[float, float]] = {}
     for k, st in zip(idx, stable, strict=True):  # each probe at its best omega_n within the reach of the object
-        zz, pp = terms(k)
-        zz, pp = zz[rows_c, c[1]], pp[rows_c, c[1]]
-        j = int(np.argmin(_surprise((zz ** 2)[:, None], np.array([st]), pp[:, None])))
-        z.append(zz[j])
-        p_c.append(pp[j])
+        key = probe_key(table, int(k))
+        if key not in best:
+            zz, pp = terms(k)
+            zz, pp = zz[rows_c, c[1]], pp[rows_c, c[1]]
+            j = int(np.argmin(_surprise((zz ** 2)[:, None], np.array([st]), pp[:, None])))
+            best[key] = (zz[j], pp[j])
+        z.append(best[key][0])
+        p_c.append(best[key][1])
     z, p_c = np.array(z), np.array(p_c)
     t_obs = float(_surprise(z ** 2, stable, p_c))
     rng = np.random.default_rng(CHECK_SEED)
@@ -340,6 +374,22 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> Pr
         j = int(np.argmax(np.where(stable, np.abs(z), -1.0)))
         worst = (float(table.f_p_hz[idx[j]]), float(table.a_p_deg[idx[j]]), float(z[j]))
     return PredictiveCheck(statistic=t_obs, p_value=p_value, n_probes=n, member=m.label, worst=worst)
+
+
+def predicted_curve(fm: ForwardModel, est: Estimate, f_hz: np.ndarray, a_p_deg: float) -> tuple[np.ndarray, str] | None:
+    """``(omega_B [deg/s] at f_hz, member label)``: the forward model's mean response at the estimate (omega_n_hat,
+    alpha_hat) and amplitude ``a_p_deg``, from the member of highest posterior weight (the curve the estimate says
+    the data follow). None when ``est`` is not an atlas point estimate (no estimate, a bound, the Lorentz method)
+    or that member has no atlas at this amplitude. f_p outside the atlas is clipped to it (``Atlas.predict``)."""
+    if not est.ok or est.method != "atlas" or est.alpha is None:
+        return None
+    post = est.posterior
+    i = int(np.argmax(post.member_weights)) if post is not None and post.member_weights else 0
+    m = fm.members[i]
+    if not np.any(np.isclose(m.atlas.a_p_deg, abs(a_p_deg), atol=1e-6)):
+        return None
+    mean = m.atlas.predict(np.asarray(f_hz, float), abs(a_p_deg), est.omega_n, est.alpha)[0]
+    return np.asarray(mean, float), m.label
 
 
 def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:

@@ -82,7 +82,7 @@ def check_cache_file(path: Path, option: str = "--cache") -> Path:
     return path
 
 
-def _numbered_records(path: Path):
+def numbered_records(path: Path):
     """``(line number, object)`` of a JSON-lines file (none if it does not exist), skipping a torn last line (an
     interrupted write) and lines that are not objects; refuses a path that is not a regular file."""
     if not check_cache_file(path).exists():
@@ -99,18 +99,23 @@ def _numbered_records(path: Path):
 def read_records(path: Path) -> list[dict]:
     """The JSON objects of a JSON-lines file (none if it does not exist), skipping a torn last line (an
     interrupted write) and lines that are not objects. ValueError if ``path`` is not a regular file."""
-    return [d for _, d in _numbered_records(Path(path))]
+    return [d for _, d in numbered_records(Path(path))]
+
+
+def number_problem(name: str, v, lo: float = -math.inf, integral: bool = False) -> str | None:
+    """Why the JSON value ``v`` of field ``name`` is not a finite number >= ``lo`` (an integer if ``integral``;
+    JSON's NaN, Infinity, null, strings and booleans are not), else None."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integral and not isinstance(v, int)):
+        return f"{name} = {v!r} is not {'an integer' if integral else 'a number'}"
+    if not (math.isfinite(v) and v >= lo):
+        return f"{name} = {v!r} is outside [{lo:g}, inf)"
+    return None
 
 
 def record_problem(d: dict) -> str | None:
     """Why a sweep-cache record cannot be loaded (a field missing, of the wrong type or out of range), else None."""
     def number(name: str, lo: float = -math.inf, integral: bool = False) -> str | None:
-        v = d.get(name)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or (integral and not isinstance(v, int)):
-            return f"{name} = {v!r} is not {'an integer' if integral else 'a number'}"
-        if not (math.isfinite(v) and v >= lo):
-            return f"{name} = {v!r} is outside [{lo:g}, inf)"
-        return None
+        return number_problem(name, d.get(name), lo, integral)
 
     for problem in (number("omega_b_deg_s"), number("stderr_deg_s", 0.0), number("sim_s", 0.0),
                     number("wall_s", 0.0), number("periods_measured", 0, integral=True)):
@@ -129,7 +134,7 @@ def load_cache(path: Path) -> dict[str, dict]:
     import warnings
 
     out = {}
-    for lineno, d in _numbered_records(Path(path)):
+    for lineno, d in numbered_records(Path(path)):
         if "key" not in d:
             continue
         problem = record_problem(d)
