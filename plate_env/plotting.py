@@ -93,7 +93,8 @@ def plot_fit(table, est, path: str, fm=None) -> None:
         ax2.axvspan(est.omega_n_ci68[0] / math.pi, est.omega_n_ci68[1] / math.pi, alpha=0.2, label="68 %")
     ax2.set_xlabel(r"$\omega_n$ [$\pi$ rad/s]")
     ax2.grid(alpha=0.3)
-    ax2.legend(fontsize=7)
+    if est.ok:  # nothing labelled to show otherwise
+        ax2.legend(fontsize=7)
     save_figure(fig, path, dpi=100)
 
 

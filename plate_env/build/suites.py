@@ -16,6 +16,7 @@ from pathlib import Path
 
 from plate_env.bench.suites import content_hash
 from plate_env.core.objects import ObjectPrior
+from plate_env.core.setup import PAPER_SETUP
 
 #: Probe settings of the tile-link suites: the CLI's identify (and the shipped policy's training) settings.
 TILELINK_ENV = {"method": "atlas", "f_band_hz": [10.0, 40.0], "amplitudes_deg": [3.0, 12.0],
@@ -26,7 +27,8 @@ COST_MODEL = {"probe_s": "ramp 0.2 s + settle_s + the window; a probe that ends 
                                 "simulated probing seconds)"}
 
 
-def objects(n: int, seed: int, seed_base: int, prior: ObjectPrior | None = None, mass_g: float = 13.6) -> list[dict]:
+def objects(n: int, seed: int, seed_base: int, prior: ObjectPrior | None = None,
+            mass_g: float = PAPER_SETUP.mass_g) -> list[dict]:
     """``n`` objects of ``prior`` drawn with ``seed`` (omega_n in pi rad/s to 4 decimals, alpha in degrees to 3),
     episode seeds ``seed_base``, ``seed_base + 1``, ..."""
     prior = prior or ObjectPrior()
