@@ -224,3 +224,26 @@ def test_env_carries_a_calibration(calibrated):
     env.step(env.action_space.sample())
     est = env.estimate()
     assert est.method == "calibrated", est.reason
+
+
+def test_a_bad_reference_cell_is_named_by_its_line_in_the_file(tmp_path):
+    """The sweep columns of a references file are checked with the file's own line numbers and the disc named (the
+    reader once re-wrote each disc to a file of its own, so a bad cell on line 5 was reported as line 2)."""
+    refs = tmp_path / "refs.csv"
+    refs.write_text("object,omega_n_rad_s,f_p_hz,omega_b_deg_s\n"
+                    "a,31.4,20,400\na,31.4,22,420\nb,72.3,20,380\nb,72.3,22,abc\n")
+    with pytest.raises(lcf.CalibrationError, match=r"line 5, column omega_b_deg_s: 'abc' .*object 'b'"):
+        lcf.read_reference_csv(refs, a_p_deg=3.0)
+    refs.write_text("object,omega_n_rad_s,f_p_hz,omega_b_deg_s,colour\na,31.4,20,400,red\n")
+    with pytest.raises(lcf.CalibrationError, match="unknown column"):
+        lcf.read_reference_csv(refs, a_p_deg=3.0)
+    objects, omega, tables, masses = lcf.read_reference_csv(
+        _write(tmp_path, "object,omega_n_rad_s,mass_g,f_p_hz,omega_b_deg_s\na,31.4,13.6,20,400\nb,72.3,,20,380\n"), 3.0)
+    assert (objects, omega, masses) == (["a", "b"], [31.4, 72.3], [13.6, None])
+    assert [t.omega_b_deg_s.tolist() for t in tables] == [[400.0], [380.0]]
+
+
+def _write(tmp_path, text):
+    path = tmp_path / "ok.csv"
+    path.write_text(text)
+    return path

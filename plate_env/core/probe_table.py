@@ -109,11 +109,23 @@ def read_lab_csv(path: str | Path, a_p_deg: float | None = None) -> ProbeTable:
     sign(A_p B_p) says). UTF-8 with or without a byte-order mark (Excel's "CSV UTF-8"). Raises CsvError naming the
     line and column of the first bad value.
     """
-    path = Path(path)
+    check_amp_option(a_p_deg)
+    header, rows = read_csv_rows(path)
+    return sweep_table(path, header, rows, a_p_deg)
+
+
+def check_amp_option(a_p_deg: float | None) -> None:
+    """The ``--amp`` option: None or a magnitude in (0, 45] deg (CsvError otherwise)."""
     if a_p_deg is not None and not (isinstance(a_p_deg, (int, float)) and math.isfinite(a_p_deg)
                                     and 0 < a_p_deg <= 45):
         raise CsvError(f"plate amplitude --amp {a_p_deg!r} deg is outside the allowed range (0, 45] (the magnitude "
                        f"of A_p)")
+
+
+def read_csv_rows(path: str | Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """The header (stripped) and the data rows of a CSV, each with its line number as the messages count lines
+    (blank and ``#`` comment lines left out). CsvError for an unreadable or empty file."""
+    path = Path(path)
     try:
         text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
@@ -121,23 +133,32 @@ def read_lab_csv(path: str | Path, a_p_deg: float | None = None) -> ProbeTable:
     rows = list(csv.reader(line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")))
     if not rows:
         raise CsvError(f"{path}: empty file; expected a header with columns {', '.join(REQUIRED)}")
-    header = [h.strip() for h in rows[0]]
+    return [h.strip() for h in rows[0]], list(enumerate(rows[1:], start=2))
+
+
+def sweep_table(path: str | Path, header: list[str], rows: Sequence[tuple[int, list[str]]],
+                a_p_deg: float | None = None, extra: Sequence[str] = ()) -> ProbeTable:
+    """The sweep in ``rows`` (numbered as :func:`read_csv_rows` gives them), its columns checked as
+    :func:`read_lab_csv` says; columns named in ``extra`` are allowed and not read (a references file's own)."""
     twice = sorted({h for h in header if header.count(h) > 1})
     if twice:
         raise CsvError(f"{path}: line 1: column(s) {twice} appear more than once; header is {header}")
     missing = [c for c in REQUIRED if c not in header]
     if missing:
         raise CsvError(f"{path}: line 1: missing column(s) {', '.join(missing)}; header is {header}")
-    unknown = [h for h in header if h not in REQUIRED + OPTIONAL]
+    unknown = [h for h in header if h not in REQUIRED + OPTIONAL + tuple(extra)]
     if unknown:
-        raise CsvError(f"{path}: line 1: unknown column(s) {unknown}; allowed: {', '.join(REQUIRED + OPTIONAL)}")
+        raise CsvError(f"{path}: line 1: unknown column(s) {unknown}; allowed: "
+                       f"{', '.join(REQUIRED + OPTIONAL + tuple(extra))}")
     if "a_p_deg" not in header and a_p_deg is None:
         raise CsvError(f"{path}: no a_p_deg column: give the plate amplitude (--amp, degrees)")
-    cols: dict[str, list] = {h: [] for h in header}
-    for lineno, row in enumerate(rows[1:], start=2):
+    cols: dict[str, list] = {h: [] for h in header if h not in extra}
+    for lineno, row in rows:
         if len(row) != len(header):
             raise CsvError(f"{path}: line {lineno}: {len(row)} fields, the header has {len(header)}")
         for h, cell in zip(header, row, strict=True):
+            if h in extra:
+                continue
             cell = cell.strip()
             if h == "unstable":
                 if cell.lower() not in ("0", "1", "true", "false", ""):
@@ -155,7 +176,7 @@ def read_lab_csv(path: str | Path, a_p_deg: float | None = None) -> ProbeTable:
                 raise CsvError(f"{path}: line {lineno}, column {h}: {cell!r} is outside the allowed range "
                                f"{'(' if open_lo else '['}{limits[0]:g}, {limits[1]:g}]")
             cols[h].append(value)
-    n = len(rows) - 1
+    n = len(rows)
     if n == 0:
         raise CsvError(f"{path}: no data rows")
     amp = cols["a_p_deg"] if "a_p_deg" in cols else [a_p_deg] * n

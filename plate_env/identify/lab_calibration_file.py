@@ -272,32 +272,22 @@ def read_reference_csv(path: str | Path, a_p_deg: float | None = None) -> tuple[
     known omega_n), optionally ``mass_g`` per object. Returns (objects, omega_n, tables, masses in g or None), in
     the order the discs first appear. CalibrationError naming the line for a missing column or an omega_n that
     differs between one disc's rows; the sweep columns are checked by
-    :func:`plate_env.core.probe_table.read_lab_csv`."""
-    import csv
-    import io
-    import tempfile
+    :func:`plate_env.core.probe_table.sweep_table` with the file's own line numbers."""
+    from plate_env.core.probe_table import CsvError, check_amp_option, read_csv_rows, sweep_table
 
-    from plate_env.core.probe_table import read_lab_csv
-
-    path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CalibrationError(f"{path}: cannot read: {exc}") from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    rows = list(csv.reader(lines))
-    if not rows:
-        raise CalibrationError(f"{path}: empty file")
-    header = [h.strip() for h in rows[0]]
+        check_amp_option(a_p_deg)
+        header, rows = read_csv_rows(path)
+    except CsvError as exc:
+        raise CalibrationError(str(exc)) from None
     for col in ("object", "omega_n_rad_s"):
         if col not in header:
             raise CalibrationError(f"{path}: line 1: missing column {col!r} (each reference disc's name and its known "
                                    f"omega_n, rad/s); header is {header}")
-    keep = [i for i, h in enumerate(header) if h not in REF_COLUMNS]
-    groups: dict[str, list[list[str]]] = {}
+    groups: dict[str, list[tuple[int, list[str]]]] = {}
     omega: dict[str, float] = {}
     mass: dict[str, float | None] = {}
-    for lineno, row in enumerate(rows[1:], start=2):
+    for lineno, row in rows:
         if len(row) != len(header):
             raise CalibrationError(f"{path}: line {lineno}: {len(row)} fields, the header has {len(header)}")
         cells = dict(zip(header, (c.strip() for c in row), strict=True))
@@ -314,17 +304,12 @@ def read_reference_csv(path: str | Path, a_p_deg: float | None = None) -> tuple[
                                    "first row")
         omega.setdefault(name, w)
         mass.setdefault(name, m)
-        groups.setdefault(name, []).append([row[i] for i in keep])
+        groups.setdefault(name, []).append((lineno, row))
     tables = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for name, body in groups.items():
-            buf = io.StringIO()
-            csv.writer(buf).writerows([[header[i] for i in keep], *body])
-            one = Path(tmp) / "sweep.csv"
-            one.write_text(buf.getvalue())
-            try:
-                tables.append(read_lab_csv(one, a_p_deg=a_p_deg))
-            except ValueError as exc:
-                raise CalibrationError(f"{path}: object {name!r}: {str(exc).replace(str(one) + ': ', '')}") from None
+    for name, body in groups.items():
+        try:
+            tables.append(sweep_table(path, header, body, a_p_deg=a_p_deg, extra=REF_COLUMNS))
+        except CsvError as exc:
+            raise CalibrationError(f"{exc} (object {name!r})") from None
     names = list(groups)
     return names, [omega[n] for n in names], tables, [mass[n] for n in names]
