@@ -581,7 +581,6 @@ def _add_calibrate(sub) -> None:
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from plate_env.identify import lab_calibration_file as lcf
     from plate_env.surrogate.catalog import forward_model_names
-    from plate_env.surrogate.conditioning import KnownInputs
 
     if args.forward not in forward_model_names():
         raise CliError(f"--forward {args.forward!r}: choose one of {forward_model_names()}")
@@ -590,13 +589,10 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     given = {m for m in masses if m is not None}
     if len(given) > 1:
         raise CliError(f"the references have different masses {sorted(given)} g: one calibration holds for one mass")
-    mass_g = args.mass_g if args.mass_g is not None else (given.pop() if given else PAPER_SETUP.mass_g)
-    bp_mm = args.bp if args.bp is not None else PAPER_SETUP.b_p_mm
-    diameter_mm = args.diameter_mm if args.diameter_mm is not None else PAPER_SETUP.diameter_mm
     amps = sorted({float(a) for t in tables for a in t.a_p_deg})
     if len(amps) != 1:
         raise CliError(f"the references are at A_p {amps} deg: one calibration holds for one amplitude")
-    known = KnownInputs(b_p=bp_mm * 1e-3, mass=mass_g * 1e-3, diameter=diameter_mm * 1e-3)
+    known = _known_inputs(args, mass_g=given.pop() if given else None)
     cal = lcf.calibrate(tables, omega_n, objects, amps[0], known, forward=args.forward)
     lcf.save(cal, args.out)
     s = cal.posterior.summary()
@@ -613,25 +609,50 @@ UNCALIBRATED_NOTE = ("uncalibrated: the interval carries the disagreement betwee
                      "narrow it (docs/calibration.md)")
 
 
-def _cmd_fit_calibrated(args: argparse.Namespace) -> int:
-    from plate_env.core.probe_table import read_lab_csv
-    from plate_env.identify import lab_calibration_file as lcf
+def _known_inputs(args: argparse.Namespace, mass_g: float | None = None):
+    """The known inputs given as ``--bp``, ``--mass-g``, ``--diameter-mm``; each one not given is ``PAPER_SETUP``'s
+    (the mass: ``mass_g`` first, e.g. a references file's)."""
     from plate_env.surrogate.conditioning import KnownInputs
 
-    cal = lcf.load(args.calibration)
+    def given(value, default):
+        return default if value is None else value
+
+    return KnownInputs(b_p=given(args.bp, PAPER_SETUP.b_p_mm) * 1e-3,
+                       mass=given(args.mass_g, given(mass_g, PAPER_SETUP.mass_g)) * 1e-3,
+                       diameter=given(args.diameter_mm, PAPER_SETUP.diameter_mm) * 1e-3)
+
+
+def _read_fit_table(args: argparse.Namespace):
+    """``fit``'s CSV, refused past :data:`MAX_FIT_ROWS` rows."""
+    from plate_env.core.probe_table import read_lab_csv
+
+    table = read_lab_csv(args.csv, a_p_deg=args.amp)
+    if len(table) > MAX_FIT_ROWS:
+        raise CliError(f"{args.csv}: {len(table)} rows; fit takes at most {MAX_FIT_ROWS} (the most a sweep makes: the "
+                       "predictive check replicates every row 4000 times, and the posterior's time grows with the "
+                       "distinct rows, ~6 ms each on the lab model); average repeated frequencies or split the file")
+    return table
+
+
+def _cmd_fit_calibrated(args: argparse.Namespace) -> int:
+    from plate_env.identify import lab_calibration_file as lcf
+
     if args.method != "atlas":
         raise CliError("--calibration reads the data through the atlas members: drop --method lorentz")
-    known = KnownInputs(b_p=args.bp * 1e-3, mass=args.mass_g * 1e-3, diameter=args.diameter_mm * 1e-3)
-    table = read_lab_csv(args.csv, a_p_deg=args.amp)
+    if args.plot:
+        raise CliError("--plot draws a forward model's curve; a calibrated fit has none: drop --plot or --calibration")
+    cal = lcf.load(args.calibration)
+    known = _known_inputs(args)
+    table = _read_fit_table(args)
     lcf.check_data(cal, table, known)
     est = lcf.identify_calibrated(table, cal, known)
     if args.json:
         print(json.dumps({"file": str(args.csv), "calibrated": True, "calibration": str(args.calibration),
                           **est.to_dict()}), flush=True)
     elif est.ok:
-        lo, hi = est.omega_n_ci95
-        print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s ({format_omega_pi(est.omega_n)}; "
-              f"95 % interval {lo:.1f}-{hi:.1f} rad/s) calibrated by {args.calibration}", flush=True)
+        print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s ({format_omega_pi(est.omega_n)}) "
+              f"calibrated by {args.calibration}")
+        print(_intervals(est), flush=True)
     else:
         print(f"no estimate: {est.reason}", flush=True)
     return 0 if est.ok else 1
@@ -641,20 +662,14 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     _fit_options(args)
     if args.calibration is not None:
         return _cmd_fit_calibrated(args)
-    from plate_env.core.probe_table import read_lab_csv
     from plate_env.identify import identify
     from plate_env.surrogate.catalog import forward_model_names
-    from plate_env.surrogate.conditioning import KnownInputs
 
     plot = plot_path(args.plot) if args.plot else None
-    known = KnownInputs(b_p=args.bp * 1e-3, mass=args.mass_g * 1e-3, diameter=args.diameter_mm * 1e-3)
+    known = _known_inputs(args)
     if args.method == "atlas" and args.forward not in forward_model_names():
         raise CliError(f"--forward {args.forward!r}: choose one of {forward_model_names()}")
-    table = read_lab_csv(args.csv, a_p_deg=args.amp)
-    if len(table) > MAX_FIT_ROWS:
-        raise CliError(f"{args.csv}: {len(table)} rows; fit takes at most {MAX_FIT_ROWS} (the most a sweep makes: the "
-                       "predictive check replicates every row 4000 times, and the posterior's time grows with the "
-                       "distinct rows, ~6 ms each on the lab model); average repeated frequencies or split the file")
+    table = _read_fit_table(args)
     model = args.model or ("lab" if args.physics == "lab" else "pointmass")
     t0 = time.perf_counter()
     if args.method == "atlas" and len(table) >= FIT_PROGRESS_ROWS:

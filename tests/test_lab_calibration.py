@@ -199,6 +199,13 @@ def test_paper_calibration_reads_fig7a(tmp_path, capsys):
     lo, hi = out["omega_n_ci95_rad_s"]
     assert out["calibrated"] is True and lo <= 10 * math.pi <= hi
     assert abs(out["omega_n_rad_s"] / (10 * math.pi) - 1) < 0.15
+    # the text output gives both intervals, as the uncalibrated fit does; --plot is refused, not dropped
+    assert main(["fit", str(tmp_path / "fig7a.csv"), "--amp", "3", "--calibration", "paper"]) == 0
+    text = capsys.readouterr().out
+    assert "calibrated by paper" in text and "68 % interval" in text and "95 % interval" in text
+    assert main(["fit", str(tmp_path / "fig7a.csv"), "--amp", "3", "--calibration", "paper", "--plot", "p.png"]) == 2
+    err = capsys.readouterr().err
+    assert "--plot" in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "p.png").exists()
 
 
 def test_identify_takes_a_calibration(calibrated, rigid_source):
