@@ -257,6 +257,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--calibration", default=None, help="a lab calibration (CAL.json from plate-env calibrate): read "
                    "the data through what the lab's reference discs taught")
     _add_calibrate(sub)
+    _add_cache(sub)
     add_build_parser(sub)
     for p in sub.choices.values():  # --help shows every default
         p.formatter_class = _DefaultsFormatter
@@ -603,10 +604,14 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-#: Printed by ``fit`` without a calibration.
-UNCALIBRATED_NOTE = ("uncalibrated: the interval carries the disagreement between the physics models (about x11 "
-                     "either way at 95 %); measure reference discs of known omega_n and run plate-env calibrate to "
-                     "narrow it (docs/calibration.md)")
+def uncalibrated_note(est) -> str:
+    """The line ``fit`` prints without a calibration: how far this fit's own 95 % interval reaches either side of
+    its estimate (a factor; what it is on the paper's objects: ``experiments/results/forward_models_paper.md``)."""
+    lo, hi = est.omega_n_ci95
+    factor = max(hi / est.omega_n, est.omega_n / lo) if lo > 0 else math.inf
+    return (f"uncalibrated: the interval carries the disagreement between the physics models (here a factor of "
+            f"{factor:.3g} either way at 95 %); measure reference discs of known omega_n and run plate-env calibrate "
+            f"to narrow it (docs/calibration.md)")
 
 
 def _known_inputs(args: argparse.Namespace, mass_g: float | None = None):
@@ -694,7 +699,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
             if est.alpha is not None:
                 print(f"alpha_hat   = {math.degrees(est.alpha):.1f} +- {math.degrees(est.alpha_stderr):.1f} deg")
             if est.method == "atlas" and est.forward == "lab":
-                print(UNCALIBRATED_NOTE)
+                print(uncalibrated_note(est))
         else:
             print(f"no estimate: {est.reason}")
         sys.stdout.flush()
@@ -801,8 +806,38 @@ def _print_identify(res) -> None:
     print(f"{res.n_probes} probes, {res.sim_s:.1f} s simulated, {res.wall_s:.1f} s wall", flush=True)
 
 
+def _add_cache(sub) -> None:
+    c = sub.add_parser("cache", help="show or clear the disk cache of derived arrays (docs/speed.md)")
+    c.add_argument("action", choices=("info", "clear"), help="info: where it is, its entries and their size; "
+                   "clear: delete its entries (each is computed again when next needed)")
+
+
+def _megabytes(n: int) -> str:
+    return f"{n / 1e6:.1f} MB"
+
+
+def _cmd_cache(args: argparse.Namespace) -> int:
+    from plate_env.core.cache import cache_dir, cache_entries, clear_cache
+
+    root = cache_dir()
+    if root is None:
+        print("cache: off (PLATE_ENV_CACHE_DIR=off): nothing is kept on disk")
+        return 0
+    if args.action == "clear":
+        gone = clear_cache(root)
+        print(f"cache {root}: deleted {len(gone)} entries, {_megabytes(sum(e.size_bytes for e in gone))}")
+        return 0
+    entries = cache_entries(root)
+    print(f"cache {root}: {len(entries)} entries, {_megabytes(sum(e.size_bytes for e in entries))} "
+          f"(no size limit: `plate-env cache clear` deletes them)")
+    for kind in sorted({e.kind for e in entries}):
+        of = [e for e in entries if e.kind == kind]
+        print(f"  {kind}: {len(of)} entries, {_megabytes(sum(e.size_bytes for e in of))}")
+    return 0
+
+
 COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep, "fit": _cmd_fit, "identify": _cmd_identify,
-            "bench": _cmd_bench, "calibrate": _cmd_calibrate,
+            "bench": _cmd_bench, "calibrate": _cmd_calibrate, "cache": _cmd_cache,
             "build": lambda args: run_build(args, args.argv[1:])}
 
 

@@ -120,3 +120,79 @@ def test_pybullet_calibration_is_read_back_and_keyed_by_object(tmp_path, monkeyp
     assert run(a, SheetConfig()) == first == (41.0, 40.0 * 1.001) and calls == [40.0]
     assert run(b, SheetConfig()) == (42.0, 41.0 * 1.001) and calls == [40.0, 41.0]
     assert run(a, SheetConfig(), tol=0.01) and calls == [40.0, 41.0, 40.0]
+
+
+def _store_fails_on_second_file(monkeypatch, exc: BaseException) -> None:
+    """``np.save`` inside the cache writes one file, then raises ``exc`` (a full disk, a Ctrl-C)."""
+    import plate_env.core.cache as cache
+
+    real, calls = np.save, []
+
+    def save(path, arr, **kw):
+        calls.append(path)
+        if len(calls) > 1:
+            raise exc
+        real(path, arr, **kw)
+
+    monkeypatch.setattr(cache.np, "save", save)
+
+
+@pytest.mark.parametrize("exc", [OSError(28, "No space left on device"), KeyboardInterrupt()])
+def test_a_failed_write_leaves_no_temporary_directory(tmp_path, monkeypatch, capsys, exc):
+    from plate_env.core.cache import cached_arrays
+
+    monkeypatch.setenv("PLATE_ENV_CACHE_DIR", str(tmp_path))
+    _store_fails_on_second_file(monkeypatch, exc)
+    arrays = {"a": np.arange(3.0), "b": np.ones(2)}
+    if isinstance(exc, OSError):  # computed, not cached, said once on stderr
+        got = cached_arrays("unit", "0" * 64, lambda: arrays)
+        assert got is arrays and "cannot write the cache" in capsys.readouterr().err
+    else:  # an interrupt goes through, and still takes its half-written directory with it
+        with pytest.raises(KeyboardInterrupt):
+            cached_arrays("unit", "0" * 64, lambda: arrays)
+    assert list(tmp_path.iterdir()) == []
+
+
+def _entries_and_strangers(root):
+    """Two entries, a temporary directory left by a crash, and things the cache did not write."""
+    from plate_env.core.cache import cached_arrays
+
+    cached_arrays("atlas-spline", "a" * 64, lambda: {"c": np.zeros(1000)})
+    cached_arrays("response", "b" * 64, lambda: {"c": np.zeros(3000), "d": np.zeros(10)})
+    (root / ".response-x1y2z3w4").mkdir()
+    (root / ".response-x1y2z3w4" / "c.npy").write_bytes(b"\0" * 500)
+    for stranger in (".ssh", "notes", "response-short"):
+        (root / stranger).mkdir()
+        (root / stranger / "keep").write_text("not the cache's")
+    (root / "README").write_text("not the cache's")
+
+
+def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
+    from plate_env.cli import main
+    from plate_env.core.cache import cache_entries
+
+    monkeypatch.setenv("PLATE_ENV_CACHE_DIR", str(tmp_path))
+    _entries_and_strangers(tmp_path)
+    entries = cache_entries()
+    assert [(e.kind, e.path.name[:14]) for e in entries] == [
+        ("temporary", ".response-x1y2"), ("atlas-spline", "atlas-spline-a"), ("response", "response-bbbbb")]
+    sizes = {e.kind: e.size_bytes for e in entries}
+    assert sizes["temporary"] == 500 and sizes["atlas-spline"] > 8000 and sizes["response"] > 8 * 3010
+    assert main(["cache", "info"]) == 0
+    out = capsys.readouterr().out
+    total = sum(sizes.values())
+    assert f"{tmp_path}: 3 entries, {total / 1e6:.1f} MB" in out
+    assert "  response: 1 entries" in out and "  atlas-spline: 1 entries" in out and "  temporary: 1 entries" in out
+    assert main(["cache", "clear"]) == 0
+    assert f"deleted 3 entries, {total / 1e6:.1f} MB" in capsys.readouterr().out
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".ssh", "README", "notes", "response-short"]
+    assert cache_entries() == []
+
+
+def test_cache_command_when_off(monkeypatch, capsys):
+    from plate_env.cli import main
+
+    monkeypatch.setenv("PLATE_ENV_CACHE_DIR", "off")
+    for action in ("info", "clear"):
+        assert main(["cache", action]) == 0
+        assert "off" in capsys.readouterr().out

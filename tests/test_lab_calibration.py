@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -135,10 +136,15 @@ def test_calibration_round_trip(calibrated, rigid_source, capsys):
 
 def test_uncalibrated_fit_says_so(calibrated, capsys):
     assert main(["fit", str(calibrated / "disc.csv"), "--amp", "3", "--json"]) in (0, 1)
-    assert json.loads(capsys.readouterr().out)["calibrated"] is False
+    fit = json.loads(capsys.readouterr().out)
+    assert fit["calibrated"] is False
     main(["fit", str(calibrated / "disc.csv"), "--amp", "3"])
     out = capsys.readouterr().out
     assert "uncalibrated" in out and "plate-env calibrate" in out
+    # the factor it quotes is this fit's own 95 % interval, not a number copied into the code
+    (lo, hi), w = fit["omega_n_ci95_rad_s"], fit["omega_n_rad_s"]
+    quoted = float(re.search(r"a factor of ([\d.e+]+) either way", out)[1])
+    assert quoted == pytest.approx(max(hi / w, w / lo), rel=1e-2)
 
 
 def _refused(argv, capsys, match: str) -> None:

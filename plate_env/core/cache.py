@@ -15,16 +15,22 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import sys
 import tempfile
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 #: Raise when the computation of a cached entry changes (old entries are then never found again).
 CACHE_VERSION = 1
+#: An entry's directory name: its kind and the SHA-256 of its inputs (:func:`content_key`).
+ENTRY_NAME = re.compile(r"([a-z][a-z0-9-]*)-([0-9a-f]{64})")
+#: A temporary directory's name (an entry being written): ``.<kind>-`` and ``tempfile.mkdtemp``'s 8 characters.
+TEMP_NAME = re.compile(r"\.([a-z][a-z0-9-]*)-([a-z0-9_]{8})")
 
 
 def cache_dir() -> Path | None:
@@ -71,6 +77,7 @@ def cached_arrays(kind: str, key: str, build: Callable[[], dict[str, np.ndarray]
     if note:
         print(f"plate-env: {note} (once; cached in {root})", file=sys.stderr, flush=True)
     arrays = build()
+    tmp = None
     try:
         root.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{kind}-", dir=root))
@@ -78,8 +85,54 @@ def cached_arrays(kind: str, key: str, build: Callable[[], dict[str, np.ndarray]
             np.save(tmp / f"{name}.npy", np.asarray(arr), allow_pickle=False)
         try:
             tmp.rename(entry)
+            tmp = None
         except OSError:  # another process stored it first: theirs is the same
-            shutil.rmtree(tmp, ignore_errors=True)
+            pass
     except OSError as exc:  # a read-only or full disk: computed, not cached
         print(f"plate-env: cannot write the cache {root}: {exc}", file=sys.stderr, flush=True)
+    finally:  # a failed or interrupted write leaves no temporary directory behind
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
     return arrays
+
+
+@dataclass(frozen=True)
+class CacheEntry:
+    """One directory of the cache: its kind (``atlas-spline``, ``response``, ``pybullet-k``; ``temporary`` for a
+    write that never finished), its path and its size in bytes."""
+
+    kind: str
+    path: Path
+    size_bytes: int
+
+
+def _dir_size(path: Path) -> int:
+    return sum(f.stat().st_size for f in path.rglob("*") if f.is_file() and not f.is_symlink())
+
+
+def cache_entries(root: Path | None = None) -> list[CacheEntry]:
+    """The entries in the cache directory (``root``, default :func:`cache_dir`), sorted by path: only directories
+    this module writes (:data:`ENTRY_NAME`, and :data:`TEMP_NAME` of a write that never finished), nothing else
+    the directory may hold. Empty when the directory does not exist or caching is off."""
+    root = cache_dir() if root is None else root
+    if root is None or not root.is_dir():
+        return []
+    out = []
+    for p in sorted(root.iterdir()):
+        if not p.is_dir() or p.is_symlink():
+            continue
+        m = ENTRY_NAME.fullmatch(p.name)
+        if m:
+            out.append(CacheEntry(m[1], p, _dir_size(p)))
+        elif TEMP_NAME.fullmatch(p.name):
+            out.append(CacheEntry("temporary", p, _dir_size(p)))
+    return out
+
+
+def clear_cache(root: Path | None = None) -> list[CacheEntry]:
+    """Delete every entry of :func:`cache_entries` (and nothing else in the directory); returns what was deleted.
+    Safe at any time: an entry is only ever computed again."""
+    entries = cache_entries(root)
+    for e in entries:
+        shutil.rmtree(e.path, ignore_errors=True)
+    return entries
