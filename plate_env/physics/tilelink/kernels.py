@@ -22,40 +22,23 @@ import numpy as np
 
 from plate_env.core.motion import plate_state as _plate_state_py
 from plate_env.core.probe import Status
+from plate_env.physics.tilelink import params
 from plate_env.physics.tilelink.contact import damped_normal_force as _damped_normal_force_py
 from plate_env.physics.tilelink.contact import friction_scale as _friction_scale_py
 from plate_env.physics.tilelink.contact import spring_force as _spring_force_py
 from plate_env.physics.tilelink.jit_cache import CACHE
-from plate_env.physics.tilelink.params import (
-    P_AMP,
-    P_BP,
-    P_CC,
-    P_CIN,
-    P_DEPTH0,
-    P_DT,
-    P_FREQ,
-    P_G,
-    P_KB,
-    P_KC,
-    P_KIN,
-    P_MASS,
-    P_MUK,
-    P_MUS,
-    P_NSTEPS,
-    P_RAMP,
-    P_RECEVERY,
-    P_SLIP,
-    P_U0,
-    P_V0,
-    P_VLIM,
-    P_VT,
-    P_YAW0,
-)
 
 plate_state = numba.njit(cache=CACHE, inline="always")(_plate_state_py)
 spring_force = numba.njit(cache=CACHE, inline="always")(_spring_force_py)
 damped_normal_force = numba.njit(cache=CACHE, inline="always")(_damped_normal_force_py)
 friction_scale = numba.njit(cache=CACHE, inline="always")(_friction_scale_py)
+
+
+@numba.njit(cache=CACHE, inline="always")
+def plate_at(prm, t):
+    """The plate's ``(theta, theta_dot, x, x_dot)`` at time ``t`` (s) for a probe's parameter vector ``prm``
+    (:func:`plate_env.core.motion.plate_state` of its frequency, amplitudes and ramp); every kernel's one call."""
+    return plate_state(t, prm[params.P_FREQ], prm[params.P_AMP], prm[params.P_BP], prm[params.P_RAMP])
 
 #: fastmath without the no-NaN/no-inf assumptions, so blow-ups are still detected.
 FAST = {"reassoc", "contract", "arcp", "nsz", "afn"}
@@ -105,13 +88,13 @@ def check_state(cu, cv, cw, nw, vmax2, prm):
     """The :class:`Status` of one observation (``Status.OK``: fine)."""
     if not (math.isfinite(cu) and math.isfinite(cv) and math.isfinite(cw) and math.isfinite(vmax2)):
         return Status.NON_FINITE
-    if vmax2 > prm[P_VLIM] * prm[P_VLIM]:
+    if vmax2 > prm[params.P_VLIM] * prm[params.P_VLIM]:
         return Status.RUNAWAY
     if nw <= 0.0:
         return Status.OVERTURNED
     if cw > 0.05 or cw < -0.005:
         return Status.LEFT_PLATE
-    if cu * cu + cv * cv > prm[P_SLIP] * prm[P_SLIP]:
+    if cu * cu + cv * cv > prm[params.P_SLIP] * prm[params.P_SLIP]:
         return Status.SLIPPED
     return Status.OK
 
@@ -136,15 +119,15 @@ def record(x, rest, cells, x_plate, s_th, c_th, prev_yaw, vmax2, extra_status, p
 def pointmass_probe(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out, cu_out, cv_out):
     """Simulate one point-mass probe; fills the traces and returns (status, records written)."""
     n = rest.shape[0]
-    m = prm[P_MASS]
+    m = prm[params.P_MASS]
     inv_m = 1.0 / m
-    kb = prm[P_KB]
-    kin = prm[P_KIN]
-    cin = prm[P_CIN]
-    dt = prm[P_DT]
-    grav = prm[P_G]
-    n_steps = int(prm[P_NSTEPS])
-    rec_every = int(prm[P_RECEVERY])
+    kb = prm[params.P_KB]
+    kin = prm[params.P_KIN]
+    cin = prm[params.P_CIN]
+    dt = prm[params.P_DT]
+    grav = prm[params.P_G]
+    n_steps = int(prm[params.P_NSTEPS])
+    rec_every = int(prm[params.P_RECEVERY])
     spacing = math.sqrt((rest[links[0, 1], 0] - rest[links[0, 0], 0]) ** 2
                         + (rest[links[0, 1], 1] - rest[links[0, 0], 1]) ** 2)
     diag_len = spacing * math.sqrt(2.0)
@@ -152,18 +135,18 @@ def pointmass_probe(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out,
     v = np.zeros((n, 3))
     f = np.empty((n, 3))
     vs = np.empty((n, 3))
-    cy = math.cos(prm[P_YAW0])
-    sy = math.sin(prm[P_YAW0])
+    cy = math.cos(prm[params.P_YAW0])
+    sy = math.sin(prm[params.P_YAW0])
     for i in range(n):
-        x[i, 0] = prm[P_U0] + cy * rest[i, 0] - sy * rest[i, 1]
-        x[i, 1] = prm[P_V0] + sy * rest[i, 0] + cy * rest[i, 1]
-        x[i, 2] = -prm[P_DEPTH0]
-    yaw = prm[P_YAW0]
+        x[i, 0] = prm[params.P_U0] + cy * rest[i, 0] - sy * rest[i, 1]
+        x[i, 1] = prm[params.P_V0] + sy * rest[i, 0] + cy * rest[i, 1]
+        x[i, 2] = -prm[params.P_DEPTH0]
+    yaw = prm[params.P_YAW0]
     n_rec = 0
     status = Status.OK
     for step in range(n_steps + 1):
         t = step * dt
-        th, th_dot, xp, xp_dot = plate_state(t, prm[P_FREQ], prm[P_AMP], prm[P_BP], prm[P_RAMP])
+        th, th_dot, xp, xp_dot = plate_at(prm, t)
         s_th = math.sin(th)
         c_th = math.cos(th)
         if step % rec_every == 0:
@@ -234,7 +217,7 @@ def pointmass_probe(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out,
             ry = v[i, 1] - pvy
             rz = v[i, 2] - pvz
             vn = -ry * s_th + rz * c_th
-            fn = damped_normal_force(spring_force(-w_i, prm[P_KC]), vn, prm[P_CC], inv_m, dt)
+            fn = damped_normal_force(spring_force(-w_i, prm[params.P_KC]), vn, prm[params.P_CC], inv_m, dt)
             if fn <= 0.0:
                 continue
             vn_new = vn + dt * inv_m * fn
@@ -242,7 +225,7 @@ def pointmass_probe(prm, ainv, rest, links, diagonals, triplets, cells, yaw_out,
             ty = ry + vn * s_th
             tz = rz - vn * c_th
             slip = math.sqrt(tx * tx + ty * ty + tz * tz)
-            sc = friction_scale(slip, fn, prm[P_MUS], prm[P_MUK], prm[P_VT], inv_m, dt)
+            sc = friction_scale(slip, fn, prm[params.P_MUS], prm[params.P_MUK], prm[params.P_VT], inv_m, dt)
             v[i, 0] = pvx + sc * tx
             v[i, 1] = pvy + sc * ty - vn_new * s_th
             v[i, 2] = pvz + sc * tz + vn_new * c_th

@@ -23,31 +23,9 @@ import numba
 import numpy as np
 
 from plate_env.core.probe import Status
+from plate_env.physics.tilelink import params
 from plate_env.physics.tilelink.contact import CONTACT_EXPONENT
-from plate_env.physics.tilelink.kernels import plate_state, record
-from plate_env.physics.tilelink.params import (
-    P_AMP,
-    P_BP,
-    P_CC,
-    P_CIN,
-    P_DEPTH0,
-    P_DT,
-    P_FREQ,
-    P_G,
-    P_KB,
-    P_KC,
-    P_KIN,
-    P_MASS,
-    P_MUK,
-    P_MUS,
-    P_NSTEPS,
-    P_RAMP,
-    P_RECEVERY,
-    P_U0,
-    P_V0,
-    P_VT,
-    P_YAW0,
-)
+from plate_env.physics.tilelink.kernels import plate_at, record
 
 #: Grid side, slots.
 SIDE = 8
@@ -146,13 +124,13 @@ def grid_contact(x, v, masks, fsp, prm, th_dot, xp_dot, s_th, c_th):
     The spring ``k a^2.2`` first (one ``pow`` call per node in contact, a loop of its own; v1 calls ``exp`` and
     ``log``: 11 against 15 ns here), then every slot computes the rest
     and a select keeps its velocity where it is out of contact, as v1's branches do; ``fsp`` (G,): scratch."""
-    m = prm[P_MASS]
+    m = prm[params.P_MASS]
     inv_m = 1.0 / m
-    dt = prm[P_DT]
-    cc = prm[P_CC]
+    dt = prm[params.P_DT]
+    cc = prm[params.P_CC]
     for s in range(PAD, PAD + SLOTS):
         depth = x[1, s] * s_th - x[2, s] * c_th
-        fsp[s] = prm[P_KC] * math.pow(depth, CONTACT_EXPONENT) if depth > 0.0 else 0.0
+        fsp[s] = prm[params.P_KC] * math.pow(depth, CONTACT_EXPONENT) if depth > 0.0 else 0.0
     for s in range(PAD, PAD + SLOTS):
         pvx = xp_dot
         pvy = -th_dot * x[2, s]
@@ -168,7 +146,7 @@ def grid_contact(x, v, masks, fsp, prm, th_dot, xp_dot, s_th, c_th):
         ty = ry + vn * s_th
         tz = rz - vn * c_th
         slip = math.sqrt(tx * tx + ty * ty + tz * tz)
-        mu = prm[P_MUS] if slip < prm[P_VT] else prm[P_MUK]
+        mu = prm[params.P_MUS] if slip < prm[params.P_VT] else prm[params.P_MUK]
         dv = mu * fn * dt * inv_m
         sc = 1.0 - dv / (slip + (slip <= 0.0))
         sc = 1.0 if slip <= 0.0 else (0.0 if dv >= slip else sc)
@@ -197,22 +175,22 @@ def pointmass_probe(prm, blocks, slot, quad, masks, pair_rest, rest, cells, yaw_
     z = np.empty((4, 3, QUAD))
     w = np.empty((4, 3, QUAD))
     pos = np.empty((n, 3))
-    dt = prm[P_DT]
-    step_m = dt / prm[P_MASS]
-    n_steps = int(prm[P_NSTEPS])
-    rec_every = int(prm[P_RECEVERY])
-    cy = math.cos(prm[P_YAW0])
-    sy = math.sin(prm[P_YAW0])
+    dt = prm[params.P_DT]
+    step_m = dt / prm[params.P_MASS]
+    n_steps = int(prm[params.P_NSTEPS])
+    rec_every = int(prm[params.P_RECEVERY])
+    cy = math.cos(prm[params.P_YAW0])
+    sy = math.sin(prm[params.P_YAW0])
     for i in range(n):
         s = slot[i]
-        x[0, s] = prm[P_U0] + cy * rest[i, 0] - sy * rest[i, 1]
-        x[1, s] = prm[P_V0] + sy * rest[i, 0] + cy * rest[i, 1]
-        x[2, s] = -prm[P_DEPTH0]
-    yaw = prm[P_YAW0]
+        x[0, s] = prm[params.P_U0] + cy * rest[i, 0] - sy * rest[i, 1]
+        x[1, s] = prm[params.P_V0] + sy * rest[i, 0] + cy * rest[i, 1]
+        x[2, s] = -prm[params.P_DEPTH0]
+    yaw = prm[params.P_YAW0]
     n_rec = 0
     status = Status.OK
     for step in range(n_steps + 1):
-        th, th_dot, xp, xp_dot = plate_state(step * dt, prm[P_FREQ], prm[P_AMP], prm[P_BP], prm[P_RAMP])
+        th, th_dot, xp, xp_dot = plate_at(prm, step * dt)
         s_th = math.sin(th)
         c_th = math.cos(th)
         if step % rec_every == 0:
@@ -231,7 +209,8 @@ def pointmass_probe(prm, blocks, slot, quad, masks, pair_rest, rest, cells, yaw_
                 break
         if step == n_steps:
             break
-        grid_forces(x, v, f, masks, pair_rest, prm[P_MASS], prm[P_G], prm[P_KB], prm[P_KIN], prm[P_CIN], kap, fp)
+        grid_forces(x, v, f, masks, pair_rest, prm[params.P_MASS], prm[params.P_G], prm[params.P_KB],
+                    prm[params.P_KIN], prm[params.P_CIN], kap, fp)
         for d in range(3):
             for s in range(PAD, PAD + SLOTS):
                 vs[d, s] = v[d, s] + step_m * f[d, s]

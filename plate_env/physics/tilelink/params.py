@@ -2,7 +2,8 @@
 
 The first ``N_PARAMS`` entries mean the same for every model: the plate motion, the contact law, the object's
 friction, the time step, the instability limits, the record cadence and the initial placement. A model appends
-its own entries after them. The ``P_*`` indices are defined here and imported from here only.
+its own entries after them. The ``P_*`` indices are defined here only; the kernels read them as ``params.P_*``
+(one list: numba freezes a module's integer attribute into the compiled code as a constant, as it does a global).
 """
 
 from __future__ import annotations

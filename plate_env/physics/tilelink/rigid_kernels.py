@@ -37,7 +37,7 @@ import numba
 import numpy as np
 
 from plate_env.core.probe import SLIP_LIMIT_M, ProbeSpec, Status
-from plate_env.physics.tilelink import contact
+from plate_env.physics.tilelink import contact, params
 from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
 from plate_env.physics.tilelink.jit_cache import CACHE
 from plate_env.physics.tilelink.kernels import (
@@ -45,7 +45,7 @@ from plate_env.physics.tilelink.kernels import (
     damped_normal_force,
     friction_scale,
     load_first,
-    plate_state,
+    plate_at,
     record,
     spring_force,
 )
@@ -53,27 +53,6 @@ from plate_env.physics.tilelink.params import (
     DEFAULT_DT,
     DEFAULT_RECORD_INTERVAL_S,
     N_PARAMS,
-    P_AMP,
-    P_BP,
-    P_CC,
-    P_CIN,
-    P_DEPTH0,
-    P_DT,
-    P_FREQ,
-    P_G,
-    P_KB,
-    P_KC,
-    P_KIN,
-    P_MASS,
-    P_MUK,
-    P_MUS,
-    P_NSTEPS,
-    P_RAMP,
-    P_RECEVERY,
-    P_U0,
-    P_V0,
-    P_VT,
-    P_YAW0,
     allocate_outputs,
     common_vector,
 )
@@ -119,13 +98,13 @@ def _row_constants(prm, dt):
     the backward-Euler factors of its spring-damper: ``gamma = 1 / (dt (dt k + c))``, ``k / (dt k + c)``."""
     rk = np.empty(5)
     rc = np.empty(5)
-    rk[0] = prm[P_KIN]
-    rc[0] = prm[P_CIN]
+    rk[0] = prm[params.P_KIN]
+    rc[0] = prm[params.P_CIN]
     rk[1] = prm[R_KT2]
     rc[1] = prm[R_CT2]
     rk[2] = prm[R_KN]
     rc[2] = prm[R_CN]
-    rk[3] = prm[P_KB]
+    rk[3] = prm[params.P_KB]
     rc[3] = prm[R_CB]
     rk[4] = prm[R_KRN]
     rc[4] = prm[R_CRN]
@@ -141,14 +120,14 @@ def _row_constants(prm, dt):
 @numba.njit(cache=CACHE, inline="always")
 def _place_tiles(prm, rest, x, q):
     """The start state: flat at the rest depth, turned by the initial yaw, shifted by the initial offset."""
-    cy = math.cos(prm[P_YAW0])
-    sy = math.sin(prm[P_YAW0])
+    cy = math.cos(prm[params.P_YAW0])
+    sy = math.sin(prm[params.P_YAW0])
     for i in range(rest.shape[0]):
-        x[i, 0] = prm[P_U0] + cy * rest[i, 0] - sy * rest[i, 1]
-        x[i, 1] = prm[P_V0] + sy * rest[i, 0] + cy * rest[i, 1]
-        x[i, 2] = -prm[P_DEPTH0]
-        q[i, 0] = math.cos(0.5 * prm[P_YAW0])
-        q[i, 3] = math.sin(0.5 * prm[P_YAW0])
+        x[i, 0] = prm[params.P_U0] + cy * rest[i, 0] - sy * rest[i, 1]
+        x[i, 1] = prm[params.P_V0] + sy * rest[i, 0] + cy * rest[i, 1]
+        x[i, 2] = -prm[params.P_DEPTH0]
+        q[i, 0] = math.cos(0.5 * prm[params.P_YAW0])
+        q[i, 3] = math.sin(0.5 * prm[params.P_YAW0])
 
 
 @numba.njit(cache=CACHE, inline="always")
@@ -206,10 +185,11 @@ def _check_and_record(step, prm, x, v, w, ax, jc, rk, rest, cells, xp, s_th, c_t
     """Stage 1, every record: the energy check (RUNAWAY when the energy exceeds its start plus the plate's work
     beyond the tolerance), the fold check (FOLDED), then the shared observation and checks of
     :func:`kernels.record`. Returns (status, yaw, records written, E0, max excess, E - E0)."""
-    m = prm[P_MASS]
+    m = prm[params.P_MASS]
     hh = 0.5 * prm[R_H]
-    kc = prm[P_KC] * prm[R_CORNERW]
-    vmax2, energy, tile_w_min = _energy(x, v, w, ax, jc, rk, m, prm[R_IXX], prm[R_IZZ], prm[P_G], hh, kc, s_th, c_th)
+    kc = prm[params.P_KC] * prm[R_CORNERW]
+    vmax2, energy, tile_w_min = _energy(x, v, w, ax, jc, rk, m, prm[R_IXX], prm[R_IZZ], prm[params.P_G], hh, kc,
+                                        s_th, c_th)
     if step == 0:
         e0 = energy
     excess = energy - e0 - work
@@ -583,18 +563,18 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
     """
     n = rest.shape[0]
     nj = links.shape[0]
-    inv_m = 1.0 / prm[P_MASS]
-    dt = prm[P_DT]
+    inv_m = 1.0 / prm[params.P_MASS]
+    dt = prm[params.P_DT]
     ixx = prm[R_IXX]
     izz = prm[R_IZZ]
     ixx_inv = 1.0 / ixx
     dinv = 1.0 / izz - 1.0 / ixx
     n_iter = int(prm[R_NITER])
-    n_steps = int(prm[P_NSTEPS])
-    rec_every = int(prm[P_RECEVERY])
+    n_steps = int(prm[params.P_NSTEPS])
+    rec_every = int(prm[params.P_RECEVERY])
     block_refresh = int(prm[R_REFRESH])
-    kc = prm[P_KC] * prm[R_CORNERW]
-    cc = prm[P_CC] * prm[R_CORNERW]
+    kc = prm[params.P_KC] * prm[R_CORNERW]
+    cc = prm[params.P_CC] * prm[R_CORNERW]
     hh = 0.5 * prm[R_H]
     rk, gam, kfac = _row_constants(prm, dt)
 
@@ -616,7 +596,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
     cdat = np.empty((4 * n, 11))  # lever arm r (3), spring force k a^2.2, plate velocity u (3), 1/m_n, dv_t/dp_n (3)
     cimp = np.empty((4 * n, 3))  # accumulated contact impulse in this step
     _place_tiles(prm, rest, x, q)
-    yaw = prm[P_YAW0]
+    yaw = prm[params.P_YAW0]
     n_rec = 0
     status = Status.OK
     work = 0.0
@@ -626,7 +606,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
     bend_max = 0.0
     e_last = 0.0
     for step in range(n_steps + 1):
-        th, th_dot, xp, xp_dot = plate_state(step * dt, prm[P_FREQ], prm[P_AMP], prm[P_BP], prm[P_RAMP])
+        th, th_dot, xp, xp_dot = plate_at(prm, step * dt)
         s_th = math.sin(th)
         c_th = math.cos(th)
         _tile_axes(q, ax)
@@ -638,14 +618,14 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
                 break
         if step == n_steps:
             break
-        _gravity_and_gyroscopic(v, w, ax, dt, prm[P_G], ixx, izz, ixx_inv, dinv)
+        _gravity_and_gyroscopic(v, w, ax, dt, prm[params.P_G], ixx, izz, ixx_inv, dinv)
         refresh = step == 0 or (block_refresh > 0 and step % block_refresh == 0)
         bend_max = _joint_setup(refresh, x, v, w, ax, links, link_dir, hh, inv_m, ixx_inv, dinv, gam, kfac, jra,
                                 jrb, jfr, jkt, jkr, jb, jc, pacc, bend_max)
         n_act = _active_corners(x, ax, hh, s_th, c_th, th_dot, xp_dot, kc, inv_m, ixx_inv, dinv, ctile, cdat, cimp)
         for it in range(n_iter):
-            _contact_pass(n_act, ctile, cdat, cimp, v, w, ax, s_th, c_th, dt, cc, prm[P_MUS], prm[P_MUK], prm[P_VT],
-                          inv_m, ixx_inv, dinv)
+            _contact_pass(n_act, ctile, cdat, cimp, v, w, ax, s_th, c_th, dt, cc, prm[params.P_MUS], prm[params.P_MUK],
+                          prm[params.P_VT], inv_m, ixx_inv, dinv)
             _joint_pass(it, links, jra, jrb, jfr, jkt, jkr, jb, gam, pacc, v, w, ax, inv_m, ixx_inv, dinv)
         work, work_abs = _plate_work(n_act, cimp, cdat, work, work_abs)
         _integrate(x, v, q, w, dt)
@@ -686,9 +666,9 @@ def param_vector(spec: ProbeSpec, dt: float, slip_limit: float, config: RigidTil
     p = _params(spec.obj, config)
     prm = common_vector(spec, dt, slip_limit, p.tile_mass, N_RIGID_PARAMS, contact_weight=0.25, law=law,
                         record_interval_s=record_interval_s)
-    prm[P_KB] = p.k_bending
-    prm[P_KIN] = p.row_k[0]
-    prm[P_CIN] = p.row_c[0]
+    prm[params.P_KB] = p.k_bending
+    prm[params.P_KIN] = p.row_k[0]
+    prm[params.P_CIN] = p.row_c[0]
     prm[R_H] = p.tile_size
     prm[R_IXX] = p.inertia_xx
     prm[R_IZZ] = p.inertia_zz
