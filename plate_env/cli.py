@@ -635,7 +635,7 @@ def _read_fit_table(args: argparse.Namespace):
     if len(table) > MAX_FIT_ROWS:
         raise CliError(f"{args.csv}: {len(table)} rows; fit takes at most {MAX_FIT_ROWS} (the most a sweep makes: the "
                        "predictive check replicates every row 4000 times, and the posterior's time grows with the "
-                       "distinct rows, ~6 ms each on the lab model); average repeated frequencies or split the file")
+                       "distinct rows); average repeated frequencies or split the file")
     return table
 
 

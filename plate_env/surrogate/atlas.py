@@ -5,8 +5,8 @@ repeat places the disc at a random yaw and offset, as a real experiment would), 
 with provenance), and interpolated smoothly: tensor-product cubic splines along f_p, log omega_n and alpha (the
 spline of scipy's RegularGridInterpolator "cubic"), passing exactly through the grid values; spreads are clipped at 0
 and instability probabilities to [0, 1] where the spline overshoots. (Its "pchip" variant would not overshoot but
-evaluates ~700x slower: 4.4 s against 6 ms for 20,000 points, measured.) Plate amplitudes are not interpolated:
-a query must use one of the atlas's amplitudes.
+evaluates orders of magnitude slower: ``experiments/results/bench_interpolation.md``.) Plate amplitudes are not
+interpolated: a query must use one of the atlas's amplitudes.
 """
 
 from __future__ import annotations
@@ -333,7 +333,7 @@ def atlas_from_repeats(physics: str, model: str, f_hz, a_p_deg, omega_n, alpha, 
 
     Grid points where every repeat was unstable get the mean interpolated from the nearest stable frequencies at
     the same (A_p, omega_n, alpha) and a wide spread (``FILL_SPREAD`` deg/s): a stable probe there may turn at
-    quite another rate (measured: 676 deg/s observed where the filled mean said 519). A point with a single
+    quite another rate than the filled mean. A point with a single
     stable repeat has no between-repeat spread of its own and gets at least the median of those that have.
     """
     stable = ~unstable
