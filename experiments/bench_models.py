@@ -3,7 +3,8 @@
 Sweeps the plate frequency f_p at A_p = 3 deg, B_p = 3 mm for several objects (omega_n, alpha), runs every probe
 with the point-mass model (``plate_env.make_physics("tilelink")``) and with the rigid-tile model
 (:func:`plate_env.physics.tilelink.rigid_kernels.run_rigid_arrays`), fits Eq. (9) of the paper to the stable
-probes up to the first dip after the first hump, and writes ``experiments/results/bench_models.md``.
+probes up to the first dip after the first hump, and writes ``experiments/results/bench_models.md`` and the fits,
+slopes and speeds in ``bench_models.json`` beside it (the source of docs/physics.md's table).
 
 Usage: ``python experiments/bench_models.py [--quick]``.
 """
@@ -11,6 +12,7 @@ Usage: ``python experiments/bench_models.py [--quick]``.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import time
 from dataclasses import replace
@@ -36,10 +38,10 @@ def fit(freqs: np.ndarray, omegas: np.ndarray, unstable: np.ndarray) -> tuple[fl
     return res.f0, res.b, res.omega_max, res.n_used
 
 
-def speed_section(dt: float) -> list[str]:
+def speed_section(dt: float, numbers: dict | None = None) -> list[str]:
     """Real-time factors (simulated s per wall s) of both models: one probe, and a batch of 32 on all cores.
 
-    Medians of 3 runs measured in this process (compiled kernels warmed up first)."""
+    Medians of 3 runs measured in this process (compiled kernels warmed up first); also kept in ``numbers["speed"]``."""
     rng = np.random.default_rng(0)
     probes = [ProbeSpec(obj=pe.ObjectSpec.from_paper(float(rng.uniform(5, 30)), 36.9),
                         motion=pe.PlateMotion.from_paper(float(f), 3.0, 3.0)) for f in np.linspace(14, 24, 32)]
@@ -60,6 +62,9 @@ def speed_section(dt: float) -> list[str]:
             res = physics.run(probes)
             batch.append(sum(r.sim_s for r in res) / (time.perf_counter() - t0))
         lines.append(f"| {name} | {getattr(physics, 'dt', dt):g} | {np.median(one):.1f} | {np.median(batch):.1f} |")
+        if numbers is not None:
+            numbers.setdefault("speed", {})[name] = {"one_probe_rtf": float(np.median(one)),
+                                                     "batch32_rtf": float(np.median(batch))}
         print(lines[-1], flush=True)
     return lines
 
@@ -150,6 +155,8 @@ def main() -> None:
              "paper f0/b/max | wall s (batch) | RT aggregate |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     sweeps = []
+    numbers: dict = {"command": "python experiments/bench_models.py" + " --quick" * args.quick, "fits": [],
+                     "slope_hz_per_pi": {}, "paper_slope_hz_per_pi": round((28.2 - 25.1) / 23, 3)}
     f0s: dict[str, list[tuple[float, float]]] = {name: [] for name in models}
     for wn, alpha in objects:
         obj = pe.ObjectSpec.from_paper(wn, alpha)
@@ -170,6 +177,9 @@ def main() -> None:
                 f0s[name].append((wn, f0))
             lines.append(f"| {wn:g} | {alpha:g} | {name} | {f0:.1f} | {b:.1f} | {wmax:.0f} | {npts} | {ptxt} | "
                          f"{wall:.1f} | {sim_s / wall:.1f} |")
+            numbers["fits"].append({"omega_n_pi": wn, "alpha_deg": alpha, "model": name, "f0_hz": f0, "b_hz": b,
+                                    "omega_max_deg_s": wmax, "points": npts, "paper": paper, "wall_s": wall,
+                                    "rt_aggregate": sim_s / wall})
             print(lines[-1], flush=True)
         sweeps.append((wn, alpha, per_model))
     lines += ["", "Slope of f0 against omega_n (alpha 36.9 deg), Hz per (pi rad/s):", ""]
@@ -178,6 +188,7 @@ def main() -> None:
             x, y = np.array(pts).T
             pts_txt = ", ".join(f"{a:g}:{c:.1f}" for a, c in pts)
             lines.append(f"- {name}: {np.polyfit(x, y, 1)[0]:.3f} (points {pts_txt})")
+            numbers["slope_hz_per_pi"][name] = float(np.polyfit(x, y, 1)[0])
     lines.append("- paper: (28.2 - 25.1) / 23 = 0.135")
     lines += ["", "## omega_B per probe (deg/s; * = unstable)", ""]
     lines.append("| omega_n | alpha | f_p | " + " | ".join(models) + " |")
@@ -186,10 +197,11 @@ def main() -> None:
         for k, f in enumerate(freqs):
             lines.append(f"| {wn:g} | {alpha:g} | {f:g} | " + " | ".join(
                 f"{w[k]:.0f}{'*' if u[k] else ''}" for w, u in per_model.values()) + " |")
-    lines += speed_section(args.dt)
+    lines += speed_section(args.dt, numbers)
     lines += extra_sections(args.dt)
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text("\n".join(lines) + "\n")
+    RESULTS.with_suffix(".json").write_text(json.dumps(numbers, indent=1) + "\n")
     print(f"wrote {RESULTS}")
 
 

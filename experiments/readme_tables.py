@@ -204,6 +204,53 @@ def _paired(suite: str) -> str:
     return _table([f"agent - `{d['leader']}` (points)", *(f"@ {b:g} s" for b in budgets)], rows)
 
 
+#: The routes of experiments/results/rigid_fast.json shown in docs/rigid_fast.md, with the model each one is.
+RIGID_ROUTES = {"small_steps": "`rigid_fast` (shipped)", "rigid_2e-4": "`rigid` (shipped)",
+                "small_steps_5e-5": "small steps at twice the step", "exact_joint_solve_1e-4": "joints solved exactly"}
+
+
+def rigid_fast_routes() -> str:
+    """Each rigid-tile route against the converged rigid limit, and its speed as a share of the point mass's in the
+    same run (experiments/rigid_fast_validation.py)."""
+    d = _load("rigid_fast.json")
+    rows = []
+    for key, label in RIGID_ROUTES.items():
+        r = d["routes"][key]
+        c, sp = r["compare"]["summary"], r["speed"]
+        share = [sp["route"][k] / sp["pointmass"][k] for k in ("one_probe_rtf", "batch32_rtf")]
+        rows.append([label, f"{r['dt']:g}",
+                     f"{100 * c['median_abs_rel']:.1f} % / {100 * c['max_abs_rel']:.1f} % ({c['n_both_stable']} "
+                     f"of {c['n_probes']} probes)", f"{100 * c['stability_agreement']:.0f} %",
+                     f"{c['max_abs_f0_diff_hz']:.2f} ({c['n_fits_compared']} of {c['n_fits_reference']} fits)",
+                     f"{share[0]:.3f} / {share[1]:.3f}", f"{sp['load_avg_1min']:.0f}"])
+    return (f"Against `rigid_limit` at dt {d['reference_dt']:g} s ({d['n_reference']} probes).\n\n"
+            + _table(["model", "dt (s)", "omega_B median / max abs difference (both stable)", "stability calls agree",
+                      "max abs f0 difference (Hz)", "speed: share of the point mass's, one probe / batch of 32",
+                      "load"], rows))
+
+
+def bench_models() -> str:
+    """The tile-link models' first-hump fits beside the paper's (Fig. 7 objects), their f0 slopes and speeds
+    (experiments/bench_models.py)."""
+    d = _load("bench_models.json")
+    models = list(d["slope_hz_per_pi"])
+    fits = {(f["omega_n_pi"], f["alpha_deg"], f["model"]): f for f in d["fits"]}
+
+    def fbw(f0: float, b: float, wmax: float) -> str:
+        return f"{f0:.1f} / {b:.1f} / {wmax:.0f}"
+
+    rows = []
+    for wn, alpha, _ in (k for k in fits if k[2] == models[0] and fits[k]["paper"]):
+        paper = fits[(wn, alpha, models[0])]["paper"]
+        rows.append([f"{wn:g}π, {alpha:g}°", fbw(*paper),
+                     *(fbw(*(fits[(wn, alpha, m)][k] for k in ("f0_hz", "b_hz", "omega_max_deg_s"))) for m in models)])
+    rows.append(["f0 slope (Hz per π rad/s)", f"{d['paper_slope_hz_per_pi']:.3f}",
+                 *(f"{d['slope_hz_per_pi'][m]:.3f}" for m in models)])
+    rows.append(["one probe / batch of 32, real-time factor", "",
+                 *(f"{d['speed'][m]['one_probe_rtf']:.2g}x / {d['speed'][m]['batch32_rtf']:.2g}x" for m in models)])
+    return _table(["ω_n, α", "paper f0 / b / ω_max", *(m.replace("pointmass", "point mass") for m in models)], rows)
+
+
 #: Every generated table: its name in the markers, the result file it is rendered from, and the renderer.
 TABLES: dict[str, tuple[str, Callable[[], str]]] = {
     "forward_models_within": ("forward_models_within.json", forward_models_within),
@@ -219,6 +266,7 @@ TABLES: dict[str, tuple[str, Callable[[], str]]] = {
     "leaderboard_tilelink-v0_full": ("leaderboard_tilelink-v0.json", lambda: _leaderboard("tilelink-v0", True)),
     "leaderboard_tilelink-v0_paired": ("leaderboard_tilelink-v0.json", lambda: _paired("tilelink-v0")),
     "leaderboard_atlas-v0": ("leaderboard_atlas-v0.json", lambda: _leaderboard("atlas-v0", False)),
+    "rigid_fast_routes": ("rigid_fast.json", rigid_fast_routes),
 }
 
 

@@ -152,15 +152,21 @@ def test_readme_shows_generated_tables():
 
 
 def test_an_edited_number_is_caught():
-    """Change one digit inside each README table: the check names that table."""
-    for m in readme_tables.MARKER.finditer(README):
-        body = m["body"]
-        digit = re.search(r"\d\.\d", body)
-        assert digit, m["name"]
-        i = digit.start()
-        edited = body[:i] + str((int(body[i]) + 1) % 10) + body[i + 1:]
-        text = README[:m.start("body")] + edited + README[m.end("body"):]
-        assert readme_tables.stale(text) == [m["name"]]
+    """Change one digit inside each marked table of the README and of every docs page: the check names that table
+    and no other."""
+    checked = set()
+    for page in readme_tables.pages():
+        page_text = page.read_text()
+        for m in readme_tables.MARKER.finditer(page_text):
+            body = m["body"]
+            digit = re.search(r"\d\.\d", body)
+            assert digit, (page.name, m["name"])
+            i = digit.start()
+            edited = body[:i] + str((int(body[i]) + 1) % 10) + body[i + 1:]
+            text = page_text[:m.start("body")] + edited + page_text[m.end("body"):]
+            assert readme_tables.stale(text) == [m["name"]], (page.name, m["name"])
+            checked.add(m["name"])
+    assert {"leaderboard_tilelink-v0", "leaderboard_atlas-v0", "rigid_fast_routes"} <= checked
 
 
 def test_generator_renders_every_table():
