@@ -362,6 +362,7 @@ def stage_lomo(args) -> None:
     rng = np.random.default_rng(0)
     data = {fam: data_of(fam, args.executor) for fam in DATA}
     cross: dict = {}
+    cells_of: dict = {}  # each cell of the table below, for docs/identification.md (readme_tables.py)
     lines = ["# Across models: each model's data through the others, and leave one model out", "",
              "Data at 3 deg: " + "; ".join(f"{fam} {es.n} objects (seed {es.seed}, {es.f_hz[0]:g}-{es.f_hz[-1]:g} "
                                           f"Hz{', nuisance draws' if es.nuisance else ''})"
@@ -376,13 +377,16 @@ def stage_lomo(args) -> None:
             eps, sd = discrepancies(truth, ests)
             cross[(src, fam)] = (eps, sd)
             s = score(truth, ests, rng)
+            cells_of[f"{src}->{fam}"] = {"median_error": s.median_error.value, "bias": float(np.mean(eps)),
+                                         "coverage95": s.coverage95.value}
             cells.append(f"median {s.median_error.value * 100:.0f} %, bias {100 * float(np.mean(eps)):+.0f} %, "
                          f"cov95 {s.coverage95.value:.2f}")
         lines.append(f"| {src} | " + " | ".join(cells) + " |")
     lines += ["", "Each cell: the data's probes the model describes (the PyBullet atlas reaches 10-26 Hz); bias = "
               "mean log(truth / estimate).", "",
               "## Leave one model out (discrepancy from the other models' data through each other)", "", *HEAD]
-    numbers: dict = {"cross": {f"{a}->{b}": {"eps": v[0].tolist(), "sd": v[1].tolist()} for (a, b), v in cross.items()},
+    numbers: dict = {"cross": {f"{a}->{b}": {"eps": v[0].tolist(), "sd": v[1].tolist(), **cells_of[f"{a}->{b}"]}
+                               for (a, b), v in cross.items()},
                      "lomo": {}}
     for out in DATA:
         rest = [f for f in DATA if f != out]
