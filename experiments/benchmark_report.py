@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import platform
 import re
 import subprocess
 import sys
@@ -36,10 +37,13 @@ HEAD2 = ("| agent | median, atlas-v0 | median, tilelink-v0 | no estimate, atlas-
 
 
 def st(s: dict, d: int = 1) -> str:
-    v, (lo, hi) = s["value"], s["ci95"]
-    if v == float("inf"):
+    """``value [lo, hi]`` in %; None is a non-finite number as the bench's JSON writes it (an infinite error)."""
+    def num(x: float | None) -> str:
+        return "inf" if x is None or x == float("inf") else f"{100 * x:.{d}f}"
+
+    if num(s["value"]) == "inf":
         return "none"
-    return f"{100 * v:.{d}f} [{100 * lo:.{d}f}, {100 * hi:.{d}f}]"
+    return f"{num(s['value'])} [{num(s['ci95'][0])}, {num(s['ci95'][1])}]"
 
 
 def command_of(md: Path) -> str:
@@ -85,13 +89,14 @@ def main() -> None:
     ex = next(a for a in cli["agents"] if a["label"].startswith("examples/"))
     eb = ex["budgets"]
     note = args.note + "\n\n" if args.note else ""
+    python = lb.get("python") or platform.python_version()  # the bench's JSON does not record it: this process's
     lb_cmd, at_cmd = (command_of(R / f"leaderboard_{x}.md") for x in ("tilelink-v0", "atlas-v0"))
     lb2_cmd = f"{lb_cmd} --cache {PROCESS2_CACHE}"
     cli_wall = "" if args.cli_wall_s is None else f"{args.cli_wall_s:.0f} s of wall time for "
     md = f"""# Issue 14, closing measurements: the benchmark
 
 {note}Regenerate: `python experiments/benchmark_report.py [--cli-wall-s S]` after the `plate-env bench` commands in
-its docstring. A 2-core machine shared with other jobs (every job under `nice -n 10`), Python {lb['python']},
+its docstring. A 2-core machine shared with other jobs (every job under `nice`), Python {python},
 Stable-Baselines3 {rp['versions']['stable_baselines3']}, torch {rp['versions']['torch']} at one thread. Errors in %
 with 95 % percentile-bootstrap intervals over the suite's objects.
 

@@ -28,9 +28,11 @@ MARKER = re.compile(r"<!-- table: (?P<name>[\w.-]+) -->\n(?P<body>.*?)<!-- /tabl
 
 # ------------------------------------------------------------------------------------------------ formatting
 def _stat(d: dict, scale: float = 1.0, digits: int = 1, unit: str = "", interval: bool = True) -> str:
-    """``value [lo, hi]`` of a ``{"value", "ci95"}`` statistic (plate_env.scoring.Stat.to_dict)."""
-    def num(x: float) -> str:
-        return "inf" if math.isinf(x) else f"{x * scale:.{digits}f}"
+    """``value [lo, hi]`` of a ``{"value", "ci95"}`` statistic (plate_env.scoring.Stat.to_dict). ``None`` is a
+    non-finite number written as JSON's null (``plate-env bench --json`` lists them under "non_finite"): an
+    infinite error or width."""
+    def num(x: float | None) -> str:
+        return "inf" if x is None or math.isinf(x) else f"{x * scale:.{digits}f}"
     if not interval:
         return f"{num(d['value'])}{unit}"
     lo, hi = d["ci95"]
