@@ -331,8 +331,9 @@ def stage_sensitivity(args) -> None:
              "nuisance at the low and the high end of its band in `plate_env.nuisance.PRIOR`, the others nominal; "
              "identified by the nominal point-mass atlas (no discrepancy term). Bias = mean log(omega_n_hat / "
              "omega_n); 95 % bootstrap intervals over objects.", "",
-             "| nuisance | value | bias of omega_n_hat | median error | 95 % coverage (no sigma_eps) |",
-             "|---|---|---|---|---|"]
+             "| nuisance | value | bias of omega_n_hat (objects with an estimate) | median error | "
+             "95 % coverage (no sigma_eps) | no estimate |",
+             "|---|---|---|---|---|---|"]
     numbers: dict = {}
     for name in nz._FIELDS:
         band = getattr(nz.PRIOR, name)
@@ -344,13 +345,16 @@ def stage_sensitivity(args) -> None:
             tables = [ProbeTable.from_results(res[i * m:(i + 1) * m]) for i in range(SENSITIVITY.n)]
             ests = estimates(fm, tables)
             eps, _ = discrepancies(truth, ests)
-            boot = rng.choice(eps, size=(2000, eps.size)).mean(1) if eps.size else np.array([np.nan])
             s = score(truth, ests, rng)
-            bias = -float(np.mean(eps))
-            lines.append(f"| {name} | {end} {value:g} | {100 * (math.exp(bias) - 1):+.1f} % "
-                         f"[{100 * (math.exp(-np.percentile(boot, 97.5)) - 1):+.1f}, "
-                         f"{100 * (math.exp(-np.percentile(boot, 2.5)) - 1):+.1f}] | "
-                         f"{s.median_error.fmt(100, 1, ' %')} | {s.coverage95.fmt(1, 2)} |")
+            if eps.size:  # the bias of the estimates made; none when every sweep got no estimate
+                boot = rng.choice(eps, size=(2000, eps.size)).mean(1)
+                bias = -float(np.mean(eps))
+                lo, hi = (100 * (math.exp(-np.percentile(boot, q)) - 1) for q in (97.5, 2.5))
+                bias_txt = f"{100 * (math.exp(bias) - 1):+.1f} % [{lo:+.1f}, {hi:+.1f}] ({eps.size})"
+            else:
+                bias, bias_txt = None, "none: no estimate on any object"
+            lines.append(f"| {name} | {end} {value:g} | {bias_txt} | {s.median_error.fmt(100, 1, ' %')} | "
+                         f"{s.coverage95.fmt(1, 2)} | {s.no_estimate.fmt(1, 2)} |")
             numbers[f"{name}_{end}"] = {"value": value, "bias_log": bias, **s.to_dict()}
     write("sensitivity", lines, numbers)
 
