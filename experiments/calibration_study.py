@@ -176,15 +176,35 @@ STATS = {
 }
 
 
+def boot_indices(labs: np.ndarray, rng: np.random.Generator, n_boot: int) -> np.ndarray:
+    """Two-stage bootstrap rows (n_boot, n): within each source, its labs drawn with replacement, then objects drawn
+    with replacement inside each drawn lab (a source with one lab: objects alone). ``labs``: per object, a
+    ``source/lab`` label; the source is the part before the slash."""
+    src_of = np.array([lab.split("/")[0] for lab in labs])
+    members = {lab: np.flatnonzero(labs == lab) for lab in dict.fromkeys(labs)}
+    by_src = {s_: [lab for lab in members if lab.split("/")[0] == s_] for s_ in dict.fromkeys(src_of)}
+    rows = []
+    for _ in range(n_boot):
+        parts = []
+        for names in by_src.values():
+            for lab in rng.choice(len(names), size=len(names), replace=True):
+                obj = members[names[lab]]
+                parts.append(rng.choice(obj, size=obj.size, replace=True))
+        row = np.concatenate(parts)
+        rows.append(np.resize(row, labs.size))  # equal-size labs keep the length; resize guards unequal ones
+    return np.array(rows)
+
+
 def summarize(blocks: list[dict[str, np.ndarray]], rng: np.random.Generator, n_boot: int = 1000) -> dict:
-    """Statistics over every (object, draw) pair with 95 % bootstrap intervals over objects (an object carries all
-    its draws). ``blocks``: per source, arrays (n_objects, n_draws) with NaN where the object was a reference."""
+    """Statistics over every (object, draw) pair with 95 % bootstrap intervals (an object carries all its draws):
+    labs resampled within each source, then objects within each lab (:func:`boot_indices`). ``blocks``: per source,
+    arrays (n_objects, n_draws) with NaN where the object was a reference, and ``lab`` labels."""
     arrays = {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
     n = arrays["error"].shape[0]
-    idx = rng.integers(0, n, size=(n_boot, n))
+    idx = boot_indices(arrays["lab"], rng, n_boot)
     out = {"objects": int(n), "pairs": int(np.isfinite(arrays["in95"]).sum())}
     for name, (key, fn) in STATS.items():
-        v = arrays[key]
+        v = arrays[key].astype(float)
         value = float(fn(v.reshape(1, -1))[0])
         boot = np.array([fn(v[i].reshape(1, -1))[0] for i in idx])
         out[name] = {"value": value, "ci95": [float(np.percentile(boot, 2.5)), float(np.percentile(boot, 97.5))]}
@@ -315,6 +335,7 @@ def run_lab(src: str, K: int, data: dict, fams: list[str], prior, method: dict, 
     for lab in data[src]:
         n = len(lab.truth)
         out = {k: np.full((n, draws), np.nan) for k in ("error", "in68", "in95", "width95")}
+        out["lab"] = np.array([f"{src}/{lab.name}"] * n)
         if method["kind"] == "features" and method.get("regime") and len(data[src]) > 1:
             prior, _ = learn_feat_prior([o for o in data[src] if o.name != lab.name], log_sd)
         if method["kind"] == "readings":
