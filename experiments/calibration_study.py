@@ -509,8 +509,9 @@ def write_md(results: dict) -> None:
              " draws per K and lab, seeded), every other disc of that lab scored; the members of the lab's own physics "
              "family are left out of the forward model, and every prior is learned from labs of *other* physics only "
              "(except `features_regime`, which says so). Statistics over every (object, draw) pair; brackets: 95 % "
-             "bootstrap over objects (for `pmlab`, discs of one lab are not independent: its brackets understate the "
-             "lab-to-lab spread). Goals at K = 3: median error <= 10 %, 95 % coverage >= 0.90, median 95 % width <= "
+             "bootstrap, labs resampled within each source and then discs within each lab (an object carries all its "
+             "draws; `pmlab`'s brackets include the lab-to-lab spread of its 8 labs). Goals at K = 3: median error "
+             "<= 10 %, 95 % coverage >= 0.90, median 95 % width <= "
              "50 % of omega_n; coverage >= 0.90 at every K.", "", "Sources (each is a different claim):", ""]
     for s_, v in results["sources"].items():
         es = v["eval_set"]
