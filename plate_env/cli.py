@@ -31,6 +31,7 @@ from plate_env.core.setup import (
     MASS_RANGE_KG,
     PAPER_SETUP,
 )
+from plate_env.core.streams import stdout_to_stderr
 from plate_env.core.units import format_omega_pi, parse_omega_n
 from plate_env.env.rotation import DEFAULT_MAX_PROBES
 from plate_env.identify.api import METHODS
@@ -389,9 +390,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     for spec, agent in agents.items():
         what = agent if where == "inprocess" else functools.partial(load_agent, spec)
         try:
-            # what agents and libraries (Ray's worker lines) print while episodes run goes to stderr: stdout keeps
-            # the one result document
-            with contextlib.redirect_stdout(sys.stderr):
+            # what agents and libraries print while episodes run (Python's print, C code and child processes on
+            # fd 1, Ray's worker-death lines) goes to stderr: stdout keeps the one result document
+            with stdout_to_stderr():
                 runs.append(benchmark.evaluate(what, suite, label=spec, budgets_s=budgets, executor=args.executor,
                                                cache=cache, limit=args.limit, chunk=args.chunk,
                                                progress=not (args.json or args.no_progress)))
@@ -424,7 +425,8 @@ def _cmd_probe(args: argparse.Namespace) -> int:
     spec = _spec(args, obj, args.freq)
     physics = _physics(args)
     try:
-        result = physics.run([spec])[0]
+        with stdout_to_stderr():  # what the physics prints below Python: stdout is for the result
+            result = physics.run([spec])[0]
     finally:
         physics.close()
     if args.json:
@@ -469,18 +471,21 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         refuse_early(built, specs)
     finally:
         built.close()
-    try:
-        executor = make_executor(args.executor, backend)
-    except ImportError as exc:
-        raise CliError(str(exc)) from None
     interrupted = False
-    try:
-        results = run_cached(backend, specs, args.cache, chunk=args.chunk,
-                             progress=not (args.json or args.no_progress), desc="sweep", executor=executor)
-    except SweepInterrupted as exc:  # Ctrl-C: the finished probes are printed (and cached with --cache)
-        results, interrupted = exc.results, True
-    finally:
-        executor.close()
+    # what the physics, pool or Ray workers print (Ray's worker-death lines included) goes to stderr; the workers
+    # started here inherit that fd 1. The results are printed after the block.
+    with stdout_to_stderr():
+        try:
+            executor = make_executor(args.executor, backend)
+        except ImportError as exc:
+            raise CliError(str(exc)) from None
+        try:
+            results = run_cached(backend, specs, args.cache, chunk=args.chunk,
+                                 progress=not (args.json or args.no_progress), desc="sweep", executor=executor)
+        except SweepInterrupted as exc:  # Ctrl-C: the finished probes are printed (and cached with --cache)
+            results, interrupted = exc.results, True
+        finally:
+            executor.close()
     _print_sweep(args, obj, results, interrupted)
     if csv_out is not None and results:
         from plate_env.core.probe_table import ProbeTable, write_lab_csv
@@ -737,9 +742,11 @@ def _cmd_identify(args: argparse.Namespace) -> int:
               f"{p['sim_s']:.2f} s simulated  -> {state}", flush=True)
 
     try:
-        res = run_episode(env, agent, seed=args.seed,
-                          options={"omega_n": obj.omega_n, "alpha": obj.alpha, "mass": obj.mass},
-                          on_probe=None if args.json else show)
+        # with --json, what the agent and the physics print goes to stderr (the text mode shows probes as they end)
+        with stdout_to_stderr() if args.json else contextlib.nullcontext():
+            res = run_episode(env, agent, seed=args.seed,
+                              options={"omega_n": obj.omega_n, "alpha": obj.alpha, "mass": obj.mass},
+                              on_probe=None if args.json else show)
         plot_fm = _estimate_forward(env, agent) if plot is not None else None  # the plot's curve at the estimate
     except KeyboardInterrupt:  # the probes so far were shown as they finished; with --json, print them now
         done = env.unwrapped.table()

@@ -609,6 +609,74 @@ def test_item14_17_what_an_agent_prints_during_the_bench_goes_to_stderr(tmp_path
     assert "chatty agent" in err
 
 
+#: A plug-in agent whose output bypasses Python's sys.stdout: a write on file descriptor 1 and C's printf (buffered
+#: in C's stdio while fd 1 is a pipe or file, flushed later).
+CHATTY_BELOW_PYTHON = ("import ctypes\nimport os\n\nfrom plate_env_agents.grid import GridAgent\n\n\n"
+                       "class A(GridAgent):\n    def next_probe(self, history, obs=None):\n"
+                       "        os.write(1, b'fd1 from the agent\\n')\n"
+                       "        ctypes.CDLL(None).printf(b'printf from the agent\\n')\n"
+                       "        return super().next_probe(history, obs)\n")
+
+
+def _strict(out: str):
+    def refuse(name):
+        raise ValueError(f"non-standard JSON constant {name}")
+
+    return json.loads(out, parse_constant=refuse)
+
+
+@pytest.mark.parametrize("command", ["bench", "identify"])
+def test_item17_writes_below_python_during_an_agent_run_go_to_stderr(tmp_path, capfd, monkeypatch, command):
+    """fd-level output (C code, an agent's os.write(1, ...), child processes) during the agents' runs lands on
+    stderr; stdout is one strict JSON document. Before: bench redirected Python's sys.stdout only, identify nothing."""
+    from plate_env.cli import main
+
+    (tmp_path / "ag.py").write_text(CHATTY_BELOW_PYTHON)
+    if command == "bench":
+        argv = ["bench", "--suite", "atlas-v0", "--agent", f"{tmp_path / 'ag.py'}:A", "--limit", "1", "--no-cache",
+                "--no-progress", "--json"]
+    else:  # identify takes the shipped agents: the grid agent made as chatty
+        import ctypes
+        import os
+
+        import plate_env_agents.grid as grid
+
+        real = grid.GridAgent.next_probe
+
+        def chatty(self, history, obs=None):
+            os.write(1, b"fd1 from the agent\n")
+            ctypes.CDLL(None).printf(b"printf from the agent\n")
+            return real(self, history, obs)
+
+        monkeypatch.setattr(grid.GridAgent, "next_probe", chatty)
+        argv = ["identify", "--physics", "atlas", "--agent", "grid", "--omega-n", "10pi", "--alpha", "45", "--json"]
+    code = main(argv)
+    out, err = capfd.readouterr()
+    assert code in (0, 1)
+    _strict(out)  # one document, nothing else
+    assert "fd1 from the agent" in err and "printf from the agent" in err
+
+
+def test_item17_writes_below_python_during_a_sweep_go_to_stderr(capfd, monkeypatch):
+    """What the physics or its workers write on fd 1 during a sweep (here: the sweep runner itself) lands on stderr;
+    stdout is the result (--json: one strict JSON document). Before: the sweep redirected nothing."""
+    import os
+
+    from plate_env.cli import main
+    from plate_env.run import sweeps
+
+    real = sweeps.run_cached
+
+    def chatty(*args, **kwargs):
+        os.write(1, b"fd1 from the physics\n")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sweeps, "run_cached", chatty)
+    assert main(["sweep", "--physics", "atlas", "--freqs", "15,20", "--no-progress", "--json"]) == 0
+    out, err = capfd.readouterr()
+    assert len(_strict(out)["probes"]) == 2 and "fd1 from the physics" in err
+
+
 def test_item14_a_subnormal_frequency_step_is_refused_by_name(capsys):
     from plate_env.cli import main
 
