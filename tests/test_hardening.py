@@ -319,15 +319,24 @@ def test_item15_fit_options_the_method_ignores_are_refused(tmp_path, capsys, arg
 
 
 # ------------------------------------------------------------------------------------------- 16-17: parsers
-def test_item16_bench_json_is_strict_json():
+def test_item16_bench_json_is_strict_json(capsys):
+    from plate_env.cli import main
+
+    def strict(text):
+        def refuse(name):
+            raise ValueError(f"non-standard JSON constant {name}")
+
+        return json.loads(text, parse_constant=refuse)
+
+    # the grid agent's short episode ends with no estimate: its error is not a number (main 284a76f: Infinity)
+    assert main(["bench", "--suite", "atlas-v0", "--agent", "grid", "--limit", "1", "--no-cache", "--no-progress",
+                 "--json"]) == 0
+    board = strict(capsys.readouterr().out)
+    assert board["non_finite"], board  # what was not a number is named
     from plate_env.cli import strict_json
 
     text = strict_json({"summaries": {"grid": {"p90_error": math.inf, "median_error": 0.1}}, "x": [math.nan, 1.0]})
-
-    def refuse(name):
-        raise ValueError(f"non-standard JSON constant {name}")
-
-    d = json.loads(text, parse_constant=refuse)
+    d = strict(text)
     assert d["summaries"]["grid"] == {"p90_error": None, "median_error": 0.1} and d["x"] == [None, 1.0]
     assert d["non_finite"] == ["summaries.grid.p90_error", "x[0]"]
 
@@ -445,9 +454,11 @@ def test_item18_a_model_zip_never_gets_its_pickled_code_run(tmp_path):
                              ":serialized:": base64.b64encode(pickle.dumps(Evil())).decode(),
                              "__init__": "<function ActorCriticPolicy.__init__ at 0x0>"}
 
-    agent = PPOAgent(_doctored_zip(tmp_path, add_evil), deterministic=False)
-    agent.model  # noqa: B018 - loads through SB3
-    assert not marker.exists()  # SB3 alone would have unpickled the policy class and run Evil
+    try:
+        agent = PPOAgent(_doctored_zip(tmp_path, add_evil), deterministic=False)
+        agent.model  # noqa: B018 - loads through SB3
+    finally:  # SB3 alone unpickles the policy class and runs Evil (main 284a76f: then fails on the int it returned)
+        assert not marker.exists(), "the zip's pickled code ran"
     with pytest.raises(ValueError, match="stores a pickled 'surprise'"):
         PPOAgent(_doctored_zip(tmp_path, lambda d: d.update(surprise=d["policy_class"])), deterministic=False)
 
