@@ -382,6 +382,8 @@ def test_item20_an_error_says_each_reason_once(tmp_path, capsys):
     csv.write_text("f_p_hz,omega_b_deg_s\n20,100\n25,200\n30,100\n")
     assert main(["fit", str(csv), "--amp", "3", "--mass-g", "100"]) == 2
     err = capsys.readouterr().err
+    parts = [part.strip() for part in err.split(";")]
+    assert len(parts) == len(set(parts)), err  # no reason twice, whatever its wording (main: one sentence 11 times)
     assert err.count("plate-env build atlas") == 1 and err.count("\n") == 1 and len(err) < 700, err
 
 

@@ -11,9 +11,11 @@ for lf in sorted(glob.glob("/tmp/audit284/results_284_*.log"), key=lambda p: ("r
         name, _, rc = line.strip().rpartition(" rc=")
         RC[name] = rc
 HEAD = {}
-for hx in glob.glob("/tmp/audit284/results/head_*.xml"):
+for hx in sorted(glob.glob("/tmp/audit284/results/head_*.xml")):  # head_all first, later reruns override it
+    one = {}
     for c in ET.parse(hx).getroot().iter("testcase"):
-        HEAD.setdefault(c.get("name").split("[")[0], []).append(c)
+        one.setdefault(c.get("name").split("[")[0], []).append(c)
+    HEAD.update(one)
 
 
 def summary(where, func):
