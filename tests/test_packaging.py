@@ -60,6 +60,8 @@ def test_a_regular_wheel_holds_the_agents_under_their_namespace(tmp_path):
     (wheel,) = tmp_path.glob("plate_env-*.whl")
     names = zipfile.ZipFile(wheel).namelist()
     assert "plate_env_agents/models/ppo_plate.zip" in names and "plate_env_agents/models/ppo_plate.npz" in names
+    assert "plate_env_agents/hyperparams/ppo.yml" in names  # what plate-env build policy trains from
+    assert "plate_env_agents/models/bayes_design_discrepancy.json" in names
     assert "plate_env/data/suites/tilelink-v0.json" in names and "plate_env/data/forward_models.json" in names
     assert not any(n.startswith("agents/") for n in names)
     target = tmp_path / "site"
