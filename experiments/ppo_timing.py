@@ -108,7 +108,7 @@ def main() -> None:
     snippet = {"asked": 4096, "steps": int(snippet_model.num_timesteps), "wall_s": time.perf_counter() - t0}
     print(snippet, flush=True)
     shipped = json.loads((Path(__file__).parents[1] / "agents" / "models" / "ppo_plate.json").read_text())
-    r = {"command": "python experiments/ppo_timing.py " + " ".join(sys.argv[1:]), "commit": commit(),
+    r = {"command": " ".join(["python experiments/ppo_timing.py", *sys.argv[1:]]), "commit": commit(),
          "torch": torch.__version__, "load_before": before, "load_after": load(), "train": train, "evaluation": ev,
          "readme_snippet": snippet, "shipped_train_wall_s": shipped["train_wall_s"]}
     (RESULTS / "ppo_timing.json").write_text(json.dumps(r, indent=1) + "\n")

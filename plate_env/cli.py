@@ -814,9 +814,10 @@ def _cmd_build(args: argparse.Namespace) -> int:
     meta = train_policy(args.out, build_record(args.argv[1:]), hyperparams=args.hyperparams, seed=args.seed,
                         timesteps=args.timesteps, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
                         eval_seed=args.eval_seed, threads=args.threads)
-    out = Path(args.out)
-    print(f"trained {meta['timesteps']} steps in {meta['train_wall_s']:.0f} s (seed {meta['seed']}); best eval "
-          f"reward {meta['eval']['best_reward']} at {meta['eval']['best_at_timesteps']} steps -> {out}, "
+    out, ev = Path(args.out), meta["eval"]
+    kept = (f"best eval reward {ev['best_reward']:.4f} at {ev['best_at_timesteps']} steps" if ev["curve"] else
+            "no evaluation ran: the last model")
+    print(f"trained {meta['timesteps']} steps in {meta['train_wall_s']:.0f} s (seed {meta['seed']}); {kept} -> {out}, "
           f"{out.with_suffix('.npz')}, {out.with_suffix('.json')}")
     return 0
 
