@@ -154,9 +154,10 @@ class Atlas:
         splines = [self._interpolator(kind, amp) for kind in RESPONSE_KINDS]
         if not all(sp.same_knots(splines[0]) for sp in splines[1:]):
             return tuple(float(v) for v in self.predict(f_hz, a_p_deg, omega_n, alpha))
-        x = [float(np.clip(np.asarray(f_hz, float), self.f_hz[0], self.f_hz[-1])),
-             float(np.clip(np.log(np.asarray(omega_n, float)), math.log(self.omega_n[0]), math.log(self.omega_n[-1]))),
-             float(np.clip(np.asarray(alpha, float), self.alpha[0], self.alpha[-1]))]
+        # np.clip's values (NaN stays NaN), without its per-call cost; the log is numpy's, as predict takes it
+        x = [_clip(float(f_hz), float(self.f_hz[0]), float(self.f_hz[-1])),
+             _clip(float(np.log(np.asarray(omega_n, float))), math.log(self.omega_n[0]), math.log(self.omega_n[-1])),
+             _clip(float(alpha), float(self.alpha[0]), float(self.alpha[-1]))]
         bases = splines[0].bases(x)
         mean, spread, pu = (sp.contract(*bases) for sp in splines)
         return mean, max(spread, 0.0), min(max(pu, 0.0), 1.0)
@@ -299,6 +300,11 @@ class _TensorSpline:
                 for i2, w2 in enumerate(b2):
                     out += line[s2 + i2] * (f01 * w2)
         return out
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    """``float(np.clip(x, lo, hi))`` for one float (NaN stays NaN)."""
+    return min(max(x, lo), hi) if x == x else x
 
 
 def _find_interval(t: list[float], k: int, x: float) -> int:
