@@ -387,14 +387,14 @@ def get_list(res: dict, path: tuple) -> list | None:
     return cur if isinstance(cur, list) else None
 
 
-def markdown(doc: dict) -> str:
+def markdown(doc: dict, source: str = "bench_speed.json") -> str:
     if "current" not in doc["trees"]:  # --no-current: the reference alone, shown as the only column
         doc = {**doc, "commit": doc["ref"], "ref": None, "trees": {"current": doc["trees"]["ref"]}}
     ref, cur = doc["trees"].get("ref"), doc["trees"]["current"]
     cols = ["figure", "goal"] + ([f"before ({doc['ref']})"] if ref else []) + [f"after ({doc['commit']})"] + \
         (["after / before (x faster)"] if ref else [])
     lines = ["# Speed where users wait (issue 25)", "",
-             f"Generated from bench_speed.json by `{doc['command']}` ({doc['date_utc']}). Load average (1 min) "
+             f"Generated from {source} by `{doc['command']}` ({doc['date_utc']}). Load average (1 min) "
              f"{doc['load_before'][0]:.1f} before, {doc['load_after'][0]:.1f} after, on the shared 2-core machine: "
              "read the ratios (same run, same load), not the seconds.", "",
              "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
@@ -418,6 +418,8 @@ def markdown(doc: dict) -> str:
     for label, path, unit, better, goal in rows:
         b = get(ref, path) if ref else None
         a = get(cur, path)
+        if a is None and b is None and doc.get("only"):  # not measured in this run (--only)
+            continue
         cells = [f"{label} ({unit})", goal] + ([fmt(b, unit)] if ref else []) + [fmt(a, unit)] + \
             ([speedup(b, a, better)] if ref else [])
         lines.append("| " + " | ".join(cells) + " |")
@@ -455,7 +457,7 @@ def main() -> None:
                            capture_output=True, text=True).stdout.strip()
     doc = {"command": "python experiments/bench_speed.py " + " ".join(sys.argv[1:]), "commit": commit +
            ("+dirty" if dirty else ""), "ref": args.ref, "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
-           "load_before": list(os.getloadavg()), "trees": {}}
+           "load_before": list(os.getloadavg()), "trees": {}, "only": args.only}
     with tempfile.TemporaryDirectory() as tmp_s:
         tmp = Path(tmp_s)
         csv = tmp / "sweep.csv"
@@ -479,8 +481,8 @@ def main() -> None:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").write_text(json.dumps(doc, indent=1) + "\n")
-    out.with_suffix(".md").write_text(markdown(doc))
-    print(markdown(doc))
+    out.with_suffix(".md").write_text(markdown(doc, out.with_suffix(".json").name))
+    print(markdown(doc, out.with_suffix(".json").name))
 
 
 if __name__ == "__main__":
