@@ -406,8 +406,8 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
     t_obs = float(_surprise(z ** 2, stable, p_c))
     u_rep, t_part = _check_replicates(n)
     stable_rep = u_rep >= p_c
-    flag = -np.log(np.where(stable_rep, 1.0 - p_c, p_c))
-    t_rep = (np.where(stable_rep, t_part, 0.0) + flag).sum(-1)  # _surprise(z2_rep, stable_rep, p_c), its t part kept
+    # _surprise(z2_rep, stable_rep, p_c) term by term: its t part drawn once, the flags' logs taken per probe
+    t_rep = np.where(stable_rep, t_part + -np.log(1.0 - p_c), -np.log(p_c)).sum(-1)
     p_value = float((1 + np.count_nonzero(t_rep >= t_obs)) / (CHECK_DRAWS + 1))
     worst = None
     if np.any(stable):
