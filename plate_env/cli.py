@@ -29,6 +29,7 @@ from plate_env.core.setup import (
     FREQ_RANGE_HZ,
     KNOWN_B_P_RANGE_M,
     MASS_RANGE_KG,
+    MAX_PROBES_RANGE,
     PAPER_SETUP,
 )
 from plate_env.core.units import format_omega_pi, parse_omega_n
@@ -233,7 +234,8 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--bp", type=_arg(checks.real, B_P_RANGE_M[0] * 1e3, B_P_RANGE_M[1] * 1e3, unit="mm"),
                    default=3.0, help="plate linear amplitude B_p, mm (known input: the physics runs it, the "
                    "forward model is conditioned on it)")
-    i.add_argument("--max-probes", type=_arg(checks.integer, 1, 500), default=DEFAULT_MAX_PROBES, help="probe budget")
+    i.add_argument("--max-probes", type=_arg(checks.integer, *MAX_PROBES_RANGE), default=DEFAULT_MAX_PROBES,
+                   help="probe budget")
     i.add_argument("--target", type=_arg(checks.real, 0.0, 1.0, open_lo=True, open_hi=True), default=None,
                    help="bayes only: stop at this relative posterior std of omega_n")
     _add_dt(i)
@@ -801,9 +803,28 @@ def _print_identify(res) -> None:
     print(f"{res.n_probes} probes, {res.sim_s:.1f} s simulated, {res.wall_s:.1f} s wall", flush=True)
 
 
+def _cmd_build(args: argparse.Namespace) -> int:
+    """``plate-env build``: the builders of plate_env.build; ``policy`` trains with the agents' package, which only
+    the command line imports (the seam to the agents)."""
+    if args.artifact != "policy":
+        return run_build(args, args.argv[1:])
+    from plate_env.build.provenance import build_record
+    from plate_env_agents.train import train_policy
+
+    meta = train_policy(args.out, build_record(args.argv[1:]), hyperparams=args.hyperparams, seed=args.seed,
+                        timesteps=args.timesteps, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
+                        eval_seed=args.eval_seed, threads=args.threads)
+    out, ev = Path(args.out), meta["eval"]
+    kept = (f"best eval reward {ev['best_reward']:.4f} at {ev['best_at_timesteps']} steps" if ev["curve"] else
+            "no evaluation ran: the last model")
+    print(f"trained {meta['timesteps']} steps in {meta['train_wall_s']:.0f} s (seed {meta['seed']}); {kept} -> {out}, "
+          f"{out.with_suffix('.npz')}, {out.with_suffix('.json')}")
+    return 0
+
+
 COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep, "fit": _cmd_fit, "identify": _cmd_identify,
             "bench": _cmd_bench, "calibrate": _cmd_calibrate,
-            "build": lambda args: run_build(args, args.argv[1:])}
+            "build": lambda args: _cmd_build(args)}
 
 
 #: A command-line token that is a negative value, not an option: "-10pi", "-1e-3", "-inf", "-.5".
