@@ -369,21 +369,23 @@ FIGURES = [
 ]
 
 
-def get(res: dict, path: tuple) -> float | None:
+def walk(res: dict, path: tuple):
+    """``res[path[0]][path[1]]...``, or None where a key is missing."""
     cur = res
     for k in path:
         if not isinstance(cur, dict) or k not in cur:
             return None
         cur = cur[k]
+    return cur
+
+
+def get(res: dict, path: tuple) -> float | None:
+    cur = walk(res, path)
     return cur if isinstance(cur, (int, float)) else None
 
 
 def get_list(res: dict, path: tuple) -> list | None:
-    cur = res
-    for k in path:
-        if not isinstance(cur, dict) or k not in cur:
-            return None
-        cur = cur[k]
+    cur = walk(res, path)
     return cur if isinstance(cur, list) else None
 
 
