@@ -85,7 +85,8 @@ def blurred(ll: np.ndarray, blur_steps: float) -> np.ndarray:
 def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
     """Why a probe lies outside what a member's atlas describes (None if inside)."""
     atlas = member.atlas
-    if not np.any(np.isclose(atlas.a_p_deg, abs(a_p_deg), atol=1e-6)):
+    x = abs(float(a_p_deg))
+    if not any(abs(v - x) <= 1e-6 + 1e-5 * x for v in atlas.a_p_deg.tolist()):  # np.isclose(atol=1e-6), in Python
         return f"A_p = {a_p_deg:g} deg is not in {member.label}'s atlas ({[float(x) for x in atlas.a_p_deg]} deg)"
     if not (atlas.f_hz[0] - 1e-9 <= f_hz <= atlas.f_hz[-1] + 1e-9):
         return f"f_p = {f_hz:g} Hz is outside {member.label}'s atlas ({atlas.f_hz[0]:g}-{atlas.f_hz[-1]:g} Hz)"
@@ -93,7 +94,7 @@ def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
 
 
 def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
-    from scipy.interpolate import CubicSpline, PPoly
+    from scipy.interpolate import CubicSpline
 
     from plate_env.core.cache import cached_arrays, content_key
 
@@ -108,14 +109,28 @@ def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
                          note=f"computing the {atlas.physics}/{atlas.model} atlas's response at A_p = {a_p_deg:g} deg "
                               f"on a {len(w)} x {len(a)} posterior grid")
     x = np.asarray(atlas.f_hz, float)
-    interps = [PPoly.construct_fast(coef[name], x, True, 0) for name in RESPONSE]  # CubicSpline's own polynomials
+    coefs = [np.asarray(coef[name]) for name in RESPONSE]  # CubicSpline's own polynomials (4, n_f - 1, ...)
     inside = _covered(atlas, w, a)
 
     def at(f_hz: float):
-        m, s, p = (it(float(f_hz)) for it in interps)
+        m, s, p = (_ppoly_at(c, x, float(f_hz)) for c in coefs)
         return m, np.maximum(s, 0.0), np.clip(p, 0.0, 1.0)
 
     return at, inside
+
+
+def _ppoly_at(c: np.ndarray, x: np.ndarray, f: float) -> np.ndarray:
+    """A cubic ``PPoly(c, x, extrapolate=True)`` at one point, bit for bit as scipy evaluates it (its interval
+    search, then ``c3 + c2 s + c1 s^2 + c0 s^3`` summed in that order with the powers built up by multiplication),
+    reading only the interval's coefficients: scipy's loop strides over the whole array (~10x slower on a posterior
+    grid)."""
+    if math.isnan(f):
+        return np.full(c.shape[2:], np.nan)
+    i = min(max(int(np.searchsorted(x, f, side="right")) - 1, 0), len(x) - 2)
+    s = f - x[i]
+    ci = c[:, i]
+    s2 = s * s
+    return ci[3] + ci[2] * s + ci[1] * s2 + ci[0] * (s2 * s)
 
 
 #: The atlas quantities a member's response gives (mean, spread, instability share).
@@ -306,14 +321,39 @@ def _surprise(z2: np.ndarray, stable: np.ndarray, p: np.ndarray, nu: float = NU)
     return (np.where(stable, 0.5 * (nu + 1.0) * np.log1p(z2 / nu), 0.0) + flag).sum(-1)
 
 
-def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> PredictiveCheck:
+@functools.lru_cache(maxsize=32)
+def _check_replicates(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The check's replicate draws for ``n`` probes from its fixed seed (they depend on nothing else): the uniforms
+    that decide each replicate probe's stability (CHECK_DRAWS, n) and the Student-t surprise of its residual,
+    ``0.5 (NU + 1) log1p(z^2 / NU)`` as :func:`_surprise` computes it (read-only: shared by every check of n
+    probes)."""
+    rng = np.random.default_rng(CHECK_SEED)
+    u = rng.random((CHECK_DRAWS, n))
+    z2 = rng.standard_t(NU, (CHECK_DRAWS, n)) ** 2
+    part = 0.5 * (NU + 1.0) * np.log1p(z2 / NU)
+    u.flags.writeable = False
+    part.flags.writeable = False
+    return u, part
+
+
+def respond(member: Member, a_p_deg: float, w: np.ndarray, a: np.ndarray, f_hz: float):
+    """``(mean, spread, p_unstable)`` of a member's atlas on the grid ``w`` x ``a`` at one probe
+    (:func:`member_response` at ``f_hz``). The check's default; a
+    :class:`~plate_env.identify.posterior_state.PosteriorState` passes its own, which reuses the arrays its updates
+    computed."""
+    return member_response(member, a_p_deg, w, a)[0](f_hz)
+
+
+def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
+                     response: Callable = respond) -> PredictiveCheck:
     """A posterior predictive check of the probes under ``fm`` (see :class:`PredictiveCheck`). Pure: replicates
     come from a fixed seed.
 
     The object checked is the one of the member of highest posterior weight that explains the probes best (least
     surprise over its whole grid); replicated sweeps are drawn from that object. Checking at a fitted point makes
     the test conservative for honest data (a fit explains its own data better than the truth does), so a failure
-    is data the model cannot produce, not bad luck."""
+    is data the model cannot produce, not bad luck. ``response``: :func:`respond` or a function that gives the same
+    arrays."""
     i = int(np.argmax(post.member_weights)) if post.member_weights else 0
     m = fm.members[i]
     w, a = post.omega_n, post.alpha
@@ -328,7 +368,7 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> Pr
 
     def terms(k: int):
         amp = float(table.a_p_deg[k])
-        mk, sk, pk = member_response(m, amp, sub, a)[0](float(table.f_p_hz[k]))
+        mk, sk, pk = response(m, amp, sub, a, float(table.f_p_hz[k]))
         sd = np.sqrt(sk ** 2 + float(table.stderr_deg_s[k]) ** 2 + m.sigma_model ** 2)
         return (float(table.omega_b_deg_s[k]) - mk) / sd, smoothed_p(pk, m.atlas.n_repeats)
 
@@ -364,10 +404,10 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> Pr
         p_c.append(best[key][1])
     z, p_c = np.array(z), np.array(p_c)
     t_obs = float(_surprise(z ** 2, stable, p_c))
-    rng = np.random.default_rng(CHECK_SEED)
-    stable_rep = rng.random((CHECK_DRAWS, n)) >= p_c
-    z2_rep = rng.standard_t(NU, (CHECK_DRAWS, n)) ** 2
-    t_rep = _surprise(z2_rep, stable_rep, np.broadcast_to(p_c, (CHECK_DRAWS, n)))
+    u_rep, t_part = _check_replicates(n)
+    stable_rep = u_rep >= p_c
+    # _surprise(z2_rep, stable_rep, p_c) term by term: its t part drawn once, the flags' logs taken per probe
+    t_rep = np.where(stable_rep, t_part + -np.log(1.0 - p_c), -np.log(p_c)).sum(-1)
     p_value = float((1 + np.count_nonzero(t_rep >= t_obs)) / (CHECK_DRAWS + 1))
     worst = None
     if np.any(stable):
@@ -405,10 +445,10 @@ def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:
 
 
 def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
-                   make_posterior: Callable[[], Posterior]) -> Estimate:
+                   make_posterior: Callable[[], Posterior], response: Callable = respond) -> Estimate:
     """The estimate of :func:`identify_atlas` from the probes (counted, and read by the predictive check), the
     reasons of probes no member describes (``orphans``: then no estimate) and the posterior (``make_posterior()``,
-    called only when it is needed)."""
+    called only when it is needed); ``response`` is passed to :func:`predictive_check`."""
     base = {"method": "atlas", "n_probes": len(table), "n_unstable": int(table.unstable.sum()), "forward": fm.name}
     if len(table) == 0:
         return Estimate(ok=False, reason="no probes", **base)
@@ -417,7 +457,7 @@ def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
                         f"that describes them (not {fm.name!r})", **base)
     post = make_posterior()
     om, al = post.omega(), post.alpha_marginal()
-    check = predictive_check(fm, table, post)
+    check = predictive_check(fm, table, post, response)
     fields = dict(omega_n=om.value, omega_n_stderr=om.stderr, omega_n_ci68=om.ci68, omega_n_ci95=om.ci95,
                   alpha=al.value, alpha_stderr=al.stderr, posterior=post, check=check, **base)
     side = post.edge()
