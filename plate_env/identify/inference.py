@@ -75,7 +75,7 @@ def blurred(ll: np.ndarray, blur_steps: float) -> np.ndarray:
     steps along log omega (axis -2)."""
     if blur_steps <= 0:
         return ll
-    from scipy.ndimage import gaussian_filter1d
+    from plate_env.core.filters import gaussian_filter1d  # scipy.ndimage's floats, without its import
 
     top = ll.max(axis=(-2, -1), keepdims=True)
     like = gaussian_filter1d(np.exp(ll - top), blur_steps, axis=-2, mode="nearest", truncate=4.0)
@@ -93,11 +93,12 @@ def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
 
 
 def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
-    from scipy.interpolate import CubicSpline, PPoly
-
     from plate_env.core.cache import cached_arrays, content_key
+    from plate_env.core.filters import ppoly_eval
 
     def build() -> dict[str, np.ndarray]:
+        from scipy.interpolate import CubicSpline
+
         ff, ww, aa = np.meshgrid(atlas.f_hz, w, a, indexing="ij")
         arrays = atlas.predict(ff, a_p_deg, ww, aa)
         return {name: CubicSpline(atlas.f_hz, arr, axis=0).c for name, arr in zip(RESPONSE, arrays, strict=True)}
@@ -108,11 +109,11 @@ def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
                          note=f"computing the {atlas.physics}/{atlas.model} atlas's response at A_p = {a_p_deg:g} deg "
                               f"on a {len(w)} x {len(a)} posterior grid")
     x = np.asarray(atlas.f_hz, float)
-    interps = [PPoly.construct_fast(coef[name], x, True, 0) for name in RESPONSE]  # CubicSpline's own polynomials
+    coefs = [coef[name] for name in RESPONSE]  # CubicSpline's own polynomials, evaluated as its PPoly evaluates them
     inside = _covered(atlas, w, a)
 
     def at(f_hz: float):
-        m, s, p = (it(float(f_hz)) for it in interps)
+        m, s, p = (ppoly_eval(c, x, float(f_hz)) for c in coefs)
         return m, np.maximum(s, 0.0), np.clip(p, 0.0, 1.0)
 
     return at, inside
@@ -202,25 +203,30 @@ def _smooth_log_omega(prob: np.ndarray, sigma_steps: float, nu: float = math.inf
     """Convolve along axis 0 (a uniform log-omega grid) with a normal of scale ``sigma_steps`` grid steps, or a
     Student-t with ``nu`` degrees of freedom; mass pushed beyond the grid is lost (the grid reaches
     ``forward.pad_sigmas`` scales beyond the models' range)."""
-    from scipy.ndimage import gaussian_filter1d
+    from plate_env.core.filters import fftconvolve_same, gaussian_filter1d  # scipy's floats, without its import
 
     if math.isinf(nu):
         return gaussian_filter1d(prob, sigma_steps, axis=0, mode="constant", cval=0.0, truncate=5.0)
-    from scipy.signal import fftconvolve
-
     half = min(int(math.ceil(sigma_steps * 40)), prob.shape[0])
     kernel = _t_kernel(half, sigma_steps, nu).reshape((-1,) + (1,) * (prob.ndim - 1))
-    return np.maximum(fftconvolve(prob, kernel, mode="same", axes=0), 0.0)  # zero beyond the grid, as above
+    return np.maximum(fftconvolve_same(prob, kernel), 0.0)  # zero beyond the grid, as above
 
 
 @functools.lru_cache(maxsize=64)
 def _t_kernel(half: int, sigma_steps: float, nu: float) -> np.ndarray:
     """The normalised Student-t kernel of :func:`_smooth_log_omega` on ``2 half + 1`` grid steps (read-only: it is
-    shared by every call with these arguments)."""
-    from scipy.stats import t
+    shared by every call with these arguments). scipy's ``t.pdf`` computes it once per machine: the kernel is kept
+    in the disk cache (:mod:`plate_env.core.cache`), so a fit does not import scipy.stats."""
+    from plate_env.core.cache import cached_arrays, content_key
 
-    kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
-    kernel = kernel / kernel.sum()
+    def build() -> dict[str, np.ndarray]:
+        from scipy.stats import t
+
+        kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
+        return {"kernel": kernel / kernel.sum()}
+
+    kernel = np.array(cached_arrays("t-kernel", content_key("t-kernel", int(half), float(sigma_steps), float(nu)),
+                                    build)["kernel"])
     kernel.flags.writeable = False
     return kernel
 
@@ -343,9 +349,9 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> Pr
         z, pu = terms(ks[0])
         one = _surprise((z ** 2)[..., None], np.array([not table.unstable[ks[0]]]), pu[..., None])
         if reach > 0:
-            from scipy.ndimage import minimum_filter1d
+            from plate_env.core.filters import minimum_filter1d  # scipy.ndimage's, without its import
 
-            one = minimum_filter1d(one, 2 * reach + 1, axis=0, mode="nearest")
+            one = minimum_filter1d(one, 2 * reach + 1, axis=0)
         total += len(ks) * one
     total = np.where(member_coverage(m, sub, a), total, np.inf)
     c = np.unravel_index(int(np.argmin(total)), total.shape)
