@@ -332,11 +332,16 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> Pr
     if n == 0 or sub.size == 0:
         return PredictiveCheck(statistic=0.0, p_value=1.0, n_probes=0, member=m.label, worst=None)
 
-    def terms(k: int):
-        amp = float(table.a_p_deg[k])
-        mk, sk, pk = member_response(m, amp, sub, a)[0](float(table.f_p_hz[k]))
-        sd = np.sqrt(sk ** 2 + float(table.stderr_deg_s[k]) ** 2 + m.sigma_model ** 2)
-        return (float(table.omega_b_deg_s[k]) - mk) / sd, smoothed_p(pk, m.atlas.n_repeats)
+    known: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+    def terms(k: int):  # a probe's z-scores and instability shares over the grid (once per distinct probe)
+        key = probe_key(table, k)
+        if key not in known:
+            amp = float(table.a_p_deg[k])
+            mk, sk, pk = member_response(m, amp, sub, a)[0](float(table.f_p_hz[k]))
+            sd = np.sqrt(sk ** 2 + float(table.stderr_deg_s[k]) ** 2 + m.sigma_model ** 2)
+            known[key] = (float(table.omega_b_deg_s[k]) - mk) / sd, smoothed_p(pk, m.atlas.n_repeats)
+        return known[key]
 
     # a member with a blur trusts no probe to pin omega_n finer than it: each probe's surprise is its least within
     # CHECK_BLURS blur scales along log omega_n (none for a member without blur)
