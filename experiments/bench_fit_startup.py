@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -39,10 +40,13 @@ RESULTS = HERE / "results"
 FORWARDS = ("lab", "tilelink/pointmass")
 
 
-def timed(cmd: list[str], env: dict) -> tuple[float, subprocess.CompletedProcess]:
-    t0 = time.perf_counter()
+def timed(cmd: list[str], env: dict) -> tuple[float, float, subprocess.CompletedProcess]:
+    """Wall seconds, CPU seconds (user + system of the child: what an idle machine's wall time would be for a
+    single-threaded command) and the finished process."""
+    r0, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
     done = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tempfile.gettempdir(), timeout=3600)
-    return time.perf_counter() - t0, done
+    wall, r1 = time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime), done
 
 
 def figures(csv: Path, pybullet: bool) -> list[tuple[str, list[str], str | None]]:
@@ -83,16 +87,17 @@ def main() -> None:
             path = bench_speed.overlay(bench_speed.tree_path(ref if ref or dirty else "HEAD", tmp), tmp)
             envs[label] = dict(os.environ, PYTHONPATH=str(path), PLATE_ENV_CACHE_DIR=str(tmp / f"cache-{label}"))
         for name, cmd, key in figures(csv, not args.no_pybullet):
-            rec = {label: {"wall_s": [], "value": []} for label in envs}
+            rec = {label: {"wall_s": [], "cpu_s": [], "value": []} for label in envs}
             for label, env in envs.items():  # untimed: fills the tree's disk cache
-                wall, done = timed(cmd, env)
+                wall, _, done = timed(cmd, env)
                 rec[label]["first_use_s"] = wall
             for _ in range(2 if key == "first_probe_after_import_s" else args.repeats):
                 for label, env in envs.items():
-                    wall, done = timed(cmd, env)
+                    wall, cpu, done = timed(cmd, env)
                     if done.returncode not in (0, 1) or (key and not done.stdout.strip()):
                         raise SystemExit(f"{name} ({label}) failed: {done.stderr.strip()[-500:]}")
                     rec[label]["wall_s"].append(wall)
+                    rec[label]["cpu_s"].append(cpu)
                     if key:
                         value = json.loads(done.stdout.strip().splitlines()[-1])[key]
                         rec[label]["value"].append(value)
@@ -101,6 +106,7 @@ def main() -> None:
             for label in envs:
                 vals = rec[label]["value"] if key == "first_probe_after_import_s" else rec[label]["wall_s"]
                 rec[label]["median_s"] = statistics.median(vals)
+                rec[label]["median_cpu_s"] = statistics.median(rec[label]["cpu_s"])
             if key == "omega_n_rad_s":  # the fit's number is the same before and after
                 rec["same_result"] = len({json.dumps(v) for lab in envs for v in rec[lab]["value"]}) == 1
             doc["figures"][name] = rec
@@ -123,13 +129,16 @@ def markdown(doc: dict) -> str:
              f"Generated from bench_fit_startup.json by `{doc['command']}` ({doc['date_utc']}). Load average (1 min) "
              f"{doc['load_before'][0]:.1f} before, {doc['load_after'][0]:.1f} after, on the shared 2-core machine: "
              "read the ratios (same run, same load, the trees alternating), not the seconds. Warm disk cache; "
-             "medians of fresh processes.", "",
-             f"| figure (s) | goal | before ({doc['ref']}) | after ({doc['commit']}) | before / after (x faster) "
-             "| same result |", "|---|---|---|---|---|---|"]
+             "medians of fresh processes. CPU s: user + system time of the whole process (what an idle machine's "
+             "wall time would be: the commands are single-threaded).", "",
+             f"| figure (wall s) | goal | before ({doc['ref']}) | after ({doc['commit']}) | before / after (x faster) "
+             "| CPU s before | CPU s after | same result |", "|---|---|---|---|---|---|---|---|"]
     for name, rec in doc["figures"].items():
         b, a = rec["before"]["median_s"], rec["after"]["median_s"]
         same = {True: "yes", False: "**no**"}.get(rec.get("same_result"), "")
-        lines.append(f"| {name} | {GOALS.get(name, '')} | {b:.3g} | {a:.3g} | {b / a:.3g} | {same} |")
+        cb, ca = rec["before"].get("median_cpu_s"), rec["after"].get("median_cpu_s")
+        cpu = f"{cb:.3g} | {ca:.3g}" if cb is not None and ca is not None else " | "
+        lines.append(f"| {name} | {GOALS.get(name, '')} | {b:.3g} | {a:.3g} | {b / a:.3g} | {cpu} | {same} |")
     pb = doc["figures"].get("PyBullet first probe")
     if pb:
         lines += ["", "PyBullet's first probe, split (medians; the probe simulates `sim_s` s at the backend's "
