@@ -24,7 +24,9 @@ error says, so the default windows are 1 and 2 s.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+from importlib import resources
 
 import numpy as np
 
@@ -35,6 +37,13 @@ from plate_env.identify.forward import ForwardModel, load_forward_model
 from plate_env.identify.inference import blurred, log_student, member_domain, member_response, smoothed_p
 from plate_env.identify.posterior_state import PosteriorState
 
+
+def _load_design_discrepancy() -> dict[str, tuple[float, float]]:
+    """``{forward model: (scale, nu)}`` from the shipped ``models/bayes_design_discrepancy.json``."""
+    data = json.loads((resources.files("plate_env_agents") / "models" / "bayes_design_discrepancy.json").read_text())
+    return {name: (float(v["scale"]), float(v["nu"])) for name, v in data["design_discrepancy"].items()}
+
+
 #: The agent's own blur (sd of log omega_n), added in quadrature to each member's: an adaptive design puts its
 #: probes where the atlas predicts the sharpest change (instability edges, the rising flank), exactly where its
 #: interpolation between omega_n nodes errs most (without it the 68 % intervals held the truth in 0.57 of 40 live
@@ -43,11 +52,11 @@ DESIGN_BLUR = 0.04
 #: The coherent discrepancy of the agent's estimates (scale of log omega_n, Student-t degrees of freedom), per
 #: forward model it was calibrated on: it replaces that model's own discrepancy (fitted on full sweeps) in the
 #: episode's estimate, because probes chosen adaptively on the model, many close in frequency and sharing its
-#: error, and read through the agent's blur, err differently from a sweep. Fitted exactly
-#: (experiments/forward_models.py within: each truth's likelihood under its blurred posterior smoothed by the
-#: discrepancy) on 100 calibration episodes (live tilelink, prior objects, seed 510) and tested on 100 others (seed
-#: 520), experiments/results/forward_models_within.md. Another forward model keeps its own discrepancy.
-DESIGN_DISCREPANCY: dict[str, tuple[float, float]] = {"tilelink/pointmass": (0.0091, 2.0)}
+#: error, and read through the agent's blur, err differently from a sweep. A fitted value, so it lives in data:
+#: ``models/bayes_design_discrepancy.json`` (its provenance inside), written by ``plate-env build
+#: design-discrepancy`` from the fit of experiments/forward_models.py within (plate_env.build.design_discrepancy).
+#: Another forward model keeps its own discrepancy.
+DESIGN_DISCREPANCY: dict[str, tuple[float, float]] = _load_design_discrepancy()
 #: Typical standard error of a probe's omega_B over a 1 s window, deg/s (tile-link probes: 0.5-2 deg/s).
 SE_1S = 2.0
 
@@ -125,6 +134,10 @@ class BayesAgent(Agent):
         """What the probes say: the forward model's posterior on the agent's grid, without the discrepancies no
         probe can reduce (a :class:`plate_env.identify.estimate.Posterior`); the stopping rule reads it."""
         return self.state.posterior(discrepancy=False)
+
+    def fingerprint(self) -> str:
+        """The shipped design discrepancy (data, not code: names it in benchmark records beside the source)."""
+        return json.dumps(sorted(DESIGN_DISCREPANCY.items()))
 
     def design_eps(self) -> tuple[float, float]:
         """(scale, nu) of the estimate's coherent discrepancy: ``design_discrepancy`` if given, else

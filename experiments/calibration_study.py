@@ -291,44 +291,23 @@ def write_md(results: dict) -> None:
 
 
 # --------------------------------------------------------------------------------------------------- paper
-#: The paper's published numbers at A_p = 3 deg: Eq. (10) (p1 5.30, q1 -121.62: omega_n [pi rad/s] = p1 f0 + q1),
-#: Table 1 (omega_n [pi rad/s], omega_Brmax [deg/s]) and the half-widths b it publishes (5.1-5.8 Hz).
-PAPER_P1, PAPER_Q1 = 5.30, -121.62
-PAPER_TABLE1_3DEG = ((3.5, 491.5), (10.0, 614.9), (23.0, 722.8), (33.0, 796.1))
-PAPER_B_HZ = (5.1, 5.8)
-#: Fig. 7's curves, the test (name, omega_n pi, alpha deg, omega_Brmax deg/s, b Hz, f0 Hz).
+#: The paper's published numbers and its Fig. 7 curves, the test (name, omega_n pi, alpha deg, omega_Brmax deg/s,
+#: b Hz, f0 Hz); the references are built by plate_env.build.calibration (plate-env build calibration paper).
 PAPER_FIG7 = (("Fig. 7(a)", 10.0, 36.9, 598.7, 5.1, 25.1), ("Fig. 7(b)", 33.0, 36.9, 746.9, 5.8, 28.2),
               ("Fig. 7(c)", 10.0, 56.3, 520.9, 5.8, 24.6))
-PAPER_F_HZ = tuple(float(f) for f in range(14, 35))
-PAPER_STDERR = 10.0  # deg/s per point: the paper gives none; its curves are fits with R^2 0.98-0.99
-
-
-def paper_curve(omega_max: float, f0: float, b: float):
-    from plate_env.core.probe_table import ProbeTable
-    from plate_env.identify.fitting import lorentzian
-
-    f = np.array(PAPER_F_HZ)
-    return ProbeTable.from_arrays(f, np.full(f.size, 3.0), lorentzian(f, omega_max, f0, b),
-                                  np.full(f.size, PAPER_STDERR), np.zeros(f.size, bool))
-
-
-def paper_b(w_pi: float) -> float:
-    """b interpolated in log omega_n between the paper's 5.1 Hz (10pi) and 5.8 Hz (33pi), held inside that band."""
-    t = (math.log(w_pi) - math.log(10.0)) / (math.log(33.0) - math.log(10.0))
-    return float(np.clip(PAPER_B_HZ[0] + (PAPER_B_HZ[1] - PAPER_B_HZ[0]) * t, *PAPER_B_HZ))
 
 
 def stage_paper(args) -> None:
-    """Write plate_env/data/calibration_paper.json from the paper's Eq. (10) and Table 1 at 3 deg (a reference curve
-    at each Table 1 omega_n: f0 from Eq. (10), omega_Brmax from Table 1, b in 5.1-5.8 Hz), then read Fig. 7's
-    three curves through it (the test)."""
+    """Write plate_env/data/calibration_paper.json (= plate-env build calibration paper: the paper's Eq. (10) and
+    Table 1 at 3 deg), then read Fig. 7's three curves through it (the test)."""
+    from plate_env.build.calibration import PAPER_F_HZ, PAPER_P1, PAPER_Q1, PAPER_STDERR, paper_curve, paper_references
+    from plate_env.build.commands import run_build
     from plate_env.identify import lab_calibration_file as lcf
-    from plate_env.surrogate.conditioning import KnownInputs
 
-    refs = [(w, wm, (w - PAPER_Q1) / PAPER_P1, paper_b(w)) for w, wm in PAPER_TABLE1_3DEG]
-    cal = lcf.calibrate([paper_curve(wm, f0, b) for _, wm, f0, b in refs], [w * math.pi for w, *_ in refs],
-                        [f"Table 1, {w:g}pi" for w, *_ in refs], 3.0, KnownInputs())
-    lcf.save(cal, Path("plate_env/data") / lcf.PAPER_FILE)
+    argv = ["calibration", "paper", "--out", str(Path("plate_env/data") / lcf.PAPER_FILE)]
+    run_build(argparse.Namespace(artifact="calibration", name="paper", out=argv[-1]), argv)
+    cal = lcf.load(lcf.PAPER)
+    refs = paper_references()
     rows = []
     for name, w, alpha, wm, b, f0 in PAPER_FIG7:
         e = lcf.identify_calibrated(paper_curve(wm, f0, b), lcf.load(lcf.PAPER))

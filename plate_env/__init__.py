@@ -18,6 +18,7 @@ import warnings
 
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import PRESETS, ObjectSpec, preset
+from plate_env.core.setup import MAX_PROBES_RANGE
 from plate_env.physics import PHYSICS_NAMES, ProbeResult, ProbeSpec, make_physics
 
 __version__ = "0.1.0"
@@ -59,12 +60,16 @@ class _MovedModuleFinder:
 
 
 def _register() -> None:
+    """Register PlateRotation-v0. The env ends every episode itself (terminated: the agent stops, ``max_probes``
+    probes have run or ``max_sim_s`` is spent; never truncated), so the spec's ``max_episode_steps`` is the largest
+    ``max_probes`` it accepts: a TimeLimit that bounds every episode and never cuts one short."""
     from gymnasium.envs.registration import register, registry
 
     for env_id in ("PlateRotation-v0", "plate_env/PlateRotation-v0"):
         if env_id not in registry:
             register(id=env_id, entry_point="plate_env.env:PlateRotationEnv",
-                     vector_entry_point="plate_env.env.vector:PlateRotationVectorEnv")
+                     vector_entry_point="plate_env.env.vector:PlateRotationVectorEnv",
+                     max_episode_steps=MAX_PROBES_RANGE[1])
 
 
 class _RegisterWhenGymnasiumLoads:

@@ -25,7 +25,7 @@ from plate_env.core.probe import (
     ProbeSpec,
 )
 from plate_env.core.probe_table import ProbeTable
-from plate_env.core.setup import B_P_RANGE_M, DEFAULT_MAX_PROBES, FREQ_RANGE_HZ, PAPER_SETUP
+from plate_env.core.setup import B_P_RANGE_M, DEFAULT_MAX_PROBES, FREQ_RANGE_HZ, MAX_PROBES_RANGE, PAPER_SETUP
 from plate_env.env.codec import ACTION_SIZE, Codec
 from plate_env.identify.api import METHODS
 from plate_env.identify.estimate import Estimate
@@ -189,7 +189,7 @@ class PlateRotationEnv(gym.Env):
         f_band_hz = checks.pair("f_band_hz", f_band_hz, MIN_PROBE_FREQ_HZ, FREQ_RANGE_HZ[1], "Hz")
         amplitudes_deg = _amplitudes(amplitudes_deg)
         b_p_mm = checks.real("b_p_mm", b_p_mm, B_P_RANGE_M[0] * 1e3, B_P_RANGE_M[1] * 1e3, unit="mm")
-        max_probes = checks.integer("max_probes", max_probes, 1, 500)
+        max_probes = checks.integer("max_probes", max_probes, *MAX_PROBES_RANGE)
         if max_sim_s is not None:
             max_sim_s = checks.real("max_sim_s", max_sim_s, 0.0, 1e6, open_lo=True, unit="s")
         measure_range_s = checks.pair("measure_range_s", measure_range_s, 0.01, 60.0, "s")
