@@ -25,6 +25,7 @@ from plate_env.core.probe import MIN_PROBE_FREQ_HZ, WINDOW_RANGE_S
 from plate_env.core.setup import (
     AMP_RANGE_RAD,
     B_P_RANGE_M,
+    DEFAULT_MAX_PROBES,
     DIAMETER_RANGE_M,
     FREQ_RANGE_HZ,
     KNOWN_B_P_RANGE_M,
@@ -34,7 +35,6 @@ from plate_env.core.setup import (
 )
 from plate_env.core.streams import stdout_to_stderr
 from plate_env.core.units import format_omega_pi, parse_omega_n
-from plate_env.env.rotation import DEFAULT_MAX_PROBES
 from plate_env.identify.api import METHODS
 from plate_env.physics import PHYSICS_NAMES, ProbeSpec, make_physics
 from plate_env.physics.interface import refuse_early

@@ -60,6 +60,10 @@ class PaperSetup:
         return round(self.diameter * 1e3, 9)
 
 
+#: The probe budget of an episode when none is given: the one default of the env, the CLI, the suites and the
+#: shipped policy (the observation's length, 7 * max_probes + 2, depends on it). Here, not in the env, so that the
+#: command line reads it without importing gymnasium.
+DEFAULT_MAX_PROBES = 30
 #: The paper's set-up: B_p 3 mm, the 13.6 g, 80 mm cheese slice.
 PAPER_SETUP = PaperSetup()
 

@@ -25,7 +25,7 @@ from plate_env.core.probe import (
     ProbeSpec,
 )
 from plate_env.core.probe_table import ProbeTable
-from plate_env.core.setup import B_P_RANGE_M, FREQ_RANGE_HZ, MAX_PROBES_RANGE, PAPER_SETUP
+from plate_env.core.setup import B_P_RANGE_M, DEFAULT_MAX_PROBES, FREQ_RANGE_HZ, MAX_PROBES_RANGE, PAPER_SETUP
 from plate_env.env.codec import ACTION_SIZE, N_FEATURES, Codec
 from plate_env.identify.api import METHODS
 from plate_env.identify.estimate import Estimate
@@ -34,9 +34,6 @@ from plate_env.physics.camera import camera_omega_b
 from plate_env.physics.interface import refuse_early
 from plate_env.surrogate.conditioning import KnownInputs
 
-#: The probe budget of an episode when none is given: the one default of the env, the CLI, the suites and the
-#: shipped policy (the observation's length, 7 * max_probes + 2, depends on it).
-DEFAULT_MAX_PROBES = 30
 #: Mass of the hidden object before ``mass_variation``, kg (the paper's cheese slice).
 MASS_KG = PAPER_SETUP.mass
 #: Keys ``reset(options=...)`` accepts: the hidden object's omega_n (rad/s), alpha (rad), mass (kg).

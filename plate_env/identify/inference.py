@@ -75,7 +75,7 @@ def blurred(ll: np.ndarray, blur_steps: float) -> np.ndarray:
     steps along log omega (axis -2)."""
     if blur_steps <= 0:
         return ll
-    from scipy.ndimage import gaussian_filter1d
+    from plate_env.core.filters import gaussian_filter1d  # scipy.ndimage's floats, without its import
 
     top = ll.max(axis=(-2, -1), keepdims=True)
     like = gaussian_filter1d(np.exp(ll - top), blur_steps, axis=-2, mode="nearest", truncate=4.0)
@@ -94,11 +94,12 @@ def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
 
 
 def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
-    from scipy.interpolate import CubicSpline
-
     from plate_env.core.cache import cached_arrays, content_key
+    from plate_env.core.filters import ppoly_eval
 
     def build() -> dict[str, np.ndarray]:
+        from scipy.interpolate import CubicSpline
+
         ff, ww, aa = np.meshgrid(atlas.f_hz, w, a, indexing="ij")
         arrays = atlas.predict(ff, a_p_deg, ww, aa)
         return {name: CubicSpline(atlas.f_hz, arr, axis=0).c for name, arr in zip(RESPONSE, arrays, strict=True)}
@@ -109,28 +110,14 @@ def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
                          note=f"computing the {atlas.physics}/{atlas.model} atlas's response at A_p = {a_p_deg:g} deg "
                               f"on a {len(w)} x {len(a)} posterior grid")
     x = np.asarray(atlas.f_hz, float)
-    coefs = [np.asarray(coef[name]) for name in RESPONSE]  # CubicSpline's own polynomials (4, n_f - 1, ...)
+    coefs = [np.asarray(coef[name]) for name in RESPONSE]  # CubicSpline's own polynomials, as its PPoly evaluates
     inside = _covered(atlas, w, a)
 
     def at(f_hz: float):
-        m, s, p = (_ppoly_at(c, x, float(f_hz)) for c in coefs)
+        m, s, p = (ppoly_eval(c, x, float(f_hz)) for c in coefs)
         return m, np.maximum(s, 0.0), np.clip(p, 0.0, 1.0)
 
     return at, inside
-
-
-def _ppoly_at(c: np.ndarray, x: np.ndarray, f: float) -> np.ndarray:
-    """A cubic ``PPoly(c, x, extrapolate=True)`` at one point, bit for bit as scipy evaluates it (its interval
-    search, then ``c3 + c2 s + c1 s^2 + c0 s^3`` summed in that order with the powers built up by multiplication),
-    reading only the interval's coefficients: scipy's loop strides over the whole array (~10x slower on a posterior
-    grid)."""
-    if math.isnan(f):
-        return np.full(c.shape[2:], np.nan)
-    i = min(max(int(np.searchsorted(x, f, side="right")) - 1, 0), len(x) - 2)
-    s = f - x[i]
-    ci = c[:, i]
-    s2 = s * s
-    return ci[3] + ci[2] * s + ci[1] * s2 + ci[0] * (s2 * s)
 
 
 #: The atlas quantities a member's response gives (mean, spread, instability share).
@@ -217,25 +204,30 @@ def _smooth_log_omega(prob: np.ndarray, sigma_steps: float, nu: float = math.inf
     """Convolve along axis 0 (a uniform log-omega grid) with a normal of scale ``sigma_steps`` grid steps, or a
     Student-t with ``nu`` degrees of freedom; mass pushed beyond the grid is lost (the grid reaches
     ``forward.pad_sigmas`` scales beyond the models' range)."""
-    from scipy.ndimage import gaussian_filter1d
+    from plate_env.core.filters import fftconvolve_same, gaussian_filter1d  # scipy's floats, without its import
 
     if math.isinf(nu):
         return gaussian_filter1d(prob, sigma_steps, axis=0, mode="constant", cval=0.0, truncate=5.0)
-    from scipy.signal import fftconvolve
-
     half = min(int(math.ceil(sigma_steps * 40)), prob.shape[0])
     kernel = _t_kernel(half, sigma_steps, nu).reshape((-1,) + (1,) * (prob.ndim - 1))
-    return np.maximum(fftconvolve(prob, kernel, mode="same", axes=0), 0.0)  # zero beyond the grid, as above
+    return np.maximum(fftconvolve_same(prob, kernel), 0.0)  # zero beyond the grid, as above
 
 
 @functools.lru_cache(maxsize=64)
 def _t_kernel(half: int, sigma_steps: float, nu: float) -> np.ndarray:
     """The normalised Student-t kernel of :func:`_smooth_log_omega` on ``2 half + 1`` grid steps (read-only: it is
-    shared by every call with these arguments)."""
-    from scipy.stats import t
+    shared by every call with these arguments). scipy's ``t.pdf`` computes it once per machine: the kernel is kept
+    in the disk cache (:mod:`plate_env.core.cache`), so a fit does not import scipy.stats."""
+    from plate_env.core.cache import cached_arrays, content_key
 
-    kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
-    kernel = kernel / kernel.sum()
+    def build() -> dict[str, np.ndarray]:
+        from scipy.stats import t
+
+        kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
+        return {"kernel": kernel / kernel.sum()}
+
+    kernel = np.array(cached_arrays("t-kernel", content_key("t-kernel", int(half), float(sigma_steps), float(nu)),
+                                    build)["kernel"])
     kernel.flags.writeable = False
     return kernel
 
@@ -366,11 +358,16 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
     if n == 0 or sub.size == 0:
         return PredictiveCheck(statistic=0.0, p_value=1.0, n_probes=0, member=m.label, worst=None)
 
-    def terms(k: int):
-        amp = float(table.a_p_deg[k])
-        mk, sk, pk = response(m, amp, sub, a, float(table.f_p_hz[k]))
-        sd = np.sqrt(sk ** 2 + float(table.stderr_deg_s[k]) ** 2 + m.sigma_model ** 2)
-        return (float(table.omega_b_deg_s[k]) - mk) / sd, smoothed_p(pk, m.atlas.n_repeats)
+    known: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+    def terms(k: int):  # a probe's z-scores and instability shares over the grid (once per distinct probe)
+        key = probe_key(table, k)
+        if key not in known:
+            amp = float(table.a_p_deg[k])
+            mk, sk, pk = response(m, amp, sub, a, float(table.f_p_hz[k]))
+            sd = np.sqrt(sk ** 2 + float(table.stderr_deg_s[k]) ** 2 + m.sigma_model ** 2)
+            known[key] = (float(table.omega_b_deg_s[k]) - mk) / sd, smoothed_p(pk, m.atlas.n_repeats)
+        return known[key]
 
     # a member with a blur trusts no probe to pin omega_n finer than it: each probe's surprise is its least within
     # CHECK_BLURS blur scales along log omega_n (none for a member without blur)
@@ -383,9 +380,9 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
         z, pu = terms(ks[0])
         one = _surprise((z ** 2)[..., None], np.array([not table.unstable[ks[0]]]), pu[..., None])
         if reach > 0:
-            from scipy.ndimage import minimum_filter1d
+            from plate_env.core.filters import minimum_filter1d  # scipy.ndimage's, without its import
 
-            one = minimum_filter1d(one, 2 * reach + 1, axis=0, mode="nearest")
+            one = minimum_filter1d(one, 2 * reach + 1, axis=0)
         total += len(ks) * one
     total = np.where(member_coverage(m, sub, a), total, np.inf)
     c = np.unravel_index(int(np.argmin(total)), total.shape)
