@@ -159,7 +159,8 @@ def markdown(report: dict) -> str:
                      f"{sp['route']['one_probe_rtf']:.2f} ({sp['pointmass']['one_probe_rtf']:.1f}) | "
                      f"{sp['route']['batch32_rtf']:.2f} ({sp['pointmass']['batch32_rtf']:.1f}) | "
                      f"{sp['load_avg_1min']:.1f} |")
-    lines += ["", "Routes:", ""] + [f"- {n}: {ROUTES[n][3]}" for n in report["routes"]]
+    lines += ["", "Routes:", ""] + [f"- {n}: {r['what']}" + (f" (kernel at {r['commit']})" if r.get("commit") else "")
+                                     for n, r in report["routes"].items()]
     lines += ["", "Speed as a share of the point mass's in the same run (its real-time factors on a quiet machine: "
               "experiments/results/bench_physics.md): " + "; ".join(
                   f"{n} {r['speed']['route']['one_probe_rtf'] / r['speed']['pointmass']['one_probe_rtf']:.3f} (one) / "
