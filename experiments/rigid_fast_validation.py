@@ -202,6 +202,8 @@ def main() -> None:
     ap.add_argument("--merge", action="store_true",
                     help="keep the other routes (and the structure section) of the JSON of an earlier run, replacing "
                          "only the routes run now")
+    ap.add_argument("--speed-only", action="store_true",
+                    help="with --merge: measure only the speed of the routes, keeping their comparison from the JSON")
     ap.add_argument("--render-only", action="store_true",
                     help="rewrite the markdown (and the structure section) from the JSON of an earlier run")
     args = ap.parse_args()
@@ -221,6 +223,10 @@ def main() -> None:
     pointmass = pe.make_physics("tilelink")
     for name in args.routes.split(","):
         physics = physics_of(name)
+        if args.speed_only:
+            report["routes"][name].update(speed=speed(physics, pointmass, args.repeats), commit=_commit())
+            print(name, json.dumps(report["routes"][name]["speed"]), flush=True)
+            continue
         t0 = time.perf_counter()
         results = physics.run(specs)
         cmp_ = compare(rows, results)
