@@ -47,6 +47,7 @@ from plate_env.physics.tilelink.params import (
     P_MASS,
     P_MUK,
     P_MUS,
+    P_NSTEPS,
     P_RAMP,
     P_VT,
 )
@@ -121,7 +122,7 @@ def _old_kernels(ref: str):
 def ab(ref: str, repeats: int, probe: ProbeSpec) -> dict:
     """CPU seconds per step of the ``ref`` kernel and the worktree's on ``probe``, alternating."""
     old = _old_kernels(ref)
-    steps = probe.settle_s / DT + probe.measure_s / DT
+    steps = rk.param_vector(probe, DT, 0.05, RIGID_FAST_CONFIG)[P_NSTEPS]  # the probe's steps (settle, measure, ramp)
     times: dict[str, list[float]] = {"ref": [], "now": []}
     for rep in range(repeats + 1):
         for name, mod in (("ref", old), ("now", rk)):

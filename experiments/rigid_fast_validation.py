@@ -184,13 +184,14 @@ def markdown(report: dict) -> str:
 
 
 def _commit() -> str:
-    """The worktree's commit (with ``+dirty`` when it has uncommitted changes): which kernel a route was run on."""
+    """The worktree's commit (with ``+dirty`` when the package has uncommitted changes): which kernel a route was
+    run on."""
     import subprocess
 
     def git(*a):
         return subprocess.run(["git", *a], cwd=HERE, capture_output=True, text=True).stdout.strip()
 
-    dirty = git("status", "--porcelain", "--untracked-files=no")
+    dirty = git("status", "--porcelain", "--untracked-files=no", "--", str(HERE.parent / "plate_env"))
     return git("rev-parse", "--short", "HEAD") + ("+dirty" if dirty else "")
 
 
