@@ -85,29 +85,3 @@ def test_a_nuisance_draw_keeps_the_models_own_solver_values():
         assert cfg.k_inplane == 600.0
         assert (cfg.omega_rigid, cfg.iterations) == (rigid.MODEL_CONFIGS[model].omega_rigid,
                                                     rigid.MODEL_CONFIGS[model].iterations)
-
-
-def test_inlined_atan2_matches_libm_to_rounding_in_every_quadrant():
-    """The kernel's bending angle (rigid_kernels.atan2, Cephes' atan) against math.atan2: each reduction branch
-    (|t| <= 0.66, 0.66 < |t| <= tan(3pi/8), beyond), each quadrant and the axes."""
-    import numpy as np
-
-    from plate_env.physics.tilelink.rigid_kernels import atan2
-
-    rng = np.random.default_rng(0)
-    ys = np.concatenate([rng.normal(size=4000), rng.normal(size=4000) * 1e-6, [0.0, 0.0, 1.0, -1.0, 0.0, 2.0]])
-    xs = np.concatenate([rng.normal(size=4000), rng.normal(size=4000), [1.0, -1.0, 0.0, 0.0, 0.0, 2.0]])
-    for y, x in zip(ys, xs, strict=True):
-        ref = math.atan2(y, x)
-        assert abs(atan2(y, x) - ref) <= 2.0 * np.spacing(abs(ref)) + 1e-300, (y, x)
-
-
-def test_contact_spring_is_k_a_to_the_2_2_to_rounding():
-    """The kernel's corner spring (powf start, two Newton steps on the fifth root) against a^2 a^0.2 in double,
-    over the depths a probe sees and below single precision's range (the fallback)."""
-    import numpy as np
-
-    from plate_env.physics.tilelink.rigid_kernels import _spring
-
-    for a in np.concatenate([10.0 ** np.random.default_rng(1).uniform(-29, -2, 4000), [1e-35, 1e-40, 3e-6]]):
-        assert _spring(a, 2.0) == pytest.approx(2.0 * a * a * a**0.2, rel=4e-16), a

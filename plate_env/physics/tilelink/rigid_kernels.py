@@ -4,7 +4,7 @@ Integrator (one step of ``dt`` s, semi-implicit):
 
 1. gravity and the gyroscopic torque ``-w x (I w)`` update each tile's velocity and angular velocity;
 2. the joint rows' accumulated impulses of the previous step are applied again (warm start);
-3. plate contact at every tile corner: the shared Eqs. (3)-(4) law (the spring ``k a^2.2`` once per step,
+3. plate contact at every tile corner: the shared Eqs. (3)-(4) law (:func:`contact.spring_force` once per step,
    :func:`contact.damped_normal_force` with its implicit damper in the corner's effective mass per sweep,
    :func:`contact.friction_scale` stick/slip), impulses acting on the tile's translation and rotation. The geometry
    is frozen for the step, so each active corner's spring force ``k a^2.2``, effective normal mass and rotational
@@ -15,7 +15,7 @@ Integrator (one step of ``dt`` s, semi-implicit):
    Euler "soft constraint": ``J v' + k C / (dt k + c) + P / (dt (dt k + c)) = 0``), the 3 translation rows and
    the 2 rotation rows of a joint solved together. Stiff rows therefore do not bound the step. The blocks'
    inverses are rebuilt every ``block_refresh`` steps (they set the convergence rate, not the fixed point);
-5. positions and unit quaternions advance with the new velocities, and the tiles' axes follow.
+5. positions and unit quaternions advance with the new velocities.
 
 Checks every record (~1 ms): the point-mass model's :func:`kernels.check_state` (NaN, speed limit, overturned,
 left plate, slipped), FOLDED (a joint bent beyond ``fold_angle`` or a tile upside down) and RUNAWAY by energy: the
@@ -37,7 +37,8 @@ import numba
 import numpy as np
 
 from plate_env.core.probe import SLIP_LIMIT_M, ProbeSpec, Status
-from plate_env.physics.tilelink.contact import CONTACT_EXPONENT, PAPER_CONTACT, ContactLaw
+from plate_env.physics.tilelink import contact
+from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
 from plate_env.physics.tilelink.jit_cache import CACHE
 from plate_env.physics.tilelink.kernels import (
     FAST,
@@ -46,6 +47,7 @@ from plate_env.physics.tilelink.kernels import (
     load_first,
     plate_state,
     record,
+    spring_force,
 )
 from plate_env.physics.tilelink.params import (
     DEFAULT_DT,
@@ -82,66 +84,6 @@ from plate_env.physics.tilelink.rigid import RigidTileConfig, RigidTileParams, b
 (R_H, R_IXX, R_IZZ, R_CB, R_KT2, R_CT2, R_KN, R_CN, R_KRN, R_CRN, R_NITER, R_FOLD, R_FOLDW, R_EREL, R_EABS,
  R_CORNERW, R_REFRESH) = range(N_PARAMS, N_PARAMS + 17)
 N_RIGID_PARAMS = N_PARAMS + 17
-
-
-#: Cephes' atan (S. L. Moshier, atan.c): reduction to |x| <= 0.66 and a degree 4/5 rational function, about
-#: 1e-16 relative; used for the joints' bending angle instead of libm's atan2 (14 % of a rigid_fast step here).
-_T3P8 = 2.41421356237309504880
-_MOREBITS = 6.123233995736765886130e-17
-_AP = (-8.750608600031904122785e-1, -1.615753718733365076637e1, -7.500855792314704667340e1,
-       -1.228866684490136173410e2, -6.485021904942025371773e1)
-_AQ = (2.485846490142306297962e1, 1.650270098316988542046e2, 4.328810604912902668951e2,
-       4.853903996359136964868e2, 1.945506571482613964425e2)
-
-
-@numba.njit(cache=CACHE, inline="always")
-def _atan(t):
-    """``atan(t)`` (rad) by Cephes' reduction and rational function (``_AP``/``_AQ``)."""
-    a = abs(t)
-    if a > _T3P8:
-        base = 0.5 * math.pi
-        more = _MOREBITS
-        a = -1.0 / a
-    elif a > 0.66:
-        base = 0.25 * math.pi
-        more = 0.5 * _MOREBITS
-        a = (a - 1.0) / (a + 1.0)
-    else:
-        base = 0.0
-        more = 0.0
-    z = a * a
-    num = (((_AP[0] * z + _AP[1]) * z + _AP[2]) * z + _AP[3]) * z + _AP[4]
-    den = ((((z + _AQ[0]) * z + _AQ[1]) * z + _AQ[2]) * z + _AQ[3]) * z + _AQ[4]
-    r = base + (a * (z * num / den) + a + more)
-    return r if t >= 0.0 else -r
-
-
-@numba.njit(cache=CACHE, inline="always")
-def atan2(y, x):
-    """``atan2(y, x)`` in (-pi, pi] for finite y, x, through :func:`_atan` (agrees with ``math.atan2`` to a few
-    ulp: tests/test_rigid_fast.py)."""
-    if x > 0.0:
-        return _atan(y / x)
-    if x < 0.0:
-        return _atan(y / x) + (math.pi if y >= 0.0 else -math.pi)
-    if y == 0.0:
-        return 0.0
-    return 0.5 * math.pi if y > 0.0 else -0.5 * math.pi
-
-
-@numba.njit(cache=CACHE, inline="always")
-def _spring(a, k):
-    """The contact spring ``k a^2.2`` (N) for a depth ``a`` > 0 (m): ``a^2`` times the fifth root of ``a``, started
-    in single precision (libm's ``powf``) and refined by two Newton steps on ``r^5 = a`` to double precision
-    (within a few ulp of ``k a**2.2``: tests/test_rigid_fast.py); libm's double ``pow`` took 13 % of a step."""
-    if a < 1e-30:  # below single precision's range: the force is ~1e-59 N k
-        return k * math.pow(a, CONTACT_EXPONENT)
-    r = float(math.pow(np.float32(a), np.float32(0.2)))
-    r2 = r * r
-    r = 0.8 * r + 0.2 * a / (r2 * r2)
-    r2 = r * r
-    r = 0.8 * r + 0.2 * a / (r2 * r2)
-    return k * (a * a) * r
 
 
 @numba.njit(cache=CACHE, inline="always")
@@ -210,25 +152,19 @@ def _place_tiles(prm, rest, x, q):
 
 
 @numba.njit(cache=CACHE, inline="always")
-def _axes_of(q, ax, i):
-    """Tile ``i``'s axes in the world from its unit quaternion: e1 (0:3), e2 (3:6), normal (6:9)."""
-    qw, qx, qy, qz = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
-    ax[i, 0] = 1.0 - 2.0 * (qy * qy + qz * qz)
-    ax[i, 1] = 2.0 * (qx * qy + qw * qz)
-    ax[i, 2] = 2.0 * (qx * qz - qw * qy)
-    ax[i, 3] = 2.0 * (qx * qy - qw * qz)
-    ax[i, 4] = 1.0 - 2.0 * (qx * qx + qz * qz)
-    ax[i, 5] = 2.0 * (qy * qz + qw * qx)
-    ax[i, 6] = 2.0 * (qx * qz + qw * qy)
-    ax[i, 7] = 2.0 * (qy * qz - qw * qx)
-    ax[i, 8] = 1.0 - 2.0 * (qx * qx + qy * qy)
-
-
-@numba.njit(cache=CACHE, inline="always")
 def _tile_axes(q, ax):
-    """Every tile's axes (:func:`_axes_of`)."""
+    """Each tile's axes in the world from its unit quaternion: e1 (0:3), e2 (3:6), normal (6:9)."""
     for i in range(q.shape[0]):
-        _axes_of(q, ax, i)
+        qw, qx, qy, qz = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+        ax[i, 0] = 1.0 - 2.0 * (qy * qy + qz * qz)
+        ax[i, 1] = 2.0 * (qx * qy + qw * qz)
+        ax[i, 2] = 2.0 * (qx * qz - qw * qy)
+        ax[i, 3] = 2.0 * (qx * qy - qw * qz)
+        ax[i, 4] = 1.0 - 2.0 * (qx * qx + qz * qz)
+        ax[i, 5] = 2.0 * (qy * qz + qw * qx)
+        ax[i, 6] = 2.0 * (qx * qz + qw * qy)
+        ax[i, 7] = 2.0 * (qy * qz - qw * qx)
+        ax[i, 8] = 1.0 - 2.0 * (qx * qx + qy * qy)
 
 
 @numba.njit(cache=CACHE, inline="always")
@@ -256,7 +192,8 @@ def _energy(x, v, w, ax, jc, rk, m, ixx, izz, grav, hh, kc, s_th, c_th):
             pz = x[i, 2] + sa * ax[i, 2] + sb * ax[i, 5]
             wc = -py * s_th + pz * c_th
             if wc < 0.0:
-                energy += kc / (1.0 + CONTACT_EXPONENT) * math.pow(-wc, 1.0 + CONTACT_EXPONENT)
+                energy += kc / (1.0 + contact.CONTACT_EXPONENT) * math.exp(
+                    (1.0 + contact.CONTACT_EXPONENT) * math.log(-wc))
     for j in range(jc.shape[0]):
         for r in range(5):
             energy += 0.5 * rk[r] * jc[j, r] * jc[j, r]
@@ -422,7 +359,7 @@ def _joint_setup(refresh, x, v, w, ax, links, link_dir, hh, inv_m, ixx_inv, dinv
         cx = nay * nbz - naz * nby
         cy = naz * nbx - nax * nbz
         cz = nax * nby - nay * nbx
-        bend = atan2(cx * t2x + cy * t2y + cz * t2z, nax * nbx + nay * nby + naz * nbz)
+        bend = math.atan2(cx * t2x + cy * t2y + cz * t2z, nax * nbx + nay * nby + naz * nbz)
         jc[j, 3] = bend
         if abs(bend) > bend_max:
             bend_max = abs(bend)
@@ -476,7 +413,7 @@ def _active_corners(x, ax, hh, s_th, c_th, th_dot, xp_dot, kc, inv_m, ixx_inv, d
             cdat[n_act, 0] = rx
             cdat[n_act, 1] = ry
             cdat[n_act, 2] = rz
-            cdat[n_act, 3] = _spring(-wc, kc)
+            cdat[n_act, 3] = spring_force(-wc, kc)
             cdat[n_act, 4] = xp_dot
             cdat[n_act, 5] = -th_dot * pz
             cdat[n_act, 6] = th_dot * py
@@ -503,10 +440,9 @@ def _active_corners(x, ax, hh, s_th, c_th, th_dot, xp_dot, kc, inv_m, ixx_inv, d
 
 
 @numba.njit(cache=CACHE, inline="always")
-def _contact_pass(it, n_act, ctile, cdat, cimp, v, w, ax, s_th, c_th, dt, cc, mus, muk, vt, inv_m, ixx_inv, dinv):
-    """Stage 4a, Gauss-Seidel sweep ``it`` over the active corners: each corner's impulse is taken off its tile
-    (from the second sweep on: in the first it is still the zero :func:`_active_corners` wrote) and re-evaluated
-    with the shared contact law (implicit normal damper, Coulomb stick/slip), then applied again."""
+def _contact_pass(n_act, ctile, cdat, cimp, v, w, ax, s_th, c_th, dt, cc, mus, muk, vt, inv_m, ixx_inv, dinv):
+    """Stage 4a, one Gauss-Seidel sweep over the active corners: each corner's impulse is taken off its tile and
+    re-evaluated with the shared contact law (implicit normal damper, Coulomb stick/slip), then applied again."""
     pnx = 0.0
     pny = -s_th
     pnz = c_th
@@ -515,9 +451,9 @@ def _contact_pass(it, n_act, ctile, cdat, cimp, v, w, ax, s_th, c_th, dt, cc, mu
         nx, ny, nz = ax[i, 6], ax[i, 7], ax[i, 8]
         rx, ry, rz = cdat[k, 0], cdat[k, 1], cdat[k, 2]
         ux, uy, uz = cdat[k, 4], cdat[k, 5], cdat[k, 6]
-        if it > 0:  # remove this corner's accumulated impulse from its tile
-            _push(v, w, i, -cimp[k, 0], -cimp[k, 1], -cimp[k, 2], rx, ry, rz, 0.0, 0.0, 0.0, nx, ny, nz, inv_m,
-                  ixx_inv, dinv)
+        # remove this corner's accumulated impulse from its tile
+        _push(v, w, i, -cimp[k, 0], -cimp[k, 1], -cimp[k, 2], rx, ry, rz, 0.0, 0.0, 0.0, nx, ny, nz, inv_m,
+              ixx_inv, dinv)
         vrx = v[i, 0] + w[i, 1] * rz - w[i, 2] * ry - ux
         vry = v[i, 1] + w[i, 2] * rx - w[i, 0] * rz - uy
         vrz = v[i, 2] + w[i, 0] * ry - w[i, 1] * rx - uz
@@ -619,9 +555,8 @@ def _plate_work(n_act, cimp, cdat, work, work_abs):
 
 
 @numba.njit(cache=CACHE, inline="always")
-def _integrate(x, v, q, w, ax, dt):
-    """Stage 5: positions and unit quaternions advance with the new velocities and angular velocities, and the
-    tiles' axes follow (in the same loop: the next step's stages read them)."""
+def _integrate(x, v, q, w, dt):
+    """Stage 5: positions and unit quaternions advance with the new velocities and angular velocities."""
     for i in range(x.shape[0]):
         x[i, 0] += dt * v[i, 0]
         x[i, 1] += dt * v[i, 1]
@@ -637,7 +572,6 @@ def _integrate(x, v, q, w, ax, dt):
         q[i, 1] = nx_ * ln
         q[i, 2] = ny_ * ln
         q[i, 3] = nz_ * ln
-        _axes_of(q, ax, i)
 
 
 @numba.njit(cache=CACHE, fastmath=FAST)
@@ -682,7 +616,6 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
     cdat = np.empty((4 * n, 11))  # lever arm r (3), spring force k a^2.2, plate velocity u (3), 1/m_n, dv_t/dp_n (3)
     cimp = np.empty((4 * n, 3))  # accumulated contact impulse in this step
     _place_tiles(prm, rest, x, q)
-    _tile_axes(q, ax)
     yaw = prm[P_YAW0]
     n_rec = 0
     status = Status.OK
@@ -696,6 +629,7 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
         th, th_dot, xp, xp_dot = plate_state(step * dt, prm[P_FREQ], prm[P_AMP], prm[P_BP], prm[P_RAMP])
         s_th = math.sin(th)
         c_th = math.cos(th)
+        _tile_axes(q, ax)
         if step % rec_every == 0:
             status, yaw, n_rec, e0, excess_max, e_last = _check_and_record(
                 step, prm, x, v, w, ax, jc, rk, rest, cells, xp, s_th, c_th, yaw, e0, work, work_abs, excess_max,
@@ -708,14 +642,13 @@ def rigid_probe(prm, rest, links, link_dir, cells, yaw_out, cu_out, cv_out, diag
         refresh = step == 0 or (block_refresh > 0 and step % block_refresh == 0)
         bend_max = _joint_setup(refresh, x, v, w, ax, links, link_dir, hh, inv_m, ixx_inv, dinv, gam, kfac, jra,
                                 jrb, jfr, jkt, jkr, jb, jc, pacc, bend_max)
-        n_act = _active_corners(x, ax, hh, s_th, c_th, th_dot, xp_dot, kc, inv_m, ixx_inv, dinv, ctile, cdat,
-                                cimp)
+        n_act = _active_corners(x, ax, hh, s_th, c_th, th_dot, xp_dot, kc, inv_m, ixx_inv, dinv, ctile, cdat, cimp)
         for it in range(n_iter):
-            _contact_pass(it, n_act, ctile, cdat, cimp, v, w, ax, s_th, c_th, dt, cc, prm[P_MUS], prm[P_MUK], prm[P_VT],
+            _contact_pass(n_act, ctile, cdat, cimp, v, w, ax, s_th, c_th, dt, cc, prm[P_MUS], prm[P_MUK], prm[P_VT],
                           inv_m, ixx_inv, dinv)
             _joint_pass(it, links, jra, jrb, jfr, jkt, jkr, jb, gam, pacc, v, w, ax, inv_m, ixx_inv, dinv)
         work, work_abs = _plate_work(n_act, cimp, cdat, work, work_abs)
-        _integrate(x, v, q, w, ax, dt)
+        _integrate(x, v, q, w, dt)
     diag[0] = excess_max
     diag[1] = bend_max
     diag[2] = work
