@@ -1,4 +1,4 @@
-"""A trained Stable-Baselines3 probing policy (experiments/train_rl.py), acting from the env observation.
+"""A trained Stable-Baselines3 probing policy (``plate-env build policy``), acting from the env observation.
 
 The shipped model, ``agents/models/ppo_plate.zip``, was trained on ``PlateRotation-v0`` with ``physics="atlas"``
 (probes answered from the tile-link response atlas in microseconds) and the settings the CLI's ``identify`` uses:
@@ -7,7 +7,7 @@ timesteps, seed, evaluation reward, date) is in ``ppo_plate.json`` next to it. T
 posterior (``method = "atlas"``), the estimator the policy was rewarded with.
 
 Start-up. Importing torch and Stable-Baselines3 takes seconds, so the shipped policy acts in numpy: its weights
-are exported beside the zip (``ppo_plate.npz``, :func:`export_policy`, written by experiments/train_rl.py, with the
+are exported beside the zip (``ppo_plate.npz``, :func:`export_policy`, written by plate-env build policy, with the
 zip's SHA-256 so a stale export is never used) and the MLP's forward pass (Linear-Tanh layers, then the action
 mean; deterministic) is a few matrix products. Its actions equal ``model.predict(obs, deterministic=True)`` to
 float32 rounding (tests/test_agents_ppo.py). A model without an export (``sb3:model.zip``), another algorithm or
@@ -167,7 +167,8 @@ class PPOAgent(Agent):
             raise ValueError(f"algo = {algo!r}: choose one of {SB3_ALGOS}")
         self.path = Path(path) if path is not None else DEFAULT_MODEL
         if not self.path.exists():
-            raise FileNotFoundError(f"no PPO model at {self.path}; train one with experiments/train_rl.py")
+            raise FileNotFoundError(f"no PPO model at {self.path}; train one with plate-env build policy --out "
+                                    "MODEL.zip")
         self.algo = algo
         self.deterministic = deterministic
         self.device = device

@@ -74,18 +74,20 @@ def m_env(quick: bool) -> dict:
         *_, term, trunc, _ = env.step(random_action(rng))
         if term or trunc:
             env.reset()
-    rates, ends = [], 0
+    rates, cpu_rates, ends = [], [], 0
     n = 300 if quick else 1000
     for rep in range(3):
         env.reset(seed=rep + 1)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         for _ in range(n):
             *_, term, trunc, _ = env.step(random_action(rng))
             if term or trunc:
                 ends += 1
                 env.reset()
         rates.append(n / (time.perf_counter() - t0))
-    return {"steps_per_s": statistics.median(rates), "rates": rates, "episode_ends": ends}
+        cpu_rates.append(n / max(time.process_time() - c0, 1e-9))
+    return {"steps_per_s": statistics.median(rates), "rates": rates, "episode_ends": ends,
+            "steps_per_cpu_s": statistics.median(cpu_rates)}
 
 
 def m_vec(quick: bool) -> dict:
@@ -103,17 +105,19 @@ def m_vec(quick: bool) -> dict:
 
     for _ in range(20):
         venv.step(acts())
-    rates, ends = [], 0
+    rates, cpu_rates, ends = [], [], 0
     n = 40 if quick else 100
     for _ in range(3):
         batch = [acts() for _ in range(n)]
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         for a in batch:
             _, _, dones, _ = venv.step(a)
             ends += int(dones.sum())
         rates.append(n * n_envs / (time.perf_counter() - t0))
+        cpu_rates.append(n * n_envs / max(time.process_time() - c0, 1e-9))
     venv.close()
-    return {"steps_per_s": statistics.median(rates), "rates": rates, "episode_ends": ends, "n_envs": n_envs}
+    return {"steps_per_s": statistics.median(rates), "rates": rates, "episode_ends": ends, "n_envs": n_envs,
+            "steps_per_cpu_s": statistics.median(cpu_rates)}
 
 
 def m_start(quick: bool) -> dict:
@@ -175,7 +179,18 @@ def m_bayes(quick: bool) -> dict:
     env = PlateRotationEnv(physics="atlas")
     agent = make_agent("bayes")
     run_episode(env, agent, seed=99)  # warm up (forward model, responses)
-    decisions, ends, errs, probes = [], [], [], []
+    cpu: list[float] = []
+    next_probe = agent.next_probe
+
+    def timed(*a, **k):  # the decision's CPU seconds too (the machine is shared: wall time includes waiting)
+        c0 = time.process_time()
+        try:
+            return next_probe(*a, **k)
+        finally:
+            cpu.append(time.process_time() - c0)
+
+    agent.next_probe = timed
+    decisions, ends, errs, probes, picked = [], [], [], [], []
     for seed in range(3 if quick else 5):
         t0 = time.perf_counter()
         res = run_episode(env, agent, seed=seed)
@@ -184,8 +199,11 @@ def m_bayes(quick: bool) -> dict:
         ends.append(wall - sum(res.decision_wall_s))
         errs.append(res.relative_error if res.estimate.ok else None)
         probes.append(res.n_probes)
+        picked.append([[float(f), float(a)] for f, a in zip(res.probes.f_p_hz, res.probes.a_p_deg, strict=True)])
     return {"s_per_decision": statistics.median(decisions), "decisions": len(decisions),
-            "rest_of_episode_s": statistics.median(ends), "relative_errors": errs, "n_probes": probes}
+            "cpu_s_per_decision": statistics.median(cpu), "max_s_per_decision": max(decisions),
+            "rest_of_episode_s": statistics.median(ends), "relative_errors": errs, "n_probes": probes,
+            "probes": picked}
 
 
 def m_pybullet(quick: bool) -> dict:
@@ -290,9 +308,11 @@ def measure_steps(path: Path, args, csv: Path, cache: Path):
     computes both the same way)."""
     env = dict(os.environ, PYTHONPATH=str(path), PLATE_ENV_CACHE_DIR=str(cache))
     q = ["--quick"] if args.quick else []
+    only = set(args.only.split(",")) if args.only else None
     for label, name in (("start_cold_cache", "start"), ("start", "start"), ("env", "env"), ("vec", "vec"),
                         ("bayes", "bayes")):
-        yield label, lambda name=name: run_child(path, ["--measure", name, *q], env)
+        if only is None or label in only:
+            yield label, lambda name=name: run_child(path, ["--measure", name, *q], env)
 
     def vec2() -> dict:  # two vector-env processes at once: the aggregate of the machine's 2 cores
         procs = [subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--measure", "vec", *q],
@@ -301,8 +321,11 @@ def measure_steps(path: Path, args, csv: Path, cache: Path):
         outs = [json.loads(p.communicate()[0].strip().splitlines()[-1]) for p in procs]
         return {"steps_per_s": sum(o["steps_per_s"] for o in outs), "per_process": [o["steps_per_s"] for o in outs]}
 
-    yield "vec2", vec2
+    if only is None or "vec2" in only:
+        yield "vec2", vec2
     names = json.loads((path / "plate_env" / "data" / "forward_models.json").read_text())
+    if only is not None and "fit" not in only:
+        names = []
 
     def fit(fm: str) -> dict:
         first = run_cli_fit(csv, fm, env)
@@ -313,7 +336,7 @@ def measure_steps(path: Path, args, csv: Path, cache: Path):
 
     for fm in sorted(names):
         yield f"fit/{fm}", lambda fm=fm: fit(fm)
-    if not args.no_pybullet:
+    if not args.no_pybullet and (only is None or "pybullet" in only):
         yield "pybullet_cold_cache", lambda: run_child(path, ["--measure", "pybullet"], env)
         yield "pybullet", lambda: run_child(path, ["--measure", "pybullet"], env)
 
@@ -321,7 +344,9 @@ def measure_steps(path: Path, args, csv: Path, cache: Path):
 #: (label, path in a tree's results, unit, better is "higher" or "lower", the issue's goal)
 FIGURES = [
     ("atlas env, one env incl. episode ends", ("env", "steps_per_s"), "steps/s", "higher", ">= 10000"),
+    ("  the same per CPU second of the process", ("env", "steps_per_cpu_s"), "steps/s", "higher", ""),
     ("SB3 vec env (16, batched), one process", ("vec", "steps_per_s"), "steps/s", "higher", ""),
+    ("  the same per CPU second of the process", ("vec", "steps_per_cpu_s"), "steps/s", "higher", ""),
     ("SB3 vec env (16, batched), two processes (2 cores)", ("vec2", "steps_per_s"), "steps/s", "higher",
      ">= 50000"),
     ("first step after gym.make (make + reset + step)", ("start", "make_to_first_step_s"), "s", "lower", "<= 0.05"),
@@ -332,6 +357,8 @@ FIGURES = [
      "lower", ""),
     ("import gymnasium + plate_env", ("start", "import_s"), "s", "lower", ""),
     ("bayes, per decision", ("bayes", "s_per_decision"), "s", "lower", "<= 0.02"),
+    ("  the same in CPU seconds of the process", ("bayes", "cpu_s_per_decision"), "s", "lower", ""),
+    ("  the slowest decision", ("bayes", "max_s_per_decision"), "s", "lower", ""),
     ("bayes, rest of an episode (probes + estimate)", ("bayes", "rest_of_episode_s"), "s", "lower", ""),
     ("PyBullet first probe after import (env + reset + probe)", ("pybullet", "first_probe_after_import_s"), "s",
      "lower", "<= 3"),
@@ -342,23 +369,34 @@ FIGURES = [
 ]
 
 
-def get(res: dict, path: tuple) -> float | None:
+def walk(res: dict, path: tuple):
+    """``res[path[0]][path[1]]...``, or None where a key is missing."""
     cur = res
     for k in path:
         if not isinstance(cur, dict) or k not in cur:
             return None
         cur = cur[k]
+    return cur
+
+
+def get(res: dict, path: tuple) -> float | None:
+    cur = walk(res, path)
     return cur if isinstance(cur, (int, float)) else None
 
 
-def markdown(doc: dict) -> str:
+def get_list(res: dict, path: tuple) -> list | None:
+    cur = walk(res, path)
+    return cur if isinstance(cur, list) else None
+
+
+def markdown(doc: dict, source: str = "bench_speed.json") -> str:
     if "current" not in doc["trees"]:  # --no-current: the reference alone, shown as the only column
         doc = {**doc, "commit": doc["ref"], "ref": None, "trees": {"current": doc["trees"]["ref"]}}
     ref, cur = doc["trees"].get("ref"), doc["trees"]["current"]
     cols = ["figure", "goal"] + ([f"before ({doc['ref']})"] if ref else []) + [f"after ({doc['commit']})"] + \
         (["after / before (x faster)"] if ref else [])
     lines = ["# Speed where users wait (issue 25)", "",
-             f"Generated from bench_speed.json by `{doc['command']}` ({doc['date_utc']}). Load average (1 min) "
+             f"Generated from {source} by `{doc['command']}` ({doc['date_utc']}). Load average (1 min) "
              f"{doc['load_before'][0]:.1f} before, {doc['load_after'][0]:.1f} after, on the shared 2-core machine: "
              "read the ratios (same run, same load), not the seconds.", "",
              "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
@@ -382,9 +420,16 @@ def markdown(doc: dict) -> str:
     for label, path, unit, better, goal in rows:
         b = get(ref, path) if ref else None
         a = get(cur, path)
+        if a is None and b is None and doc.get("only"):  # not measured in this run (--only)
+            continue
         cells = [f"{label} ({unit})", goal] + ([fmt(b, unit)] if ref else []) + [fmt(a, unit)] + \
             ([speedup(b, a, better)] if ref else [])
         lines.append("| " + " | ".join(cells) + " |")
+    bp, ap_ = (get_list(ref, ("bayes", "probes")) if ref else None), get_list(cur, ("bayes", "probes"))
+    if bp is not None and ap_ is not None:
+        same = sum(x == y for x, y in zip(bp, ap_, strict=False))
+        lines += ["", f"bayes: the same probes (f_p, A_p) in {same} of {max(len(bp), len(ap_))} episodes before and "
+                  "after (same seeds)."]
     lines += ["", "Kernel figures (the point-mass kernel) are measured by the kernel's own benchmark.", ""]
     return "\n".join(lines)
 
@@ -395,6 +440,8 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="fewer steps and repeats")
     ap.add_argument("--no-pybullet", action="store_true")
     ap.add_argument("--no-current", action="store_true", help="measure only --ref")
+    ap.add_argument("--only", default=None, help="comma-separated measurements to run (start_cold_cache, start, env, "
+                    "vec, vec2, bayes, fit, pybullet; default all)")
     ap.add_argument("--measure", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--forward", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--csv", default=None, help=argparse.SUPPRESS)
@@ -412,7 +459,7 @@ def main() -> None:
                            capture_output=True, text=True).stdout.strip()
     doc = {"command": "python experiments/bench_speed.py " + " ".join(sys.argv[1:]), "commit": commit +
            ("+dirty" if dirty else ""), "ref": args.ref, "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
-           "load_before": list(os.getloadavg()), "trees": {}}
+           "load_before": list(os.getloadavg()), "trees": {}, "only": args.only}
     with tempfile.TemporaryDirectory() as tmp_s:
         tmp = Path(tmp_s)
         csv = tmp / "sweep.csv"
@@ -436,8 +483,8 @@ def main() -> None:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").write_text(json.dumps(doc, indent=1) + "\n")
-    out.with_suffix(".md").write_text(markdown(doc))
-    print(markdown(doc))
+    out.with_suffix(".md").write_text(markdown(doc, out.with_suffix(".json").name))
+    print(markdown(doc, out.with_suffix(".json").name))
 
 
 if __name__ == "__main__":

@@ -44,7 +44,7 @@ of a 1 s window, and live short windows scatter more, agents/bayes.py) did not h
 policy then stops after 9-10 probes of 1.7 s; at a lower cost it probes longer and gets the best p90 but costs
 twice the simulated time. A2C/SAC were not tried (time).
 Correlating instability along f_p within an object (the env argument ``physics_options={"instability_rho": 0.9,
-"instability_corr_hz": 2.0}``, experiments/hyperparams/ppo.yml) is what
+"instability_corr_hz": 2.0}``, plate_env_agents/hyperparams/ppo.yml) is what
 the shipped policy was trained with. Single training seeds: differences of ~1 point in median error are within
 the spread of 50 objects.
 """

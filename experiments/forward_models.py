@@ -167,7 +167,8 @@ def stage_within(args) -> None:
                   f"likelihood on {len(cal_rows)} calibration episodes (objects seed {args.seed + 10}) gives scale "
                   f"{sigma_design:.4f}, nu {nu_design:g}; shipped DESIGN_DISCREPANCY[{fm.name!r}] = scale "
                   f"{shipped_eps[0]:g}, nu {shipped_eps[1]:g} "
-                  f"(agents/bayes.py). Test episodes: {len(rows)} other objects (seed {args.seed + 20}).", "", *HEAD,
+                  "(agents/models/bayes_design_discrepancy.json, plate-env build design-discrepancy). Test "
+                  f"episodes: {len(rows)} other objects (seed {args.seed + 20}).", "", *HEAD,
                   row(f"bayes, {meta['probes']:.1f} probes / {meta['sim_s']:.0f} s simulated on average", s)]
         numbers["bayes"] = {**s.to_dict(), **meta, "sigma_design_fit": sigma_design, "nu_design_fit": nu_design,
                             "sigma_design": shipped_eps[0], "design_nu": shipped_eps[1], "design_blur": DESIGN_BLUR,

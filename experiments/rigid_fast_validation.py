@@ -159,7 +159,8 @@ def markdown(report: dict) -> str:
                      f"{sp['route']['one_probe_rtf']:.2f} ({sp['pointmass']['one_probe_rtf']:.1f}) | "
                      f"{sp['route']['batch32_rtf']:.2f} ({sp['pointmass']['batch32_rtf']:.1f}) | "
                      f"{sp['load_avg_1min']:.1f} |")
-    lines += ["", "Routes:", ""] + [f"- {n}: {ROUTES[n][3]}" for n in report["routes"]]
+    lines += ["", "Routes:", ""] + [f"- {n}: {r['what']}" + (f" (kernel at {r['commit']})" if r.get("commit") else "")
+                                     for n, r in report["routes"].items()]
     lines += ["", "Speed as a share of the point mass's in the same run (its real-time factors on a quiet machine: "
               "experiments/results/bench_physics.md): " + "; ".join(
                   f"{n} {r['speed']['route']['one_probe_rtf'] / r['speed']['pointmass']['one_probe_rtf']:.3f} (one) / "
@@ -182,11 +183,28 @@ def markdown(report: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _commit() -> str:
+    """The worktree's commit (with ``+dirty`` when the package has uncommitted changes): which kernel a route was
+    run on."""
+    import subprocess
+
+    def git(*a):
+        return subprocess.run(["git", *a], cwd=HERE, capture_output=True, text=True).stdout.strip()
+
+    dirty = git("status", "--porcelain", "--untracked-files=no", "--", str(HERE.parent / "plate_env"))
+    return git("rev-parse", "--short", "HEAD") + ("+dirty" if dirty else "")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--routes", default=",".join(ROUTES), help="comma-separated subset of " + ", ".join(ROUTES))
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--no-structure", action="store_true")
+    ap.add_argument("--merge", action="store_true",
+                    help="keep the other routes (and the structure section) of the JSON of an earlier run, replacing "
+                         "only the routes run now")
+    ap.add_argument("--speed-only", action="store_true",
+                    help="with --merge: measure only the speed of the routes, keeping their comparison from the JSON")
     ap.add_argument("--render-only", action="store_true",
                     help="rewrite the markdown (and the structure section) from the JSON of an earlier run")
     args = ap.parse_args()
@@ -201,15 +219,21 @@ def main() -> None:
     rows = load_reference()
     specs = [spec_of(r) for r in rows]
     report = {"reference_dt": rows[0]["dt_s"], "n_reference": len(rows), "routes": {}}
+    if args.merge:
+        report = json.loads(OUT.with_suffix(".json").read_text())
     pointmass = pe.make_physics("tilelink")
     for name in args.routes.split(","):
         physics = physics_of(name)
+        if args.speed_only:
+            report["routes"][name].update(speed=speed(physics, pointmass, args.repeats), commit=_commit())
+            print(name, json.dumps(report["routes"][name]["speed"]), flush=True)
+            continue
         t0 = time.perf_counter()
         results = physics.run(specs)
         cmp_ = compare(rows, results)
         report["routes"][name] = {"dt": ROUTES[name][1], "what": ROUTES[name][3], "compare": cmp_,
                                   "sweep_wall_s": time.perf_counter() - t0,
-                                  "speed": speed(physics, pointmass, args.repeats)}
+                                  "speed": speed(physics, pointmass, args.repeats), "commit": _commit()}
         print(name, json.dumps(cmp_["summary"]), json.dumps(report["routes"][name]["speed"]), flush=True)
         OUT.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
     if not args.no_structure:

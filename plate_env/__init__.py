@@ -10,12 +10,15 @@ edge.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
+import importlib.util
 import sys
 import warnings
 
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import PRESETS, ObjectSpec, preset
+from plate_env.core.setup import MAX_PROBES_RANGE
 from plate_env.physics import PHYSICS_NAMES, ProbeResult, ProbeSpec, make_physics
 
 __version__ = "0.1.0"
@@ -57,12 +60,50 @@ class _MovedModuleFinder:
 
 
 def _register() -> None:
+    """Register PlateRotation-v0. The env ends every episode itself (terminated: the agent stops, ``max_probes``
+    probes have run or ``max_sim_s`` is spent; never truncated), so the spec's ``max_episode_steps`` is the largest
+    ``max_probes`` it accepts: a TimeLimit that bounds every episode and never cuts one short."""
     from gymnasium.envs.registration import register, registry
 
     for env_id in ("PlateRotation-v0", "plate_env/PlateRotation-v0"):
         if env_id not in registry:
             register(id=env_id, entry_point="plate_env.env:PlateRotationEnv",
-                     vector_entry_point="plate_env.env.vector:PlateRotationVectorEnv")
+                     vector_entry_point="plate_env.env.vector:PlateRotationVectorEnv",
+                     max_episode_steps=MAX_PROBES_RANGE[1])
+
+
+class _RegisterWhenGymnasiumLoads:
+    """Registers the env ids (:func:`_register`) as soon as gymnasium is imported, so that ``import plate_env`` does
+    not import gymnasium (0.1-0.3 s the command line's fit, probe and sweep do not need) and ``gym.make`` still finds
+    them: a meta path finder that, for ``gymnasium`` only, returns the spec the other finders give with a loader
+    that runs gymnasium's own and then registers. Used only while gymnasium is not imported yet."""
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname != "gymnasium":
+            return None
+        with contextlib.suppress(ValueError):
+            sys.meta_path.remove(self)  # once: the spec below comes from the other finders
+        spec = importlib.util.find_spec(fullname)
+        if spec is not None and spec.loader is not None:
+            spec.loader = _RegisteringLoader(spec.loader)
+        return spec
+
+
+class _RegisteringLoader:
+    """gymnasium's loader, then :func:`_register` (every other attribute is the wrapped loader's)."""
+
+    def __init__(self, loader) -> None:
+        self._loader = loader
+
+    def create_module(self, spec):
+        return self._loader.create_module(spec)
+
+    def exec_module(self, module) -> None:
+        self._loader.exec_module(module)
+        _register()
+
+    def __getattr__(self, name: str):
+        return getattr(self._loader, name)
 
 
 def __getattr__(name: str):
@@ -74,7 +115,10 @@ def __getattr__(name: str):
 
 if not any(isinstance(f, _MovedModuleFinder) for f in sys.meta_path):
     sys.meta_path.append(_MovedModuleFinder())
-_register()
+if "gymnasium" in sys.modules:
+    _register()
+elif not any(isinstance(f, _RegisterWhenGymnasiumLoads) for f in sys.meta_path):
+    sys.meta_path.insert(0, _RegisterWhenGymnasiumLoads())
 
 __all__ = ["PHYSICS_NAMES", "PRESETS", "ObjectSpec", "PlateMotion", "ProbeResult", "ProbeSpec", "__version__",
            "make_physics", "preset"]

@@ -25,14 +25,16 @@ from plate_env.core.probe import MIN_PROBE_FREQ_HZ, WINDOW_RANGE_S
 from plate_env.core.setup import (
     AMP_RANGE_RAD,
     B_P_RANGE_M,
+    DEFAULT_MAX_PROBES,
     DIAMETER_RANGE_M,
     FREQ_RANGE_HZ,
     KNOWN_B_P_RANGE_M,
     MASS_RANGE_KG,
+    MAX_PROBES_RANGE,
     PAPER_SETUP,
 )
+from plate_env.core.streams import stdout_to_stderr
 from plate_env.core.units import format_omega_pi, parse_omega_n
-from plate_env.env.rotation import DEFAULT_MAX_PROBES
 from plate_env.identify.api import METHODS
 from plate_env.physics import PHYSICS_NAMES, ProbeSpec, make_physics
 from plate_env.physics.interface import refuse_early
@@ -233,7 +235,8 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--bp", type=_arg(checks.real, B_P_RANGE_M[0] * 1e3, B_P_RANGE_M[1] * 1e3, unit="mm"),
                    default=3.0, help="plate linear amplitude B_p, mm (known input: the physics runs it, the "
                    "forward model is conditioned on it)")
-    i.add_argument("--max-probes", type=_arg(checks.integer, 1, 500), default=DEFAULT_MAX_PROBES, help="probe budget")
+    i.add_argument("--max-probes", type=_arg(checks.integer, *MAX_PROBES_RANGE), default=DEFAULT_MAX_PROBES,
+                   help="probe budget")
     i.add_argument("--target", type=_arg(checks.real, 0.0, 1.0, open_lo=True, open_hi=True), default=None,
                    help="bayes only: stop at this relative posterior std of omega_n")
     _add_dt(i)
@@ -390,9 +393,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     for spec, agent in agents.items():
         what = agent if where == "inprocess" else functools.partial(load_agent, spec)
         try:
-            # what agents and libraries (Ray's worker lines) print while episodes run goes to stderr: stdout keeps
-            # the one result document
-            with contextlib.redirect_stdout(sys.stderr):
+            # what agents and libraries print while episodes run (Python's print, C code and child processes on
+            # fd 1, Ray's worker-death lines) goes to stderr: stdout keeps the one result document
+            with stdout_to_stderr():
                 runs.append(benchmark.evaluate(what, suite, label=spec, budgets_s=budgets, executor=args.executor,
                                                cache=cache, limit=args.limit, chunk=args.chunk,
                                                progress=not (args.json or args.no_progress)))
@@ -425,7 +428,8 @@ def _cmd_probe(args: argparse.Namespace) -> int:
     spec = _spec(args, obj, args.freq)
     physics = _physics(args)
     try:
-        result = physics.run([spec])[0]
+        with stdout_to_stderr():  # what the physics prints below Python: stdout is for the result
+            result = physics.run([spec])[0]
     finally:
         physics.close()
     if args.json:
@@ -470,18 +474,21 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         refuse_early(built, specs)
     finally:
         built.close()
-    try:
-        executor = make_executor(args.executor, backend)
-    except ImportError as exc:
-        raise CliError(str(exc)) from None
     interrupted = False
-    try:
-        results = run_cached(backend, specs, args.cache, chunk=args.chunk,
-                             progress=not (args.json or args.no_progress), desc="sweep", executor=executor)
-    except SweepInterrupted as exc:  # Ctrl-C: the finished probes are printed (and cached with --cache)
-        results, interrupted = exc.results, True
-    finally:
-        executor.close()
+    # what the physics, pool or Ray workers print (Ray's worker-death lines included) goes to stderr; the workers
+    # started here inherit that fd 1. The results are printed after the block.
+    with stdout_to_stderr():
+        try:
+            executor = make_executor(args.executor, backend)
+        except ImportError as exc:
+            raise CliError(str(exc)) from None
+        try:
+            results = run_cached(backend, specs, args.cache, chunk=args.chunk,
+                                 progress=not (args.json or args.no_progress), desc="sweep", executor=executor)
+        except SweepInterrupted as exc:  # Ctrl-C: the finished probes are printed (and cached with --cache)
+            results, interrupted = exc.results, True
+        finally:
+            executor.close()
     _print_sweep(args, obj, results, interrupted)
     if csv_out is not None and results:
         from plate_env.core.probe_table import ProbeTable, write_lab_csv
@@ -742,9 +749,11 @@ def _cmd_identify(args: argparse.Namespace) -> int:
               f"{p['sim_s']:.2f} s simulated  -> {state}", flush=True)
 
     try:
-        res = run_episode(env, agent, seed=args.seed,
-                          options={"omega_n": obj.omega_n, "alpha": obj.alpha, "mass": obj.mass},
-                          on_probe=None if args.json else show)
+        # with --json, what the agent and the physics print goes to stderr (the text mode shows probes as they end)
+        with stdout_to_stderr() if args.json else contextlib.nullcontext():
+            res = run_episode(env, agent, seed=args.seed,
+                              options={"omega_n": obj.omega_n, "alpha": obj.alpha, "mass": obj.mass},
+                              on_probe=None if args.json else show)
         plot_fm = _estimate_forward(env, agent) if plot is not None else None  # the plot's curve at the estimate
     except KeyboardInterrupt:  # the probes so far were shown as they finished; with --json, print them now
         done = env.unwrapped.table()
@@ -836,9 +845,28 @@ def _cmd_cache(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_build(args: argparse.Namespace) -> int:
+    """``plate-env build``: the builders of plate_env.build; ``policy`` trains with the agents' package, which only
+    the command line imports (the seam to the agents)."""
+    if args.artifact != "policy":
+        return run_build(args, args.argv[1:])
+    from plate_env.build.provenance import build_record
+    from plate_env_agents.train import train_policy
+
+    meta = train_policy(args.out, build_record(args.argv[1:]), hyperparams=args.hyperparams, seed=args.seed,
+                        timesteps=args.timesteps, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
+                        eval_seed=args.eval_seed, threads=args.threads)
+    out, ev = Path(args.out), meta["eval"]
+    kept = (f"best eval reward {ev['best_reward']:.4f} at {ev['best_at_timesteps']} steps" if ev["curve"] else
+            "no evaluation ran: the last model")
+    print(f"trained {meta['timesteps']} steps in {meta['train_wall_s']:.0f} s (seed {meta['seed']}); {kept} -> {out}, "
+          f"{out.with_suffix('.npz')}, {out.with_suffix('.json')}")
+    return 0
+
+
 COMMANDS = {"probe": _cmd_probe, "sweep": _cmd_sweep, "fit": _cmd_fit, "identify": _cmd_identify,
             "bench": _cmd_bench, "calibrate": _cmd_calibrate, "cache": _cmd_cache,
-            "build": lambda args: run_build(args, args.argv[1:])}
+            "build": lambda args: _cmd_build(args)}
 
 
 #: A command-line token that is a negative value, not an option: "-10pi", "-1e-3", "-inf", "-.5".

@@ -70,7 +70,7 @@ def test_deterministic_and_without_observation(agent):
 
 
 def test_missing_model_is_a_clear_error(tmp_path: Path):
-    with pytest.raises(FileNotFoundError, match="train_rl"):
+    with pytest.raises(FileNotFoundError, match="plate-env build policy"):
         make_agent("ppo", path=tmp_path / "none.zip")
 
 

@@ -131,3 +131,21 @@ def test_point_spline_equals_scipys_ndbspline_bit_for_bit():
         got = np.array([spline.at(p) for p in pts.tolist()])  # the Python path (before scipy is imported)
         assert np.array_equal(got, want)
         assert np.array_equal(spline(pts[:4]), want[:4]) and np.array_equal(spline(pts), want)  # scipy's
+
+
+def test_predict_point_gives_predicts_floats_at_one_point():
+    """The atlas physics' one-point evaluation (bases shared by the three splines) equals :meth:`Atlas.predict`
+    bit for bit, inside the grid and clipped outside it, at every amplitude."""
+    import math
+
+    from plate_env.surrogate.atlas import load_atlas_file
+
+    for name in ("atlas_tilelink_pointmass.npz", "atlas_tilelink_rigid_limit_f2.npz"):
+        atlas = load_atlas_file(name)
+        rng = np.random.default_rng(5)
+        for i in range(150):
+            f = rng.uniform(atlas.f_hz[0] - 1.0, atlas.f_hz[-1] + 1.0)
+            w = math.exp(rng.uniform(math.log(atlas.omega_n[0]) - 0.1, math.log(atlas.omega_n[-1]) + 0.1))
+            a = rng.uniform(atlas.alpha[0] - 0.05, atlas.alpha[-1] + 0.05)
+            amp = float(atlas.a_p_deg[i % atlas.a_p_deg.size])
+            assert atlas.predict_point(f, amp, w, a) == tuple(float(v) for v in atlas.predict(f, amp, w, a))

@@ -90,6 +90,18 @@ def test_unreadable_entry_is_rebuilt(atlas, tmp_path, monkeypatch):
     assert all(np.array_equal(x, y) for x, y in zip(good, again, strict=True))
 
 
+def test_keys_name_scipys_version_without_importing_scipy():
+    import subprocess
+    import sys
+
+    import scipy
+
+    code = ("import sys; from plate_env.core.cache import content_key, scipy_version; content_key('k', 1.0); "
+            "print(scipy_version(), 'scipy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == [scipy.__version__, "False"]
+
+
 def test_content_key_depends_on_every_byte():
     x = np.arange(5.0)
     y = x.copy()

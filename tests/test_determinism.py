@@ -1,8 +1,8 @@
 """Determinism across processes: the guarantee the README states, tested exactly.
 
-Same inputs and seed give bit-identical numbers (full yaw and centre traces of both tile-link models and of the
-point-mass kernel v2, singles and batches, and a seeded tile-link env episode's observations, rewards and infos
-without ``wall_s``) in
+Same inputs and seed give bit-identical numbers (full yaw and centre traces of both tile-link models, of the
+point-mass kernel v2 and of ``rigid_fast``, singles and batches, and a seeded tile-link env episode's observations,
+rewards and infos without ``wall_s``) in
 
 * a process that compiles the numba kernels (empty ``NUMBA_CACHE_DIR``) and one that loads them from the disk cache;
 * this process and another one.
@@ -38,7 +38,8 @@ def measure() -> dict:
 
     out: dict = {}
     objs = (pe.ObjectSpec.from_paper(10.0, 36.9), pe.ObjectSpec.from_paper(23.0, 45.0))
-    for model, settle_s, measure_s in (("pointmass", 0.5, 1.0), ("pointmass_v2", 0.5, 1.0), ("rigid", 0.1, 0.3)):
+    for model, settle_s, measure_s in (("pointmass", 0.5, 1.0), ("pointmass_v2", 0.5, 1.0), ("rigid", 0.1, 0.3),
+                                       ("rigid_fast", 0.1, 0.2)):
         specs = [ProbeSpec(o, pe.PlateMotion.from_paper(f, 3.0, 3.0), settle_s=settle_s, measure_s=measure_s,
                            record_trace=True) for o in objs for f in (18.0, 22.0)]
         physics = (pe.make_physics("tilelink", model="pointmass", kernel="v2") if model == "pointmass_v2"
@@ -79,7 +80,7 @@ def test_fresh_compile_and_disk_cache_give_identical_numbers(tmp_path):
     reloaded = _run(str(tmp_path))  # loads the cached code
     for key in compiled:
         assert compiled[key] == reloaded[key], key
-    for model in ("pointmass", "pointmass_v2", "rigid"):
+    for model in ("pointmass", "pointmass_v2", "rigid", "rigid_fast"):
         assert compiled[f"{model}_single"] == compiled[f"{model}_batch"]  # a batch repeats its single runs
 
 

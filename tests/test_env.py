@@ -293,3 +293,32 @@ def test_env_resets_keep_rss_flat():
     grown = _rss_bytes() - before
     env.close()
     assert grown < 8 * 2 ** 20, f"RSS grew {grown / 2 ** 20:.1f} MiB over 1000 resets"
+
+
+def test_the_spec_bounds_every_episode_and_cuts_none_short():
+    """Issue 28 item 22: the registered spec's max_episode_steps is the largest max_probes the env accepts, so a
+    TimeLimit bounds every episode and never truncates one the env would end itself; a smaller limit passed to
+    gym.make or gym.make_vec truncates at it in both."""
+    from plate_env.core.setup import MAX_PROBES_RANGE
+
+    assert gym.spec("PlateRotation-v0").max_episode_steps == MAX_PROBES_RANGE[1] == 500
+    with pytest.raises(ValueError, match="max_probes"):
+        PlateRotationEnv(physics="atlas", max_probes=MAX_PROBES_RANGE[1] + 1)
+    go = np.array([0.0, 0.0, 0.0, -1.0], dtype=np.float32)  # probe, never stop
+    for limit, (steps, term, trunc) in ((None, (6, True, False)), (4, (4, False, True))):
+        env = gym.make("PlateRotation-v0", physics="atlas", max_probes=6,
+                       **({} if limit is None else {"max_episode_steps": limit}))
+        env.reset(seed=0)
+        n, done = 0, (False, False)
+        while not any(done):
+            *_, te, tr, _ = env.step(go)
+            n, done = n + 1, (te, tr)
+        assert (n, *done) == (steps, term, trunc)
+        env.close()
+        vec = gym.make_vec("PlateRotation-v0", num_envs=2, vectorization_mode="vector_entry_point", physics="atlas",
+                           max_probes=6, **({} if limit is None else {"max_episode_steps": limit}))
+        vec.reset(seed=0)
+        for _ in range(steps):
+            _, _, te, tr, _ = vec.step(np.tile(go, (2, 1)))
+        assert (te.tolist(), tr.tolist()) == ([term] * 2, [trunc] * 2), limit
+        vec.close()

@@ -16,9 +16,26 @@ def test_import_is_light():
     import subprocess
     import sys
 
-    code = "import sys, plate_env; print(any(m in sys.modules for m in ('numba', 'pybullet', 'torch', 'matplotlib')))"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.strip() == "False"
+    heavy = ('numba', 'pybullet', 'torch', 'matplotlib', 'gymnasium', 'scipy.stats', 'scipy.signal', 'scipy.spatial')
+    for module in ("plate_env", "plate_env.cli"):  # the command line's start-up too (plate-env fit needs none)
+        code = f"import sys, {module}; print([m for m in {heavy!r} if m in sys.modules])"
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+        assert out.strip() == "[]", module
+
+
+@pytest.mark.parametrize("first", ["plate_env", "gymnasium"])
+def test_env_ids_are_registered_whichever_is_imported_first(first):
+    """``import plate_env`` does not import gymnasium; the ids are registered when gymnasium loads (or at once when
+    it is already loaded), and gym.make finds them."""
+    import subprocess
+    import sys
+
+    second = "gymnasium" if first == "plate_env" else "plate_env"
+    code = (f"import sys, {first}; before = 'gymnasium' in sys.modules; import {second}; import gymnasium as gym\n"
+            "env = gym.make('PlateRotation-v0', physics='atlas'); env.reset(seed=0)\n"
+            "print(before, 'plate_env/PlateRotation-v0' in gym.registry, type(env.unwrapped).__name__)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == [str(first == "gymnasium"), "True", "PlateRotationEnv"]
 
 
 @pytest.mark.parametrize("text, value", [("10pi", 10 * math.pi), ("3.5π", 3.5 * math.pi), ("pi", math.pi),

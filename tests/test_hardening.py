@@ -319,15 +319,24 @@ def test_item15_fit_options_the_method_ignores_are_refused(tmp_path, capsys, arg
 
 
 # ------------------------------------------------------------------------------------------- 16-17: parsers
-def test_item16_bench_json_is_strict_json():
+def test_item16_bench_json_is_strict_json(capsys):
+    from plate_env.cli import main
+
+    def strict(text):
+        def refuse(name):
+            raise ValueError(f"non-standard JSON constant {name}")
+
+        return json.loads(text, parse_constant=refuse)
+
+    # the grid agent's short episode ends with no estimate: its error is not a number (main 284a76f: Infinity)
+    assert main(["bench", "--suite", "atlas-v0", "--agent", "grid", "--limit", "1", "--no-cache", "--no-progress",
+                 "--json"]) == 0
+    board = strict(capsys.readouterr().out)
+    assert board["non_finite"], board  # what was not a number is named
     from plate_env.cli import strict_json
 
     text = strict_json({"summaries": {"grid": {"p90_error": math.inf, "median_error": 0.1}}, "x": [math.nan, 1.0]})
-
-    def refuse(name):
-        raise ValueError(f"non-standard JSON constant {name}")
-
-    d = json.loads(text, parse_constant=refuse)
+    d = strict(text)
     assert d["summaries"]["grid"] == {"p90_error": None, "median_error": 0.1} and d["x"] == [None, 1.0]
     assert d["non_finite"] == ["summaries.grid.p90_error", "x[0]"]
 
@@ -373,6 +382,8 @@ def test_item20_an_error_says_each_reason_once(tmp_path, capsys):
     csv.write_text("f_p_hz,omega_b_deg_s\n20,100\n25,200\n30,100\n")
     assert main(["fit", str(csv), "--amp", "3", "--mass-g", "100"]) == 2
     err = capsys.readouterr().err
+    parts = [part.strip() for part in err.split(";")]
+    assert len(parts) == len(set(parts)), err  # no reason twice, whatever its wording (main: one sentence 11 times)
     assert err.count("plate-env build atlas") == 1 and err.count("\n") == 1 and len(err) < 700, err
 
 
@@ -445,9 +456,11 @@ def test_item18_a_model_zip_never_gets_its_pickled_code_run(tmp_path):
                              ":serialized:": base64.b64encode(pickle.dumps(Evil())).decode(),
                              "__init__": "<function ActorCriticPolicy.__init__ at 0x0>"}
 
-    agent = PPOAgent(_doctored_zip(tmp_path, add_evil), deterministic=False)
-    agent.model  # noqa: B018 - loads through SB3
-    assert not marker.exists()  # SB3 alone would have unpickled the policy class and run Evil
+    try:
+        agent = PPOAgent(_doctored_zip(tmp_path, add_evil), deterministic=False)
+        agent.model  # noqa: B018 - loads through SB3
+    finally:  # SB3 alone unpickles the policy class and runs Evil (main 284a76f: then fails on the int it returned)
+        assert not marker.exists(), "the zip's pickled code ran"
     with pytest.raises(ValueError, match="stores a pickled 'surprise'"):
         PPOAgent(_doctored_zip(tmp_path, lambda d: d.update(surprise=d["policy_class"])), deterministic=False)
 
@@ -607,6 +620,74 @@ def test_item14_17_what_an_agent_prints_during_the_bench_goes_to_stderr(tmp_path
     out, err = capsys.readouterr()
     json.loads(out)  # one document, nothing else
     assert "chatty agent" in err
+
+
+#: A plug-in agent whose output bypasses Python's sys.stdout: a write on file descriptor 1 and C's printf (buffered
+#: in C's stdio while fd 1 is a pipe or file, flushed later).
+CHATTY_BELOW_PYTHON = ("import ctypes\nimport os\n\nfrom plate_env_agents.grid import GridAgent\n\n\n"
+                       "class A(GridAgent):\n    def next_probe(self, history, obs=None):\n"
+                       "        os.write(1, b'fd1 from the agent\\n')\n"
+                       "        ctypes.CDLL(None).printf(b'printf from the agent\\n')\n"
+                       "        return super().next_probe(history, obs)\n")
+
+
+def _strict(out: str):
+    def refuse(name):
+        raise ValueError(f"non-standard JSON constant {name}")
+
+    return json.loads(out, parse_constant=refuse)
+
+
+@pytest.mark.parametrize("command", ["bench", "identify"])
+def test_item17_writes_below_python_during_an_agent_run_go_to_stderr(tmp_path, capfd, monkeypatch, command):
+    """fd-level output (C code, an agent's os.write(1, ...), child processes) during the agents' runs lands on
+    stderr; stdout is one strict JSON document. Before: bench redirected Python's sys.stdout only, identify nothing."""
+    from plate_env.cli import main
+
+    (tmp_path / "ag.py").write_text(CHATTY_BELOW_PYTHON)
+    if command == "bench":
+        argv = ["bench", "--suite", "atlas-v0", "--agent", f"{tmp_path / 'ag.py'}:A", "--limit", "1", "--no-cache",
+                "--no-progress", "--json"]
+    else:  # identify takes the shipped agents: the grid agent made as chatty
+        import ctypes
+        import os
+
+        import plate_env_agents.grid as grid
+
+        real = grid.GridAgent.next_probe
+
+        def chatty(self, history, obs=None):
+            os.write(1, b"fd1 from the agent\n")
+            ctypes.CDLL(None).printf(b"printf from the agent\n")
+            return real(self, history, obs)
+
+        monkeypatch.setattr(grid.GridAgent, "next_probe", chatty)
+        argv = ["identify", "--physics", "atlas", "--agent", "grid", "--omega-n", "10pi", "--alpha", "45", "--json"]
+    code = main(argv)
+    out, err = capfd.readouterr()
+    assert code in (0, 1)
+    _strict(out)  # one document, nothing else
+    assert "fd1 from the agent" in err and "printf from the agent" in err
+
+
+def test_item17_writes_below_python_during_a_sweep_go_to_stderr(capfd, monkeypatch):
+    """What the physics or its workers write on fd 1 during a sweep (here: the sweep runner itself) lands on stderr;
+    stdout is the result (--json: one strict JSON document). Before: the sweep redirected nothing."""
+    import os
+
+    from plate_env.cli import main
+    from plate_env.run import sweeps
+
+    real = sweeps.run_cached
+
+    def chatty(*args, **kwargs):
+        os.write(1, b"fd1 from the physics\n")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sweeps, "run_cached", chatty)
+    assert main(["sweep", "--physics", "atlas", "--freqs", "15,20", "--no-progress", "--json"]) == 0
+    out, err = capfd.readouterr()
+    assert len(_strict(out)["probes"]) == 2 and "fd1 from the physics" in err
 
 
 def test_item14_a_subnormal_frequency_step_is_refused_by_name(capsys):

@@ -19,7 +19,7 @@ from plate_env.cli import main
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify import lab_calibration_file as lcf
 from plate_env.identify.forward import ForwardModel, Member
-from plate_env.identify.lab_calibration import ScatterPrior, fit_lab, member_readings, predict
+from plate_env.identify.lab_calibration import SHAPE_SCALES, ScatterPrior, fit_lab, member_readings, predict
 from plate_env.surrogate.atlas import load_atlas_file
 from plate_env.surrogate.conditioning import KnownInputs
 
@@ -80,6 +80,42 @@ def test_k1_is_honest_and_wider_than_k5(rigid_source):
         widths[k] = np.median([(p.ci95[1] - p.ci95[0]) / w for p, w in zip(preds, truth[10:], strict=True)])
         assert np.mean([p.ci95[0] <= w <= p.ci95[1] for p, w in zip(preds, truth[10:], strict=True)]) >= 0.85
     assert widths[1] > widths[5]
+
+
+def test_shape_reading_normalises_the_amplitude_out(rigid_source):
+    """The shape-only reading (a study candidate) of a sweep scaled by one step of its amplitude grid is the reading
+    of the sweep itself, where the reading as measured moves by a large fraction of the log omega_n range."""
+    _, tables, _ = rigid_source
+    pm = load_atlas_file("atlas_tilelink_pointmass.npz")
+    fm = ForwardModel("pointmass only", (Member(pm, float(pm.provenance["sigma_model_deg_s"])),))
+    k = float(SHAPE_SCALES[4])
+    for t in tables[:2]:
+        scaled = ProbeTable.from_arrays(t.f_p_hz, t.a_p_deg, t.omega_b_deg_s * k, t.stderr_deg_s * k, t.unstable)
+
+        def mean(tab, **kw):
+            r = member_readings(fm, tab, **kw)
+            return float(r.prob[0] @ r.log_w)
+
+        plain = abs(mean(scaled) - mean(t))
+        shape = abs(mean(scaled, amplitude_scales=SHAPE_SCALES) - mean(t, amplitude_scales=SHAPE_SCALES))
+        assert plain > 0.1 and shape < 0.01 * plain
+
+
+def test_member_readings_only_reads_the_members_asked(rigid_source):
+    _, tables, _ = rigid_source
+    pm = load_atlas_file("atlas_tilelink_pointmass.npz")
+    m = Member(pm, float(pm.provenance["sigma_model_deg_s"]))
+    r = member_readings(ForwardModel("two", (m, m)), tables[0], only=[1])
+    assert list(r.available) == [False, True] and not np.isfinite(r.log_z[0])
+
+
+def test_slope_shrinkage_pulls_the_slope_to_one(rigid_source):
+    """A log-uniform slope prior lets five references move b well away from 1; a tight shrinkage prior holds it."""
+    truth, _, readings = rigid_source
+    b = {sd: fit_lab(readings[:5], np.log(truth[:5]), ["pointmass"], lcf.SCATTER_PRIOR, slope=True,
+                     slope_log_sd=sd).summary()["b_mean"] for sd in (None, 0.01)}
+    assert abs(b[None] - 1) > 0.1
+    assert abs(b[0.01] - 1) < 0.01
 
 
 def test_fit_lab_refuses_no_references():

@@ -60,6 +60,8 @@ def test_a_regular_wheel_holds_the_agents_under_their_namespace(tmp_path):
     (wheel,) = tmp_path.glob("plate_env-*.whl")
     names = zipfile.ZipFile(wheel).namelist()
     assert "plate_env_agents/models/ppo_plate.zip" in names and "plate_env_agents/models/ppo_plate.npz" in names
+    assert "plate_env_agents/hyperparams/ppo.yml" in names  # what plate-env build policy trains from
+    assert "plate_env_agents/models/bayes_design_discrepancy.json" in names
     assert "plate_env/data/suites/tilelink-v0.json" in names and "plate_env/data/forward_models.json" in names
     assert not any(n.startswith("agents/") for n in names)
     target = tmp_path / "site"
@@ -68,13 +70,15 @@ def test_a_regular_wheel_holds_the_agents_under_their_namespace(tmp_path):
     code = ("import importlib.util, plate_env_agents\n"
             "from plate_env.bench import evaluate\n"
             "assert importlib.util.find_spec('agents') is None\n"
+            "from plate_env_agents.train import hyperparams_file\n"
             "run = evaluate(plate_env_agents.load_agent('ppo'), 'atlas-v0', limit=1)\n"
             f"print(plate_env_agents.__file__.startswith({str(target)!r}), "
+            f"str(hyperparams_file()).startswith({str(target)!r}), "
             "plate_env_agents.load_agent('ppo').backend)\n")
     done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
                           env={**os.environ, "PYTHONPATH": str(target)})
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["True", "numpy"]  # the installed copy, its package data, no source tree
+    assert done.stdout.split() == ["True", "True", "numpy"]  # the installed copy, its package data, no source tree
 
 
 def test_the_old_benchmark_path_imports_the_bench_layer_with_a_warning():

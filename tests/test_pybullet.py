@@ -28,6 +28,28 @@ def test_mesh_equal_area_inertia() -> None:
     assert m.n_nodes == 100
 
 
+def test_mesh_triangles_are_scipys_delaunay_and_a_warm_process_imports_no_scipy_spatial(tmp_path) -> None:
+    """The sheet's triangles come from the disk cache once computed (scipy.spatial costs 1-2 s of import on a loaded
+    machine): the same simplices as ``Delaunay``, and a second process builds the mesh without importing it."""
+    import os
+    import subprocess
+    import sys
+
+    from scipy.spatial import Delaunay
+
+    from plate_env.physics.pybullet_sheet.mesh import delaunay_triangles, sunflower_points
+
+    pts = sunflower_points(91, 0.04)
+    assert np.array_equal(delaunay_triangles(pts), Delaunay(pts).simplices)
+    code = ("import sys; from plate_env.physics.pybullet_sheet.mesh import make_sheet; "
+            "m = make_sheet(91, 0.08, 0.002); print(int(m.tets.sum()), 'scipy.spatial' in sys.modules)")
+    env = dict(os.environ, PLATE_ENV_CACHE_DIR=str(tmp_path))
+    runs = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout
+            .split() for _ in range(2)]
+    assert runs[0] == [runs[1][0], "True"] and runs[1][1] == "False"
+    assert runs[0][0] == str(int(make_sheet(91, 0.08, 0.002).tets.sum()))
+
+
 @pytest.mark.parametrize("omega_pi", [5.0, 33.0])
 def test_built_omega_n_within_5_percent(omega_pi: float) -> None:
     obj = pe.ObjectSpec.from_paper(omega_pi, 36.9)

@@ -69,6 +69,32 @@ def _running_chunk_pids() -> list[int]:
     return pids
 
 
+def test_a_ray_sweep_with_json_keeps_stdout_one_document_when_a_worker_dies(capfd):
+    """Issue 28 item 17: `plate-env sweep --executor ray --json` whose Ray worker is killed mid-chunk prints strict
+    JSON only on stdout, and Ray's worker-death line (which its driver thread prints to sys.stdout) on stderr.
+    The sweep starts (and ends) its own Ray session, so this test runs first in the module, before the fixture's."""
+    import json
+
+    import ray
+
+    from plate_env.cli import main
+
+    if ray.is_initialized():
+        pytest.skip("needs a Ray session of the sweep's own (runs first in this module)")
+
+    def refuse(name):
+        raise ValueError(f"non-standard JSON constant {name}")
+
+    argv = ["sweep", "--physics", "tilelink", "--object", "cheese", "--freqs", "14,16,18,20", "--settle", "0.2",
+            "--measure", "30", "--chunk", "2", "--executor", "ray", "--no-progress", "--json"]
+    code, killed = run_killing_one(_running_chunk_pids, lambda: main(argv))
+    out, err = capfd.readouterr()
+    assert killed, "no running chunk was found to kill"
+    assert code == 0
+    assert len(json.loads(out, parse_constant=refuse)["probes"]) == 4  # one document, nothing else
+    assert "worker died" in err
+
+
 def test_ray_gives_the_local_results_bit_for_bit(ray_executor):
     specs = short_specs(6, measure_s=1.0)
     local = run_cached(POINTMASS, specs, None, chunk=2, progress=False)  # the local default: in-process

@@ -12,6 +12,8 @@
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
 import re
 import shlex
 import subprocess
@@ -84,10 +86,18 @@ def check_command(argv: list[str]) -> None:
                 assert (ROOT / a.split(":")[0]).exists(), a
     elif argv[0] == "python" and argv[1] != "-m":
         assert (ROOT / argv[1]).exists(), f"{argv[1]} does not exist"
-    elif argv[0] == "python" and argv[1:3] == ["-m", "rl_zoo3.train"]:
-        conf = argv[argv.index("--conf-file") + 1]
-        assert (ROOT / conf).exists(), conf
-        assert argv[argv.index("--env") + 1] == "PlateRotation-v0"
+    elif argv[0] == "python" and argv[1] == "-m" and argv[2] in ("rl_zoo3.train", "rl_zoo3.enjoy"):
+        env_id = argv[argv.index("--env") + 1]
+        assert env_id == "PlateRotation-v0", env_id
+        if "--conf-file" in argv:  # a file, or a module whose ``hyperparams`` has the env's entry (rl-zoo3 reads both)
+            conf = argv[argv.index("--conf-file") + 1]
+            if not (ROOT / conf).exists():
+                try:
+                    found = importlib.util.find_spec(conf) is not None
+                except (ImportError, ValueError):  # a path-like name: its "parent package" does not import
+                    found = False
+                assert found, f"--conf-file {conf}: no such file or module"
+                assert env_id in importlib.import_module(conf).hyperparams, conf
     elif argv[0] == "pip":
         for a in argv:
             m = re.fullmatch(r"\.\[(?P<extras>[\w,]+)\]", a)
@@ -119,6 +129,9 @@ def test_command_checker_can_fail():
         check_command(["pip", "install", "-c", "constraints.txt", "-e", ".[test,nosuchextra]"])
     with pytest.raises(AssertionError):
         check_command(["python", "experiments/no_such_script.py"])
+    with pytest.raises(AssertionError):
+        check_command(["python", "-m", "rl_zoo3.train", "--algo", "ppo", "--env", "PlateRotation-v0", "--conf-file",
+                       "experiments/hyperparams/ppo.yml"])  # the old place of the hyperparameters
     with pytest.raises(AssertionError):
         check_command(["plate-env", "fit", "examples/cheese_sweep.csv", "--amp", "3", "--forward", "tilelink/nobody"])
 

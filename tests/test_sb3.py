@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 pytest.importorskip("stable_baselines3")
 
@@ -108,20 +107,17 @@ RL_ZOO_KEYS = {"n_envs", "n_timesteps", "policy", "policy_kwargs", "env_kwargs",
 
 
 def test_hyperparameters_are_rl_zoo3_compatible_and_every_env_setting_is_an_env_argument():
-    import sys
+    from plate_env_agents import train
 
-    sys.path.insert(0, str(ROOT / "experiments"))
-    import train_rl
-
-    entry = yaml.safe_load((ROOT / "experiments" / "hyperparams" / "ppo.yml").read_text())["PlateRotation-v0"]
+    entry = train.load_hyperparams()  # the installed plate_env_agents/hyperparams/ppo.yml
     ppo_args = set(inspect.signature(PPO.__init__).parameters)
     assert set(entry) <= RL_ZOO_KEYS | ppo_args, set(entry) - RL_ZOO_KEYS - ppo_args
-    kw = train_rl.env_kwargs_of(entry)
+    kw = train.env_kwargs_of(entry)
     env = PlateRotationEnv(**kw)  # constructible as gym.make would: no physics swap
     assert env.physics.rho == 0.9 and env.physics.corr_hz == 2.0 and env.max_probes == 30
     env.close()
-    assert train_rl.policy_kwargs_of(entry["policy_kwargs"]) == {"net_arch": [64, 64], "log_std_init": -0.5}
-    src = (ROOT / "experiments" / "train_rl.py").read_text()
+    assert train.policy_kwargs_of(entry["policy_kwargs"]) == {"net_arch": [64, 64], "log_std_init": -0.5}
+    src = (ROOT / "agents" / "train.py").read_text()
     assert "make_sb3_vec_env" in src and not re.search(r"\.physics\s*=", src)  # public API only
 
 

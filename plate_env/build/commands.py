@@ -1,5 +1,7 @@
-"""``plate-env build suite|atlas|forward-models``: rebuild a shipped artifact from the installed package. Every
-artifact written records the command, the package version and the git commit (:mod:`plate_env.build.provenance`)."""
+"""``plate-env build suite|atlas|forward-models|calibration|design-discrepancy|policy``: rebuild a shipped artifact
+from the installed package. Every artifact written records the command, the package version and the git commit
+(:mod:`plate_env.build.provenance`). ``policy`` trains with the agents' package (``plate_env_agents.train``), which
+only the command line may import: :mod:`plate_env.cli` runs it."""
 
 from __future__ import annotations
 
@@ -9,13 +11,13 @@ from collections.abc import Sequence
 from plate_env.run.executor import add_executor_argument
 
 #: What ``plate-env build`` can rebuild.
-ARTIFACTS = ("suite", "atlas", "forward-models")
+ARTIFACTS = ("suite", "atlas", "forward-models", "calibration", "design-discrepancy", "policy")
 
 
 def add_build_parser(sub) -> None:
     """The ``build`` command and its artifacts on the CLI's subparsers ``sub``."""
-    b = sub.add_parser("build", help="rebuild a shipped artifact (suite, atlas, forward-models) from the installed "
-                       "package")
+    b = sub.add_parser("build", help="rebuild a shipped artifact (suite, atlas, forward-models, calibration, "
+                       "design-discrepancy, policy) from the installed package")
     kinds = b.add_subparsers(dest="artifact", required=True)
     s = kinds.add_parser("suite", help="write an evaluation suite exactly as shipped (plate_env/data/suites)")
     s.add_argument("name", help="the suite (atlas-v0, tilelink-v0, pybullet-v0)")
@@ -55,6 +57,37 @@ def add_build_parser(sub) -> None:
                    "forward_models_lomo.json)")
     f.add_argument("--out", required=True, help="the registry to write; the build record goes to "
                    "OUT.provenance.json")
+    c = kinds.add_parser("calibration", help="write a shipped calibration (paper: plate_env/data/"
+                         "calibration_paper.json, --calibration paper) from the paper's published numbers")
+    c.add_argument("name", help="the calibration (paper)")
+    c.add_argument("--out", required=True, help="the calibration to write; the build record goes to "
+                   "OUT.provenance.json")
+    d = kinds.add_parser("design-discrepancy", help="write the bayes agent's design discrepancy "
+                         "(plate_env_agents/models/bayes_design_discrepancy.json) from the fit of "
+                         "experiments/forward_models.py's within stage")
+    d.add_argument("--within", required=True, help="the within stage's numbers (experiments/results/"
+                   "forward_models_within.json)")
+    d.add_argument("--out", required=True, help="the file to write; the build record goes to OUT.provenance.json")
+    add_policy_parser(kinds)
+
+
+def add_policy_parser(kinds) -> None:
+    """``plate-env build policy``: train a PPO policy from the hyperparameters installed with the agents."""
+    p = kinds.add_parser("policy", help="train the shipped PPO policy (plate_env_agents/models/ppo_plate.zip) from "
+                         "the hyperparameters installed with the package (plate_env_agents/hyperparams/ppo.yml)")
+    p.add_argument("--out", required=True, help="the model zip to write; its numpy export goes to OUT.npz and its "
+                   "metadata (command, version, commit, seed, hyperparameters, evaluation curve) to OUT.json")
+    p.add_argument("--seed", type=int, default=0, help="seed of the training envs, the policy and SB3")
+    p.add_argument("--timesteps", type=int, default=None, help="steps to train (default: the file's n_timesteps; "
+                   "SB3 finishes the rollout it is in, so a multiple of n_steps * n_envs runs)")
+    p.add_argument("--hyperparams", default=None, help="an rl-zoo3 hyperparameter file (default: the installed "
+                   "plate_env_agents/hyperparams/ppo.yml)")
+    p.add_argument("--eval-freq", type=int, default=8192, help="score the deterministic policy every this many "
+                   "steps (all envs) and keep the best model; 0: no evaluation, keep the last model")
+    p.add_argument("--eval-episodes", type=int, default=100, help="episodes per evaluation")
+    p.add_argument("--eval-seed", type=int, default=10_000, help="seed of the evaluation objects (the same at "
+                   "every evaluation)")
+    p.add_argument("--threads", type=int, default=1, help="torch threads")
 
 
 def _pairs(values: Sequence[str], what: str) -> dict[str, str]:
@@ -125,6 +158,22 @@ def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
         reg = build_forward_models(args.within, args.lomo, args.out, record)
         print(f"wrote {args.out} ({', '.join(reg)}) and {args.out}.provenance.json")
         return 0
+    if args.artifact == "calibration":
+        from plate_env.build.calibration import build_calibration
+
+        body = build_calibration(args.name, args.out, record)
+        print(f"wrote {args.out} (calibration {args.name}, content sha256 {body['content_sha256']}) and "
+              f"{args.out}.provenance.json")
+        return 0
+    if args.artifact == "design-discrepancy":
+        from plate_env.build.design_discrepancy import build_design_discrepancy
+
+        content = build_design_discrepancy(args.within, args.out, record)
+        print(f"wrote {args.out} ({content['design_discrepancy']}) and {args.out}.provenance.json")
+        return 0
+    if args.artifact == "policy":
+        raise ValueError("plate-env build policy runs from the command line (plate_env.cli), which may import the "
+                         "agents")
     from plate_env.build.atlas import build_atlas
 
     atlas, out, lines = build_atlas(atlas_job(args, record))
@@ -133,4 +182,4 @@ def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
     return 0
 
 
-__all__: Sequence[str] = ("ARTIFACTS", "add_build_parser", "atlas_job", "run_build")
+__all__: Sequence[str] = ("ARTIFACTS", "add_build_parser", "add_policy_parser", "atlas_job", "run_build")

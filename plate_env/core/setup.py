@@ -33,6 +33,9 @@ AMP_RANGE_RAD = (-math.radians(45.0), math.radians(45.0))
 B_P_RANGE_M = (-0.05, 0.05)
 #: Allowed magnitude of a lab's known B_p, m (closed).
 KNOWN_B_P_RANGE_M = (1e-4, B_P_RANGE_M[1])
+#: Allowed probe budget of an episode (PlateRotation-v0's ``max_probes``, ``identify --max-probes``; closed). Its upper
+#: end is the registered env spec's ``max_episode_steps``: a bound the env never reaches before it terminates itself.
+MAX_PROBES_RANGE = (1, 500)
 
 
 @dataclass(frozen=True)
@@ -57,6 +60,10 @@ class PaperSetup:
         return round(self.diameter * 1e3, 9)
 
 
+#: The probe budget of an episode when none is given: the one default of the env, the CLI, the suites and the
+#: shipped policy (the observation's length, 7 * max_probes + 2, depends on it). Here, not in the env, so that the
+#: command line reads it without importing gymnasium.
+DEFAULT_MAX_PROBES = 30
 #: The paper's set-up: B_p 3 mm, the 13.6 g, 80 mm cheese slice.
 PAPER_SETUP = PaperSetup()
 

@@ -2,9 +2,35 @@
 :mod:`~plate_env.env.rotation`), its vector and Stable-Baselines3 forms (:mod:`~plate_env.env.vector`,
 :mod:`~plate_env.env.sb3`), the observation/action codec (:mod:`~plate_env.env.codec`), rendering
 (:mod:`~plate_env.env.render`), the probing-agent protocol (:mod:`~plate_env.env.protocol`) and the one episode loop
-(:mod:`~plate_env.env.episode`)."""
+(:mod:`~plate_env.env.episode`).
 
-from plate_env.env.codec import N_FEATURES, Codec
-from plate_env.env.rotation import DEFAULT_MAX_PROBES, RESET_OPTIONS, PlateRotationEnv
+The names below load their module on first use, so that importing :mod:`~plate_env.env.protocol` (the agents, the
+command line) does not import gymnasium."""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from plate_env.env.codec import N_FEATURES, Codec
+    from plate_env.env.rotation import DEFAULT_MAX_PROBES, RESET_OPTIONS, PlateRotationEnv
+
+#: Public name -> the module that defines it.
+_LAZY = {"N_FEATURES": "plate_env.env.codec", "Codec": "plate_env.env.codec",
+         "DEFAULT_MAX_PROBES": "plate_env.env.rotation", "RESET_OPTIONS": "plate_env.env.rotation",
+         "PlateRotationEnv": "plate_env.env.rotation"}
 
 __all__ = ["DEFAULT_MAX_PROBES", "N_FEATURES", "RESET_OPTIONS", "Codec", "PlateRotationEnv"]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'plate_env.env' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

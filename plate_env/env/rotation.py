@@ -25,8 +25,8 @@ from plate_env.core.probe import (
     ProbeSpec,
 )
 from plate_env.core.probe_table import ProbeTable
-from plate_env.core.setup import B_P_RANGE_M, FREQ_RANGE_HZ, PAPER_SETUP
-from plate_env.env.codec import ACTION_SIZE, Codec
+from plate_env.core.setup import B_P_RANGE_M, DEFAULT_MAX_PROBES, FREQ_RANGE_HZ, MAX_PROBES_RANGE, PAPER_SETUP
+from plate_env.env.codec import ACTION_SIZE, N_FEATURES, Codec
 from plate_env.identify.api import METHODS
 from plate_env.identify.estimate import Estimate
 from plate_env.physics import PHYSICS_NAMES, make_physics
@@ -34,9 +34,6 @@ from plate_env.physics.camera import camera_omega_b
 from plate_env.physics.interface import refuse_early
 from plate_env.surrogate.conditioning import KnownInputs
 
-#: The probe budget of an episode when none is given: the one default of the env, the CLI, the suites and the
-#: shipped policy (the observation's length, 7 * max_probes + 2, depends on it).
-DEFAULT_MAX_PROBES = 30
 #: Mass of the hidden object before ``mass_variation``, kg (the paper's cheese slice).
 MASS_KG = PAPER_SETUP.mass
 #: Keys ``reset(options=...)`` accepts: the hidden object's omega_n (rad/s), alpha (rad), mass (kg).
@@ -192,7 +189,7 @@ class PlateRotationEnv(gym.Env):
         f_band_hz = checks.pair("f_band_hz", f_band_hz, MIN_PROBE_FREQ_HZ, FREQ_RANGE_HZ[1], "Hz")
         amplitudes_deg = _amplitudes(amplitudes_deg)
         b_p_mm = checks.real("b_p_mm", b_p_mm, B_P_RANGE_M[0] * 1e3, B_P_RANGE_M[1] * 1e3, unit="mm")
-        max_probes = checks.integer("max_probes", max_probes, 1, 500)
+        max_probes = checks.integer("max_probes", max_probes, *MAX_PROBES_RANGE)
         if max_sim_s is not None:
             max_sim_s = checks.real("max_sim_s", max_sim_s, 0.0, 1e6, open_lo=True, unit="s")
         measure_range_s = checks.pair("measure_range_s", measure_range_s, 0.01, 60.0, "s")
@@ -249,6 +246,8 @@ class PlateRotationEnv(gym.Env):
         self._window = None
         self._renderer = None
         self._posterior = None  # the episode's PosteriorState (method atlas), or why there is none; built lazily
+        self._forward: dict = {}  # the shipped forward model per known inputs (loaded once per env)
+        self._obs_rows = np.zeros(self.codec.obs_dim, dtype=np.float32)  # the probes' rows, each written once
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -270,6 +269,7 @@ class PlateRotationEnv(gym.Env):
             self._refuse_unanswerable([obj], "reset option")
         self._obj = obj
         self._rows, self._results = [], []
+        self._obs_rows = np.zeros(self.codec.obs_dim, dtype=np.float32)
         self._sim_s = self._wall_s = 0.0
         self._done = False
         self._last = None
@@ -279,7 +279,10 @@ class PlateRotationEnv(gym.Env):
     def decode_action(self, action) -> tuple[bool, ProbeSpec | None]:
         """Check an action and turn it into (stop, probe). Raises ValueError naming a bad value (before any random
         draw: the placement of the probe is drawn only for a valid action)."""
-        a = self.check_action(action)
+        return self._decode(self.check_action(action))
+
+    def _decode(self, a: np.ndarray) -> tuple[bool, ProbeSpec | None]:
+        """:meth:`decode_action` of an action :meth:`check_action` returned."""
         if a[3] > 0 and self._rows:
             return True, None
         f, a_p, window = self.codec.decode(a)
@@ -299,10 +302,11 @@ class PlateRotationEnv(gym.Env):
             raise ValueError(f"action {action!r} is not an array of 4 real numbers in [-1, 1]") from None
         if a.shape != (4,):
             raise ValueError(f"action must have shape (4,), got {a.shape}: {action!r}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action {a.tolist()} contains NaN or inf; allowed: finite values in [-1, 1]")
-        if np.any(np.abs(a) > 1.0 + 1e-6):
-            raise ValueError(f"action {a.tolist()} is outside the allowed range [-1, 1]")
+        values = a.tolist()  # four Python floats: checked without numpy's per-call overhead
+        if not all(math.isfinite(x) for x in values):
+            raise ValueError(f"action {values} contains NaN or inf; allowed: finite values in [-1, 1]")
+        if any(abs(x) > 1.0 + 1e-6 for x in values):
+            raise ValueError(f"action {values} is outside the allowed range [-1, 1]")
         return np.clip(a, -1.0, 1.0)
 
     def encode_action(self, f_p_hz: float | None = None, a_p_deg: float | None = None,
@@ -321,15 +325,15 @@ class PlateRotationEnv(gym.Env):
 
     def prepare(self, action) -> tuple[bool, ProbeSpec | None]:
         """First half of a step: validate the action, decide stop or the probe to run (for batched vector envs)."""
-        self.check_step(action)
-        return self.decode_action(action)
+        return self._decode(self.check_step(action))
 
-    def check_step(self, action) -> None:
-        """Refuse a step before anything happens: a closed env, an episode not reset or over, a bad action."""
+    def check_step(self, action) -> np.ndarray:
+        """Refuse a step before anything happens: a closed env, an episode not reset or over, a bad action; the
+        checked action (:meth:`check_action`) otherwise."""
         self._check_open()
         if self._obj is None or self._done:
             raise RuntimeError("call reset() before step() (the episode is over)")
-        self.check_action(action)
+        return self.check_action(action)
 
     def finish(self, result: ProbeResult | None):
         """Second half of a step: record the probe (or stop), compute reward, termination and info."""
@@ -340,6 +344,9 @@ class PlateRotationEnv(gym.Env):
                 omega, se = 0.0, 0.0
             spec = result.spec
             self._rows.append((spec.motion.freq_hz, spec.motion.a_p_deg, omega, se, result.unstable, spec.measure_s))
+            k = len(self._rows) - 1
+            if k < self.max_probes:  # the observation's row of this probe (Codec.observation's, written once)
+                self._obs_rows[N_FEATURES * k: N_FEATURES * (k + 1)] = self.codec.row(*self._rows[k])
             self._results.append(result)
             self._sim_s += result.sim_s
             self._wall_s += result.wall_s
@@ -419,9 +426,13 @@ class PlateRotationEnv(gym.Env):
             from plate_env.identify.forward import load_forward_model
             from plate_env.identify.posterior_state import PosteriorState
 
+            known = self.known_inputs()
             try:
-                self._posterior = PosteriorState(load_forward_model(f"{self.source}/{self.model}",
-                                                                    self.known_inputs()))
+                if known not in self._forward:
+                    if len(self._forward) >= 8:  # objects of varied mass: keep the latest few
+                        self._forward.clear()
+                    self._forward[known] = load_forward_model(f"{self.source}/{self.model}", known)
+                self._posterior = PosteriorState(self._forward[known])
             except ValueError as exc:
                 self._posterior = str(exc)
         return self._posterior
@@ -434,8 +445,12 @@ class PlateRotationEnv(gym.Env):
         return KnownInputs(b_p=self.b_p_mm * 1e-3, mass=self._obj.mass, diameter=self._obj.diameter)
 
     def _obs(self) -> np.ndarray:
+        """``Codec.observation`` of the probes so far, from the rows written as each probe arrived."""
         sim_left = 1.0 - self._sim_s / self.max_sim_s if self.max_sim_s else 1.0
-        return self.codec.observation(self._rows, 1.0 - len(self._rows) / self.max_probes, sim_left)
+        obs = self._obs_rows.copy()
+        obs[-2] = 1.0 - len(self._rows) / self.max_probes
+        obs[-1] = sim_left
+        return np.clip(obs, -10.0, 10.0)
 
     def _info(self) -> dict[str, Any]:
         info: dict[str, Any] = {"omega_n_true": self._obj.omega_n if self._obj else None,
@@ -489,6 +504,7 @@ class PlateRotationEnv(gym.Env):
         state["_window"] = None
         state["_renderer"] = None
         state["_posterior"] = None  # rebuilt from the probes when needed
+        state["_forward"] = {}  # reloaded when needed
         return state
 
     def __setstate__(self, state):

@@ -13,12 +13,18 @@ from plate_env.env.rotation import PlateRotationEnv
 
 
 class PlateRotationVectorEnv(VectorEnv):
-    """``num_envs`` environments sharing one physics backend; each step's probes run in one batched call."""
+    """``num_envs`` environments sharing one physics backend; each step's probes run in one batched call.
+    ``max_episode_steps`` (the registered spec's, passed by ``gymnasium.make_vec``) truncates a sub-environment's
+    episode after that many steps, as ``gymnasium.make``'s TimeLimit does; None: the env's own ending only."""
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"]}
 
-    def __init__(self, num_envs: int = 2, **kwargs) -> None:
+    def __init__(self, num_envs: int = 2, max_episode_steps: int | None = None, **kwargs) -> None:
         num_envs = checks.integer("num_envs", num_envs, 1, 10_000)
+        if max_episode_steps is not None:
+            max_episode_steps = checks.integer("max_episode_steps", max_episode_steps, 1, 10**9)
+        self.max_episode_steps = max_episode_steps
+        self._elapsed = np.zeros(num_envs, dtype=np.int64)
         self.envs = [PlateRotationEnv(**kwargs) for _ in range(num_envs)]
         self.physics = self.envs[0].physics
         for env in self.envs[1:]:
@@ -48,6 +54,7 @@ class PlateRotationVectorEnv(VectorEnv):
             obs.append(o)
             infos = self._add_info(infos, info, i)
         self._autoreset[:] = False
+        self._elapsed[:] = 0
         self._obs = concatenate(self.single_observation_space, obs, self._obs)
         return self._obs.copy(), infos
 
@@ -61,8 +68,12 @@ class PlateRotationVectorEnv(VectorEnv):
         for i, (env, out) in enumerate(zip(self.envs, outcomes, strict=True)):
             if out is None:  # NEXT_STEP autoreset: this env ended on the previous step
                 o, info = env.reset()
+                self._elapsed[i] = 0
             else:
                 o, rewards[i], terms[i], truncs[i], info = out
+                self._elapsed[i] += 1
+                if self.max_episode_steps is not None and self._elapsed[i] >= self.max_episode_steps:
+                    truncs[i] = True
             obs.append(o)
             infos = self._add_info(infos, info, i)
         self._autoreset = terms | truncs

@@ -37,12 +37,19 @@ PAD_MAX_LOG = math.log(1000.0)
 @functools.lru_cache(maxsize=64)
 def pad_sigmas(nu: float) -> float:
     """How many discrepancy scales the grid reaches beyond the models' range for a discrepancy with ``nu`` degrees
-    of freedom (inf: normal)."""
+    of freedom (inf: normal). scipy's ``t.ppf`` computes the quantile once per machine (kept in the disk cache,
+    :mod:`plate_env.core.cache`: a fit does not import scipy.stats)."""
     if math.isinf(nu):
         return PAD_SIGMAS
-    from scipy.stats import t
+    from plate_env.core.cache import cached_arrays, content_key
 
-    return max(PAD_SIGMAS, float(t.ppf(0.995, nu)))
+    def build() -> dict[str, np.ndarray]:
+        from scipy.stats import t
+
+        return {"q": np.array(t.ppf(0.995, nu), dtype=float)}
+
+    q = cached_arrays("t-quantile", content_key("t-quantile", 0.995, float(nu)), build)["q"]
+    return max(PAD_SIGMAS, float(q))
 
 
 def pad_log(sigma: float, nu: float = math.inf, offset_sigma: float = 0.0, offset_nu: float = math.inf) -> float:

@@ -75,7 +75,7 @@ def blurred(ll: np.ndarray, blur_steps: float) -> np.ndarray:
     steps along log omega (axis -2)."""
     if blur_steps <= 0:
         return ll
-    from scipy.ndimage import gaussian_filter1d
+    from plate_env.core.filters import gaussian_filter1d  # scipy.ndimage's floats, without its import
 
     top = ll.max(axis=(-2, -1), keepdims=True)
     like = gaussian_filter1d(np.exp(ll - top), blur_steps, axis=-2, mode="nearest", truncate=4.0)
@@ -85,7 +85,8 @@ def blurred(ll: np.ndarray, blur_steps: float) -> np.ndarray:
 def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
     """Why a probe lies outside what a member's atlas describes (None if inside)."""
     atlas = member.atlas
-    if not np.any(np.isclose(atlas.a_p_deg, abs(a_p_deg), atol=1e-6)):
+    x = abs(float(a_p_deg))
+    if not any(abs(v - x) <= 1e-6 + 1e-5 * x for v in atlas.a_p_deg.tolist()):  # np.isclose(atol=1e-6), in Python
         return f"A_p = {a_p_deg:g} deg is not in {member.label}'s atlas ({[float(x) for x in atlas.a_p_deg]} deg)"
     if not (atlas.f_hz[0] - 1e-9 <= f_hz <= atlas.f_hz[-1] + 1e-9):
         return f"f_p = {f_hz:g} Hz is outside {member.label}'s atlas ({atlas.f_hz[0]:g}-{atlas.f_hz[-1]:g} Hz)"
@@ -93,11 +94,12 @@ def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
 
 
 def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
-    from scipy.interpolate import CubicSpline, PPoly
-
     from plate_env.core.cache import cached_arrays, content_key
+    from plate_env.core.filters import ppoly_eval
 
     def build() -> dict[str, np.ndarray]:
+        from scipy.interpolate import CubicSpline
+
         ff, ww, aa = np.meshgrid(atlas.f_hz, w, a, indexing="ij")
         arrays = atlas.predict(ff, a_p_deg, ww, aa)
         return {name: CubicSpline(atlas.f_hz, arr, axis=0).c for name, arr in zip(RESPONSE, arrays, strict=True)}
@@ -108,11 +110,11 @@ def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
                          note=f"computing the {atlas.physics}/{atlas.model} atlas's response at A_p = {a_p_deg:g} deg "
                               f"on a {len(w)} x {len(a)} posterior grid")
     x = np.asarray(atlas.f_hz, float)
-    interps = [PPoly.construct_fast(coef[name], x, True, 0) for name in RESPONSE]  # CubicSpline's own polynomials
+    coefs = [np.asarray(coef[name]) for name in RESPONSE]  # CubicSpline's own polynomials, as its PPoly evaluates
     inside = _covered(atlas, w, a)
 
     def at(f_hz: float):
-        m, s, p = (it(float(f_hz)) for it in interps)
+        m, s, p = (ppoly_eval(c, x, float(f_hz)) for c in coefs)
         return m, np.maximum(s, 0.0), np.clip(p, 0.0, 1.0)
 
     return at, inside
@@ -202,25 +204,30 @@ def _smooth_log_omega(prob: np.ndarray, sigma_steps: float, nu: float = math.inf
     """Convolve along axis 0 (a uniform log-omega grid) with a normal of scale ``sigma_steps`` grid steps, or a
     Student-t with ``nu`` degrees of freedom; mass pushed beyond the grid is lost (the grid reaches
     ``forward.pad_sigmas`` scales beyond the models' range)."""
-    from scipy.ndimage import gaussian_filter1d
+    from plate_env.core.filters import fftconvolve_same, gaussian_filter1d  # scipy's floats, without its import
 
     if math.isinf(nu):
         return gaussian_filter1d(prob, sigma_steps, axis=0, mode="constant", cval=0.0, truncate=5.0)
-    from scipy.signal import fftconvolve
-
     half = min(int(math.ceil(sigma_steps * 40)), prob.shape[0])
     kernel = _t_kernel(half, sigma_steps, nu).reshape((-1,) + (1,) * (prob.ndim - 1))
-    return np.maximum(fftconvolve(prob, kernel, mode="same", axes=0), 0.0)  # zero beyond the grid, as above
+    return np.maximum(fftconvolve_same(prob, kernel), 0.0)  # zero beyond the grid, as above
 
 
 @functools.lru_cache(maxsize=64)
 def _t_kernel(half: int, sigma_steps: float, nu: float) -> np.ndarray:
     """The normalised Student-t kernel of :func:`_smooth_log_omega` on ``2 half + 1`` grid steps (read-only: it is
-    shared by every call with these arguments)."""
-    from scipy.stats import t
+    shared by every call with these arguments). scipy's ``t.pdf`` computes it once per machine: the kernel is kept
+    in the disk cache (:mod:`plate_env.core.cache`), so a fit does not import scipy.stats."""
+    from plate_env.core.cache import cached_arrays, content_key
 
-    kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
-    kernel = kernel / kernel.sum()
+    def build() -> dict[str, np.ndarray]:
+        from scipy.stats import t
+
+        kernel = t.pdf(np.arange(-half, half + 1) / sigma_steps, nu)
+        return {"kernel": kernel / kernel.sum()}
+
+    kernel = np.array(cached_arrays("t-kernel", content_key("t-kernel", int(half), float(sigma_steps), float(nu)),
+                                    build)["kernel"])
     kernel.flags.writeable = False
     return kernel
 
@@ -306,14 +313,39 @@ def _surprise(z2: np.ndarray, stable: np.ndarray, p: np.ndarray, nu: float = NU)
     return (np.where(stable, 0.5 * (nu + 1.0) * np.log1p(z2 / nu), 0.0) + flag).sum(-1)
 
 
-def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> PredictiveCheck:
+@functools.lru_cache(maxsize=32)
+def _check_replicates(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The check's replicate draws for ``n`` probes from its fixed seed (they depend on nothing else): the uniforms
+    that decide each replicate probe's stability (CHECK_DRAWS, n) and the Student-t surprise of its residual,
+    ``0.5 (NU + 1) log1p(z^2 / NU)`` as :func:`_surprise` computes it (read-only: shared by every check of n
+    probes)."""
+    rng = np.random.default_rng(CHECK_SEED)
+    u = rng.random((CHECK_DRAWS, n))
+    z2 = rng.standard_t(NU, (CHECK_DRAWS, n)) ** 2
+    part = 0.5 * (NU + 1.0) * np.log1p(z2 / NU)
+    u.flags.writeable = False
+    part.flags.writeable = False
+    return u, part
+
+
+def respond(member: Member, a_p_deg: float, w: np.ndarray, a: np.ndarray, f_hz: float):
+    """``(mean, spread, p_unstable)`` of a member's atlas on the grid ``w`` x ``a`` at one probe
+    (:func:`member_response` at ``f_hz``). The check's default; a
+    :class:`~plate_env.identify.posterior_state.PosteriorState` passes its own, which reuses the arrays its updates
+    computed."""
+    return member_response(member, a_p_deg, w, a)[0](f_hz)
+
+
+def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
+                     response: Callable = respond) -> PredictiveCheck:
     """A posterior predictive check of the probes under ``fm`` (see :class:`PredictiveCheck`). Pure: replicates
     come from a fixed seed.
 
     The object checked is the one of the member of highest posterior weight that explains the probes best (least
     surprise over its whole grid); replicated sweeps are drawn from that object. Checking at a fitted point makes
     the test conservative for honest data (a fit explains its own data better than the truth does), so a failure
-    is data the model cannot produce, not bad luck."""
+    is data the model cannot produce, not bad luck. ``response``: :func:`respond` or a function that gives the same
+    arrays."""
     i = int(np.argmax(post.member_weights)) if post.member_weights else 0
     m = fm.members[i]
     w, a = post.omega_n, post.alpha
@@ -326,11 +358,16 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> Pr
     if n == 0 or sub.size == 0:
         return PredictiveCheck(statistic=0.0, p_value=1.0, n_probes=0, member=m.label, worst=None)
 
-    def terms(k: int):
-        amp = float(table.a_p_deg[k])
-        mk, sk, pk = member_response(m, amp, sub, a)[0](float(table.f_p_hz[k]))
-        sd = np.sqrt(sk ** 2 + float(table.stderr_deg_s[k]) ** 2 + m.sigma_model ** 2)
-        return (float(table.omega_b_deg_s[k]) - mk) / sd, smoothed_p(pk, m.atlas.n_repeats)
+    known: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+    def terms(k: int):  # a probe's z-scores and instability shares over the grid (once per distinct probe)
+        key = probe_key(table, k)
+        if key not in known:
+            amp = float(table.a_p_deg[k])
+            mk, sk, pk = response(m, amp, sub, a, float(table.f_p_hz[k]))
+            sd = np.sqrt(sk ** 2 + float(table.stderr_deg_s[k]) ** 2 + m.sigma_model ** 2)
+            known[key] = (float(table.omega_b_deg_s[k]) - mk) / sd, smoothed_p(pk, m.atlas.n_repeats)
+        return known[key]
 
     # a member with a blur trusts no probe to pin omega_n finer than it: each probe's surprise is its least within
     # CHECK_BLURS blur scales along log omega_n (none for a member without blur)
@@ -343,9 +380,9 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> Pr
         z, pu = terms(ks[0])
         one = _surprise((z ** 2)[..., None], np.array([not table.unstable[ks[0]]]), pu[..., None])
         if reach > 0:
-            from scipy.ndimage import minimum_filter1d
+            from plate_env.core.filters import minimum_filter1d  # scipy.ndimage's, without its import
 
-            one = minimum_filter1d(one, 2 * reach + 1, axis=0, mode="nearest")
+            one = minimum_filter1d(one, 2 * reach + 1, axis=0)
         total += len(ks) * one
     total = np.where(member_coverage(m, sub, a), total, np.inf)
     c = np.unravel_index(int(np.argmin(total)), total.shape)
@@ -364,10 +401,10 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior) -> Pr
         p_c.append(best[key][1])
     z, p_c = np.array(z), np.array(p_c)
     t_obs = float(_surprise(z ** 2, stable, p_c))
-    rng = np.random.default_rng(CHECK_SEED)
-    stable_rep = rng.random((CHECK_DRAWS, n)) >= p_c
-    z2_rep = rng.standard_t(NU, (CHECK_DRAWS, n)) ** 2
-    t_rep = _surprise(z2_rep, stable_rep, np.broadcast_to(p_c, (CHECK_DRAWS, n)))
+    u_rep, t_part = _check_replicates(n)
+    stable_rep = u_rep >= p_c
+    # _surprise(z2_rep, stable_rep, p_c) term by term: its t part drawn once, the flags' logs taken per probe
+    t_rep = np.where(stable_rep, t_part + -np.log(1.0 - p_c), -np.log(p_c)).sum(-1)
     p_value = float((1 + np.count_nonzero(t_rep >= t_obs)) / (CHECK_DRAWS + 1))
     worst = None
     if np.any(stable):
@@ -405,10 +442,10 @@ def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:
 
 
 def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
-                   make_posterior: Callable[[], Posterior]) -> Estimate:
+                   make_posterior: Callable[[], Posterior], response: Callable = respond) -> Estimate:
     """The estimate of :func:`identify_atlas` from the probes (counted, and read by the predictive check), the
     reasons of probes no member describes (``orphans``: then no estimate) and the posterior (``make_posterior()``,
-    called only when it is needed)."""
+    called only when it is needed); ``response`` is passed to :func:`predictive_check`."""
     base = {"method": "atlas", "n_probes": len(table), "n_unstable": int(table.unstable.sum()), "forward": fm.name}
     if len(table) == 0:
         return Estimate(ok=False, reason="no probes", **base)
@@ -417,7 +454,7 @@ def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
                         f"that describes them (not {fm.name!r})", **base)
     post = make_posterior()
     om, al = post.omega(), post.alpha_marginal()
-    check = predictive_check(fm, table, post)
+    check = predictive_check(fm, table, post, response)
     fields = dict(omega_n=om.value, omega_n_stderr=om.stderr, omega_n_ci68=om.ci68, omega_n_ci95=om.ci95,
                   alpha=al.value, alpha_stderr=al.stderr, posterior=post, check=check, **base)
     side = post.edge()

@@ -112,19 +112,40 @@ def reading_grid(fm: ForwardModel, n_omega: int = 321) -> np.ndarray:
     return np.linspace(math.log(lo), math.log(hi), n_omega)
 
 
-def member_readings(fm: ForwardModel, table: ProbeTable, n_omega: int = 321, n_alpha: int = 16) -> Readings:
-    """Each member's posterior over log omega_n for the probes ``table`` (see the module docstring, step 1)."""
+#: Candidate (c), a shape-only reading: the data's amplitude scaled by each of these factors (log-uniform prior,
+#: marginalised), so that the hump's height, where the physics disagree by 13-16 %, no longer decides omega_n.
+SHAPE_SCALES = np.round(np.geomspace(1 / 1.5, 1.5, 7), 6)
+
+
+def member_readings(fm: ForwardModel, table: ProbeTable, n_omega: int = 321, n_alpha: int = 16,
+                    amplitude_scales: Sequence[float] | None = None, only: Sequence[int] | None = None) -> Readings:
+    """Each member's posterior over log omega_n for the probes ``table`` (see the module docstring, step 1).
+
+    ``amplitude_scales``: read the data as ``omega_B / k`` for each k (equal prior weights) and marginalise k,
+    a likelihood of the curve's shape with its amplitude normalised out (:data:`SHAPE_SCALES`); None: as measured.
+    ``only``: the indices of the members to read (the others get no reading); None: all."""
     from plate_env.identify.inference import STEP_FLOOR, _smooth_log_omega, member_coverage, member_log_likelihood
 
     log_w = reading_grid(fm, n_omega)
     w = np.exp(log_w)
     a = np.linspace(*fm.alpha_range, n_alpha)
+    scales = [1.0] if amplitude_scales is None else [float(k) for k in amplitude_scales]
+    tables = [table if k == 1.0 else ProbeTable.from_arrays(table.f_p_hz, table.a_p_deg, table.omega_b_deg_s / k,
+                                                           table.stderr_deg_s / k, table.unstable) for k in scales]
     out = np.zeros((len(fm.members), n_omega))
     log_z = np.full(len(fm.members), -np.inf)
     for i, m in enumerate(fm.members):
-        ll, skipped = member_log_likelihood(m, table, w, a)
-        if skipped == len(table):
+        if only is not None and i not in only:
             continue
+        lls = []
+        for t in tables:
+            ll, skipped = member_log_likelihood(m, t, w, a)
+            if skipped == len(t):
+                break
+            lls.append(ll)
+        if not lls:
+            continue
+        ll = np.logaddexp.reduce(np.stack(lls), axis=0) - math.log(len(lls))
         inside = member_coverage(m, w, a)
         ll = np.where(inside, ll, -np.inf)
         top = float(ll.max())
@@ -209,10 +230,12 @@ def _log_mix(prob: np.ndarray, log_w: np.ndarray, y: float, a: np.ndarray, bs: n
 
 
 def fit_lab(refs: Sequence[Readings], log_truth: Sequence[float], members: Sequence[str], prior: ScatterPrior,
-            slope: bool | None = False, keep_mass: float = 1e-4) -> LabPosterior:
+            slope: bool | None = False, keep_mass: float = 1e-4, slope_log_sd: float | None = None) -> LabPosterior:
     """The posterior over the lab-level unknowns from K references (their readings and known log omega_n).
 
-    ``slope``: fit b (True; None: from :data:`SLOPE_MIN_REFS` references on; default False: b = 1). A member that
+    ``slope``: fit b (True; None: from :data:`SLOPE_MIN_REFS` references on; default False: b = 1); its prior on
+    :data:`SLOPE_GRID` is log-uniform, or, with ``slope_log_sd``, normal in log b around 1 with that sd (shrinkage
+    toward b = 1). A member that
     cannot read every reference (it describes none of a reference's probes) gets no weight. ValueError without
     references."""
     y = np.asarray(log_truth, dtype=float)
@@ -222,7 +245,11 @@ def fit_lab(refs: Sequence[Readings], log_truth: Sequence[float], members: Seque
     slope = (y.size >= SLOPE_MIN_REFS) if slope is None else slope
     c = float(y.mean())
     bs = SLOPE_GRID if slope else np.array([1.0])
-    log_b_prior = -math.log(bs.size)
+    if slope_log_sd is None or bs.size == 1:
+        log_b_prior = np.full(bs.size, -math.log(bs.size))
+    else:
+        log_b_prior = -0.5 * (np.log(bs) / slope_log_sd) ** 2
+        log_b_prior -= np.logaddexp.reduce(log_b_prior)
     lsig = prior.log_weights(SIGMA_GRID)
     n_m = refs[0].prob.shape[0]
     pts, lp_list = [], []
@@ -233,7 +260,7 @@ def fit_lab(refs: Sequence[Readings], log_truth: Sequence[float], members: Seque
                      for r, yk in zip(refs, y, strict=True))
         ia, isg = np.meshgrid(np.arange(OFFSET_GRID.size), np.arange(SIGMA_GRID.size), indexing="ij")
         for j, b in enumerate(bs):
-            lp = ll_all[j] + lsig[None, :] + log_b_prior
+            lp = ll_all[j] + lsig[None, :] + log_b_prior[j]
             pts.append(np.stack([np.full(ia.size, m), OFFSET_GRID[ia.ravel()], np.full(ia.size, b),
                                  SIGMA_GRID[isg.ravel()]], axis=1))
             lp_list.append(lp.ravel())

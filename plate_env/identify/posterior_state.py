@@ -72,6 +72,7 @@ class PosteriorState:
         self.n_unstable = 0
         self._orphans: set[str] = set()
         self._probes: list[tuple[float, float, float, float, bool]] = []  # for the estimate's predictive check
+        self._responses: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # this state's, for the check
 
     # ------------------------------------------------------------------ updates
     def add(self, f_p_hz: float, a_p_deg: float, omega_b_deg_s: float, stderr_deg_s: float, unstable: bool) -> None:
@@ -92,12 +93,24 @@ class PosteriorState:
             sub = self.omega[rows]
             if sub.size == 0:
                 continue
-            mu, s, p = member_response(m, amp, sub, self.alpha)[0](f)
+            mu, s, p = self.respond(m, amp, sub, self.alpha, f)
             ll = blurred(probe_log_likelihood(mu, s, p, float(omega_b_deg_s), float(stderr_deg_s), bool(unstable),
                                               m.sigma_model, m.atlas.n_repeats), self.blur_steps[i])
             self.log_likes[i][rows] += ll
             if common:
                 self._common[i][rows] += ll
+
+    def respond(self, member, a_p_deg: float, w: np.ndarray, a: np.ndarray, f_hz: float):
+        """:func:`plate_env.identify.inference.respond`, the arrays of this state's probes kept (read-only): the
+        estimate's predictive check reads the same responses the updates computed (one evaluation per probe)."""
+        key = (id(member), abs(float(a_p_deg)), float(f_hz), len(w), float(w[0]), float(w[-1]), len(a), float(a[0]),
+               float(a[-1]))
+        if key not in self._responses:
+            out = member_response(member, a_p_deg, w, a)[0](f_hz)
+            for x in out:
+                x.flags.writeable = False
+            self._responses[key] = out
+        return self._responses[key]
 
     def add_table(self, table: ProbeTable, start: int = 0) -> None:
         """Add the probes ``table[start:]`` in order."""
@@ -140,7 +153,7 @@ class PosteriorState:
         a probe lies outside every member's atlas (named, not dropped)."""
         cols = list(zip(*self._probes, strict=True)) if self._probes else [[]] * 5
         table = ProbeTable.from_arrays(*cols)
-        return atlas_estimate(self.fm, table, sorted(self._orphans), self.posterior)
+        return atlas_estimate(self.fm, table, sorted(self._orphans), self.posterior, self.respond)
 
     def prefix_estimates(self, table: ProbeTable) -> tuple[Estimate, ...]:
         """Add ``table``'s probes one by one; the estimate after each (an episode's estimates as it went)."""

@@ -140,8 +140,8 @@ class AtlasPhysics:
             t0 = time.perf_counter()
             rng = self._rng(spec)
             a_p_deg = spec.motion.a_p_deg
-            mean, spread, p_un = (float(x) for x in self.atlas_for(spec).predict(spec.motion.freq_hz, abs(a_p_deg),
-                                                                                 spec.obj.omega_n, spec.obj.alpha))
+            mean, spread, p_un = self.atlas_for(spec).predict_point(spec.motion.freq_hz, abs(a_p_deg),
+                                                                    spec.obj.omega_n, spec.obj.alpha)
             sign = 1.0 if spec.motion.amp_rad * spec.motion.b_p >= 0 else -1.0
             period = 1.0 / spec.motion.freq_hz
             unstable = bool(self._uniform(spec, rng) < p_un)

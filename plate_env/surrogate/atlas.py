@@ -100,7 +100,7 @@ class Atlas:
         (rad/s), alpha (rad), b_p (m), mass (kg), diameter (m); quantities not given are not checked. The atlas is
         sign-normalised, so the signs of a_p_deg and b_p do not matter (a zero does).
         """
-        axes, levels, fixed = self.axes(), self.levels(), self.fixed()
+        axes, levels, fixed = self.cached(("domain",), self._domain)
         unknown = [k for k in point if k not in axes and k not in levels and k not in fixed]
         if unknown:
             raise ValueError(f"Atlas.outside: unknown quantities {unknown}; known: "
@@ -110,16 +110,22 @@ class Atlas:
         for name, value in point.items():
             x = abs(float(value)) if name in SIGN_NORMALISED else float(value)
             if name in axes:
-                lo, hi = float(np.min(axes[name])), float(np.max(axes[name]))
+                lo, hi = axes[name]
                 if not (math.isfinite(x) and lo - 1e-9 * abs(lo) <= x <= hi + 1e-9 * abs(hi)):
                     out[name] = f"{_show(name, value)} is outside {where}'s range {_show(name, lo, hi)}"
             elif name in levels:
-                if not np.any(np.isclose(levels[name], x, rtol=0.0, atol=1e-6)):
+                if not any(abs(v - x) <= 1e-6 for v in levels[name].tolist()):  # np.isclose(rtol=0, atol=1e-6)
                     held = ", ".join(_show(name, v, unit=False) for v in np.asarray(levels[name]))
                     out[name] = f"{_show(name, value)} is not tabulated in {where} (it holds {held} {_UNITS[name][1]})"
             elif not (math.isfinite(x) and math.isclose(x, fixed[name], rel_tol=1e-6)):
                 out[name] = f"{_show(name, value)}: {where} was built at {_show(name, fixed[name])} only"
         return out
+
+    def _domain(self) -> tuple[dict[str, tuple[float, float]], dict[str, np.ndarray], dict[str, float]]:
+        """:meth:`outside`'s view of the domain, computed once per atlas: each axis's (min, max), the levels, the
+        fixed values."""
+        axes = {k: (float(np.min(v)), float(np.max(v))) for k, v in self.axes().items()}
+        return axes, self.levels(), self.fixed()
 
     def _interpolator(self, kind: str, amp: int) -> Callable[[np.ndarray], np.ndarray]:
         """Tensor-product cubic spline of ``kind`` (mean, spread, p_unstable) over (f_p, log omega_n, alpha)."""
@@ -140,6 +146,21 @@ class Atlas:
         spread = np.maximum(self._interpolator("spread", amp)(flat), 0.0).reshape(f.shape)
         pu = np.clip(self._interpolator("p_unstable", amp)(flat), 0.0, 1.0).reshape(f.shape)
         return mean, spread, pu
+
+    def predict_point(self, f_hz: float, a_p_deg: float, omega_n: float, alpha: float) -> tuple[float, float, float]:
+        """:meth:`predict` at one point, as floats (the same values): the three splines share their knots, so the
+        B-spline bases are computed once (a probe of the atlas physics needs one point)."""
+        amp = self.amp_index(a_p_deg)
+        splines = [self._interpolator(kind, amp) for kind in RESPONSE_KINDS]
+        if not all(sp.same_knots(splines[0]) for sp in splines[1:]):
+            return tuple(float(v) for v in self.predict(f_hz, a_p_deg, omega_n, alpha))
+        # np.clip's values (NaN stays NaN), without its per-call cost; the log is numpy's, as predict takes it
+        x = [_clip(float(f_hz), float(self.f_hz[0]), float(self.f_hz[-1])),
+             _clip(float(np.log(np.asarray(omega_n, float))), math.log(self.omega_n[0]), math.log(self.omega_n[-1])),
+             _clip(float(alpha), float(self.alpha[0]), float(self.alpha[-1]))]
+        bases = splines[0].bases(x)
+        mean, spread, pu = (sp.contract(*bases) for sp in splines)
+        return mean, max(spread, 0.0), min(max(pu, 0.0), 1.0)
 
     def resampled(self, omega_n: np.ndarray) -> Atlas:
         """This atlas on other omega_n nodes (rad/s, increasing, within its range): mean, spread and instability
@@ -249,13 +270,25 @@ class _TensorSpline:
 
     def at(self, x: list[float]) -> float:
         """The spline at one point (inside the knots' base interval in every dimension)."""
-        if self._c_list is None:
-            self._c_list = self.c.tolist()
+        return self.contract(*self.bases(x))
+
+    def same_knots(self, other: _TensorSpline) -> bool:
+        """Whether ``other`` has this spline's knots and degrees (then :meth:`bases` serve both)."""
+        return self.k == other.k and self._t_lists == other._t_lists
+
+    def bases(self, x: list[float]) -> tuple[list[list[float]], list[int]]:
+        """The non-zero B-splines at ``x`` per dimension and the first coefficient index they multiply."""
         bases, starts = [], []
         for td, kd, xd in zip(self._t_lists, self.k, x, strict=True):
             ell = _find_interval(td, kd, xd)
             bases.append(_de_boor(td, xd, kd, ell))
             starts.append(ell - kd)
+        return bases, starts
+
+    def contract(self, bases: list[list[float]], starts: list[int]) -> float:
+        """The coefficients summed with the bases' products, term by term in scipy's order."""
+        if self._c_list is None:
+            self._c_list = self.c.tolist()
         (b0, b1, b2), (s0, s1, s2) = bases, starts
         c = self._c_list
         out = 0.0
@@ -267,6 +300,11 @@ class _TensorSpline:
                 for i2, w2 in enumerate(b2):
                     out += line[s2 + i2] * (f01 * w2)
         return out
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    """``float(np.clip(x, lo, hi))`` for one float (NaN stays NaN)."""
+    return min(max(x, lo), hi) if x == x else x
 
 
 def _find_interval(t: list[float], k: int, x: float) -> int:
@@ -300,6 +338,8 @@ def _de_boor(t: list[float], x: float, k: int, ell: int) -> list[float]:
     return h
 
 
+#: The quantities an atlas interpolates, in :meth:`Atlas.predict`'s order.
+RESPONSE_KINDS = ("mean", "spread", "p_unstable")
 #: Spread (deg/s) given to grid points where no repeat was stable.
 FILL_SPREAD = 150.0
 

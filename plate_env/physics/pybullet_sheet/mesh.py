@@ -17,7 +17,6 @@ import tempfile
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import Delaunay
 
 GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 
@@ -68,13 +67,27 @@ def sunflower_points(n: int, radius: float, rim_factor: float = 2.0) -> np.ndarr
     return radius * np.concatenate([inner, rim])
 
 
+def delaunay_triangles(pts: np.ndarray) -> np.ndarray:
+    """``scipy.spatial.Delaunay(pts).simplices`` (a copy), kept in the disk cache (:mod:`plate_env.core.cache`,
+    keyed by the points' bytes): a process that builds a scene does not import scipy.spatial (1-2 s on a loaded
+    machine) once the triangulation of these points has been computed on the machine."""
+    from plate_env.core.cache import cached_arrays, content_key
+
+    def build() -> dict[str, np.ndarray]:
+        from scipy.spatial import Delaunay
+
+        return {"simplices": Delaunay(pts).simplices.copy()}
+
+    return np.array(cached_arrays("delaunay", content_key("delaunay", np.asarray(pts, float)), build)["simplices"])
+
+
 def make_sheet(n_layer: int, diameter: float, thickness: float) -> SheetMesh:
     """Build the two-layer sheet: ``n_layer`` points per layer, disc ``diameter`` (m), layer gap ``thickness`` (m)."""
     if not (diameter > 0 and thickness > 0):
         raise ValueError("diameter and thickness must be positive")
     radius = diameter / 2.0
     pts = sunflower_points(n_layer, radius)
-    tri = Delaunay(pts).simplices.copy()
+    tri = delaunay_triangles(pts)
     # drop slivers on the rim (Delaunay can make near-zero-area triangles between rim points)
     a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
     area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))

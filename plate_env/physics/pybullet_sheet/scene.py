@@ -12,10 +12,8 @@ pybullet is imported lazily, only when a client is opened.
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import math
 import os
-import sys
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -36,6 +34,7 @@ from plate_env.core.probe import (
     ProbeSpec,
     YawTrace,
 )
+from plate_env.core.streams import fd_redirected
 from plate_env.physics.measure import measure_omega_b
 from plate_env.physics.pybullet_sheet.mesh import SheetMesh, make_sheet, write_temp_vtk
 
@@ -95,16 +94,11 @@ def quiet_stdout() -> Iterator[None]:
     prints its mesh counts ("Nodes: 182 ...") there, and stdout is for results (``--json``). C's stdio buffer is
     flushed before fd 1 is restored, so nothing surfaces later. Output of other threads during the block is lost
     too; the blocks are single PyBullet calls."""
-    sys.stdout.flush()
-    saved = os.dup(1)
     devnull = os.open(os.devnull, os.O_WRONLY)
     try:
-        os.dup2(devnull, 1)
-        yield
+        with fd_redirected(1, devnull):
+            yield
     finally:
-        ctypes.CDLL(None).fflush(None)
-        os.dup2(saved, 1)
-        os.close(saved)
         os.close(devnull)
 
 
