@@ -4,6 +4,7 @@ its command, version and commit."""
 from __future__ import annotations
 
 import json
+import os
 from importlib import resources
 from pathlib import Path
 
@@ -58,6 +59,13 @@ def test_build_atlas_rebuilds_nodes_of_the_shipped_atlas_bit_for_bit(tmp_path):
     assert main(["build", *argv]) == 0
     built = Atlas.load(out)
     _record_ok(built.provenance["built_by"], argv)
+    # the machine, which decides the last bits a rebuild elsewhere may not repeat (experiments/results/atlas_rebuild.md)
+    from llvmlite import binding as ll
+
+    ll.initialize_native_target()
+    host = built.provenance["machine"]
+    assert host["numba_cpu"] == (os.environ.get("NUMBA_CPU_NAME") or ll.get_host_cpu_name()) != ""
+    assert host["blas"] and all(b.split()[0] in ("openblas", "mkl", "blis") for b in host["blas"])
     ix = np.ix_([list(shipped.f_hz).index(f) for f in built.f_hz], [list(shipped.a_p_deg).index(a) for a in
                 built.a_p_deg], [int(np.argmin(abs(shipped.omega_n - w))) for w in built.omega_n],
                 [int(np.argmin(abs(shipped.alpha - a))) for a in built.alpha])

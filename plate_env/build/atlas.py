@@ -30,6 +30,7 @@ import numpy as np
 from plate_env.bench.reporting import median_p90
 from plate_env.build import eval_sets as bm
 from plate_env.build.atlas_grid import AtlasGrid, result_arrays, run_grid
+from plate_env.build.provenance import machine
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import ObjectSpec
 from plate_env.core.probe import PLACEMENT_STD_M, ProbeSpec
@@ -176,7 +177,7 @@ def _provenance(job: AtlasJob, grid: AtlasGrid, backend: BackendSpec, physics) -
                           f"sequence_len {getattr(physics, 'sequence_len', None)}"),
             "plate_env": package_version(), "date": datetime.date.today().isoformat(),
             **({"select": {k: list(v) for k, v in job.select.items()}} if job.select else {}),
-            "built_by": job.record}
+            "built_by": job.record, "machine": machine()}
 
 
 def _finish(job, grid, backend, physics, model, tag, res, executor, t0) -> tuple[Atlas, str, list[str]]:

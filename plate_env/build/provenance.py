@@ -3,6 +3,8 @@ version and the git commit of the source it was built from (None when the packag
 
 from __future__ import annotations
 
+import os
+import platform
 import shlex
 import subprocess
 from collections.abc import Sequence
@@ -32,4 +34,22 @@ def build_record(argv: Sequence[str]) -> dict:
             "commit": git_commit()}
 
 
-__all__: Sequence[str] = ("build_record", "git_commit")
+def machine() -> dict:
+    """What decides the last bits of a simulated number besides the code: the CPU numba compiles for
+    (``NUMBA_CPU_NAME`` when set, else the host's, as LLVM names it), the BLAS kernels OpenBLAS picked (its core
+    type; ``OPENBLAS_CORETYPE`` overrides it) and the library versions. A rebuild on another CPU can differ at
+    nodes that amplify last-bit differences (``experiments/results/atlas_rebuild.md``); setting these two variables
+    to the recorded values (and an empty ``NUMBA_CACHE_DIR``) reproduced a shipped atlas bit for bit there."""
+    import numba
+    import numpy as np
+    import threadpoolctl
+    from llvmlite import binding as ll
+
+    ll.initialize_native_target()
+    blas = sorted(f"{i.get('internal_api')} {i.get('version')} {i.get('architecture')}"
+            for i in threadpoolctl.threadpool_info() if i.get("user_api") == "blas")
+    return {"numba_cpu": os.environ.get("NUMBA_CPU_NAME") or ll.get_host_cpu_name(), "blas": blas,
+            "machine": platform.machine(), "numpy": np.__version__, "numba": numba.__version__}
+
+
+__all__: Sequence[str] = ("build_record", "git_commit", "machine")
