@@ -270,6 +270,33 @@ def linreg(x, y) -> tuple[float, float, float]:
     return rp.linreg(np.asarray(x, float), np.asarray(y, float))
 
 
+#: The regression values of Eq. (10), Fig. 9 and Fig. 10 per placement.
+EQ10_KEYS = ("p1", "q1", "r2_f0", "r2_max", "f0_min", "f0_max")
+#: Eq. (10)'s line needs first-hump fits at this many distinct omega_n (of the paper's 4 objects): at one omega_n the
+#: line omega_n ~ f0 is flat by construction (p1 0, q1 = that omega_n, R^2 0/0), at two it is drawn through two
+#: clusters and its R^2 measures only their scatter; at three the line has a level it does not pass through by fiat.
+MIN_OMEGA_LEVELS = 3
+
+
+def eq10_regression(points: list[tuple[float, float, float]], n_objects: int) -> dict:
+    """Eq. (10) (omega_n = p1 f0 + q1, omega_n in pi rad/s), Fig. 9's R^2 (omega_Brmax ~ omega_n) and Fig. 10's f0
+    range from one placement's observed first-hump fits ``points`` = [(omega_n_pi, f0_hz, omega_Brmax_deg_s)].
+
+    Returns ``n_fit``, ``n_levels`` (distinct omega_n among the fits) and ``n_objects``, plus every ``EQ10_KEYS``
+    value when the fits span at least ``MIN_OMEGA_LEVELS`` omega_n; otherwise those keys are absent and ``why`` says
+    "n fits of m at k omega_n" (a fit at a single omega_n gave p1 0.00 +- 0.00 before this rule)."""
+    levels = len({round(w, 6) for w, _, _ in points})
+    out: dict = {"n_fit": len(points), "n_levels": levels, "n_objects": n_objects}
+    if levels < MIN_OMEGA_LEVELS:
+        out["why"] = (f"{len(points)} fits of {n_objects} at {levels} omega_n; the line needs fits at "
+                      f">= {MIN_OMEGA_LEVELS}")
+        return out
+    wn, f0, wm = (np.array([pt[i] for pt in points], float) for i in range(3))
+    p1, q1, r2f = linreg(f0, wn)
+    out.update(p1=p1, q1=q1, r2_f0=r2f, r2_max=linreg(wn, wm)[2], f0_min=float(f0.min()), f0_max=float(f0.max()))
+    return out
+
+
 def model_rows(model: str, cache_dir: Path) -> dict:
     """Every row of the table for one model (from the cache only)."""
     got = cached_sweeps(model, cache_dir)
@@ -321,32 +348,19 @@ def model_rows(model: str, cache_dir: Path) -> dict:
                 rows[f"table1_{a:g}deg_{w:g}pi"] = st
     # Eq. (10), Figs. 9 and 10: regressions over the 16 objects (4 omega_n x 4 alpha) per placement.
     for a in (3.0, 12.0):
-        per_p = {"p1": [], "q1": [], "r2_f0": [], "r2_max": [], "f0_min": [], "f0_max": [], "n_fit": []}
-        complete = 0
+        sws = [sweep_of(w, al, a) for w in rp.FIG8_OMEGAS_PI[a] for al in ALPHAS]
+        per_p = []
         for p in range(n_pl):
-            sws = [sweep_of(w, al, a) for w in rp.FIG8_OMEGAS_PI[a] for al in ALPHAS]
             if not all((s, p) in fits for s in sws):
                 continue
-            complete += 1
-            ok = [(s, fits[(s, p)]) for s in sws if fits[(s, p)].ok]
-            per_p["n_fit"].append(len(ok))
-            if len(ok) < 3:
-                for k in ("p1", "q1", "r2_f0", "r2_max", "f0_min", "f0_max"):
-                    per_p[k].append(None)
-                continue
-            wn = [s.omega_pi for s, _ in ok]
-            f0 = [f.f0 for _, f in ok]
-            p1, q1, r2f = linreg(f0, wn)
-            per_p["p1"].append(p1)
-            per_p["q1"].append(q1)
-            per_p["r2_f0"].append(r2f)
-            per_p["r2_max"].append(linreg(wn, [f.omega_max for _, f in ok])[2])
-            per_p["f0_min"].append(min(f0))
-            per_p["f0_max"].append(max(f0))
-        if complete:
-            for k in ("p1", "q1", "r2_f0", "r2_max", "f0_min", "f0_max"):
-                st = _stats(per_p[k])
-                st["objects_fitted"] = per_p["n_fit"]
+            per_p.append(eq10_regression([(s.omega_pi, fits[(s, p)].f0, fits[(s, p)].omega_max)
+                                          for s in sws if fits[(s, p)].ok], len(sws)))
+        if per_p:
+            for k in EQ10_KEYS:
+                st = _stats([r.get(k) for r in per_p])
+                st["objects_fitted"] = [r["n_fit"] for r in per_p]
+                st["omega_levels"] = [r["n_levels"] for r in per_p]
+                st["objects"] = len(sws)
                 rows[f"eq10_{a:g}deg_{k}"] = st
     # Section 5: which objects give a first-hump fit at 12 deg (alpha 36.9 deg), in a majority of placements.
     usable, missing = {}, []
@@ -463,7 +477,7 @@ def range_verdict(rows: dict, a: float) -> dict:
     lo, hi = FIG10_RANGE[a]
     smin, smax = rows.get(f"eq10_{a:g}deg_f0_min"), rows.get(f"eq10_{a:g}deg_f0_max")
     if not smin or not smax or smin["u"] is None or smax["u"] is None:
-        return {"paper": [lo, hi], "verdict": "no estimate"}
+        return {"paper": [lo, hi], "verdict": "no estimate", **({"why": eq10_no_estimate(smin)[12:-1]} if smin else {})}
     ok = abs(smin["value"] - lo) <= K * smin["u"] and abs(smax["value"] - hi) <= K * smax["u"]
     return {"paper": [lo, hi], "value": [smin["value"], smax["value"]], "u": [smin["u"], smax["u"]],
             "verdict": "agrees" if ok else "disagrees"}
@@ -525,18 +539,29 @@ def build(cache_dir: Path) -> dict:
             "atlas_crosscheck": {m: atlas_rows(m) for m in MODELS}}
 
 
+def eq10_no_estimate(c: dict) -> str:
+    """The cell of a regression row without an estimate: how many objects each placement fitted, at how many
+    omega_n."""
+    fits = ", ".join(str(n) for n in c["objects_fitted"])
+    levels = ", ".join(str(k) for k in c["omega_levels"])
+    return (f"no estimate (fits of {c['objects']} per placement: {fits}, at {levels} omega_n; the line needs "
+            f">= {MIN_OMEGA_LEVELS} omega_n)")
+
+
 def _cell(c: dict, digits: int) -> str:
     if c["verdict"] == "not run":
         return "not run"
-    if c.get("value") is None:
+    if c["verdict"] == "no estimate":  # never a bare number: the JSON keeps a single placement's value
+        if "objects_fitted" in c:
+            return eq10_no_estimate(c)
         why = ", ".join(sorted({r for r in c.get("fit_fail", []) if r}))[:60]
         extra = f"; {c['unstable']}/{c['placements_run']} unstable" if "unstable" in c else ""
-        return f"no estimate ({c['n']}/{c['of']} placements{extra}{'; ' + why if why else ''})"
+        return f"no estimate ({c['n']}/{c['of']} placements gave a value{extra}{'; ' + why if why else ''})"
     u = c.get("u")
     txt = f"{c['value']:.{digits}f}" + (f" ± {u:.{digits}f}" if u is not None else "")
     if c["n"] < c["of"]:
         txt += f" ({c['n']}/{c['of']})"
-    mark = {"agrees": "✓", "disagrees": "✗", "no estimate": "?"}[c["verdict"]]
+    mark = {"agrees": "✓", "disagrees": "✗"}[c["verdict"]]
     if "alpha_range" in c:
         lo, hi = c["alpha_range"]
         mark += f" [alpha range {lo:.0f}-{hi:.0f} {'✓' if c['verdict_alpha_range'] == 'agrees' else '✗'}]"
@@ -571,7 +596,7 @@ def markdown(res: dict) -> str:
         for m in MODELS:
             r = res["ranges_and_sec5"][m][f"fig10_range_{a:g}deg"]
             cells.append(f"{r['value'][0]:.1f}-{r['value'][1]:.1f} Hz ({r['verdict']})" if "value" in r
-                         else r["verdict"])
+                         else r["verdict"] + (f" ({r['why']})" if "why" in r else ""))
         lo, hi = FIG10_RANGE[a]
         md.append(f"| Fig. 10: f0 range at {a:g} deg | {lo:g}-{hi:g} Hz | " + " | ".join(cells) + " |")
     cells = []

@@ -14,6 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
 import falling_side as fs  # noqa: E402
 import validate_paper as vp  # noqa: E402
 
+import plate_env as pe  # noqa: E402
 from plate_env.identify.fitting import fit_lorentzian, lorentzian  # noqa: E402
 
 
@@ -79,3 +80,77 @@ def test_falling_side_peak_is_the_hump_not_the_climb_above_the_window():
     m = fs.bar_metric(f, w, np.ones(f.size, bool), 25.1, 5.1)
     assert m["peak"] == pytest.approx(w[f <= 32.75].max())
     assert m["ratio"] > 0.6  # against the climb's 800 it would read 0.51
+
+
+def _planted_rows(monkeypatch, tmp_path, fitted: dict[tuple[float, float], float]):
+    """model_rows("rigid_limit") on planted sweeps: every sweep of the plan complete and stable, and a first-hump fit
+    (f0 from ``fitted[(omega_pi, alpha_deg)]`` at 12 deg, 25 Hz + omega_pi / 10 at 3 deg) only where planted."""
+    from types import SimpleNamespace
+
+    from plate_env.identify.fitting import LorentzFit
+
+    def fit_of(sw):
+        if sw.a_p_deg == 3.0:
+            return LorentzFit(ok=True, reason=None, omega_max=500.0 + sw.omega_pi, f0=25.0 + sw.omega_pi / 10, b=5.0)
+        f0 = fitted.get((sw.omega_pi, sw.alpha_deg))
+        if f0 is None:
+            return LorentzFit(ok=False, reason="planted: no hump")
+        return LorentzFit(ok=True, reason=None, omega_max=300.0 + sw.alpha_deg, f0=f0, b=2.0)
+
+    got = {}
+    for sw in vp.plan("rigid_limit"):
+        for p in range(vp.PLACEMENTS["rigid_limit"]):
+            got[(sw, p)] = [SimpleNamespace(spec=SimpleNamespace(motion=SimpleNamespace(freq_hz=f)), unstable=False,
+                                            omega_b_deg_s=300.0, stderr_deg_s=1.0, reason=None, planted=fit_of(sw))
+                            for f in vp.freqs("rigid_limit", sw.a_p_deg)]
+    monkeypatch.setattr(vp, "cached_sweeps", lambda model, cache_dir: got)
+    monkeypatch.setattr(vp, "fit_sweep", lambda results: results[0].planted)
+    return vp.model_rows("rigid_limit", tmp_path)["rows"]
+
+
+def test_eq10_rows_from_fits_at_one_omega_n_say_no_estimate(monkeypatch, tmp_path):
+    """The defect of issue 27: rigid_limit at 12 deg fits only the 10pi object (at 3 of 4 friction angles), and the
+    line omega_n ~ f0 through one omega_n came out as p1 0.00 +- 0.00, q1 10.0, R^2 0.00, each "disagrees". Such a row
+    has no estimate and says how many fits it had; so does Fig. 10's 12 deg range."""
+    rows = _planted_rows(monkeypatch, tmp_path, {(10.0, 30.0): 14.0, (10.0, 36.9): 13.8, (10.0, 45.0): 12.7})
+    for k in ("p1", "q1", "r2_f0", "r2_max"):
+        st = rows[f"eq10_12deg_{k}"]
+        assert vp.verdict(st, 5.65) == "no estimate", (k, st["value"], st.get("u"))
+        assert st["objects_fitted"] == [3, 3] and st["omega_levels"] == [1, 1]
+        cell = vp._cell({**st, "verdict": vp.verdict(st, 5.65)}, 2)
+        assert cell.startswith("no estimate (fits of 16 per placement: 3, 3, at 1, 1 omega_n"), cell
+    assert vp.range_verdict(rows, 12.0)["verdict"] == "no estimate"
+    # at 3 deg every object fitted, on a planted line omega_n = 10 (f0 - 25): the regression is exact
+    assert rows["eq10_3deg_p1"]["value"] == pytest.approx(10.0)
+    assert rows["eq10_3deg_q1"]["value"] == pytest.approx(-250.0)
+    assert rows["eq10_3deg_r2_f0"]["value"] == pytest.approx(1.0)
+
+
+def test_eq10_needs_fits_at_three_omega_n():
+    two = [(6.5, 13.0, 300.0), (6.5, 13.2, 310.0), (10.0, 14.2, 336.0)]  # the point mass's 4th placement at 12 deg
+    r = vp.eq10_regression(two, 16)
+    assert "p1" not in r and r["n_fit"] == 3 and r["n_levels"] == 2
+    assert r["why"].startswith("3 fits of 16 at 2 omega_n")
+    three = [*two, (3.5, 12.0, 280.0)]
+    r = vp.eq10_regression(three, 16)
+    assert r["n_levels"] == 3 and math.isfinite(r["p1"]) and r["p1"] > 0
+    assert (r["f0_min"], r["f0_max"]) == (12.0, 14.2)
+
+
+def test_a_no_estimate_cell_never_shows_a_bare_number():
+    st = vp._stats([None, None, None, 335.8])  # one placement of four gave a value
+    cell = vp._cell({**st, "verdict": vp.verdict(st, 382.4)}, 1)
+    assert cell.startswith("no estimate (1/4 placements gave a value") and "335.8" not in cell
+
+
+@pytest.mark.parametrize(("model", "reason"), [("rigid", "folded"), ("pointmass", "slipped")])
+def test_a_soft_disc_at_12_deg_is_reported_as_folded_or_slipped(model, reason):
+    """Item 3 of issue 27 (a detected, reported failure): the table's 12 Hz probe of the 1.4pi disc at 12 deg
+    (first placement) folds in the rigid-tile model and slips in the point mass, within ~0.5 s of a 1.7 s probe. The
+    probe says so (unstable, with that reason, ended early) instead of returning a silent omega_B, and the table's
+    Fig. 3 cell does not use it."""
+    spec = next(s for s in vp.Sweep(1.4, 36.9, 12.0, 2).specs(model, 0) if s.motion.freq_hz == 12.0)
+    res = pe.make_physics("tilelink", model=model).run([spec])[0]
+    assert res.unstable and res.reason == reason, (res.unstable, res.reason, res.omega_b_deg_s)
+    assert res.sim_s < spec.motion.ramp_s + spec.settle_s + spec.measure_s
+    assert vp._stats([None if res.unstable else abs(res.omega_b_deg_s)])["value"] is None
