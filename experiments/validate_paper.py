@@ -266,6 +266,18 @@ def verdict(stat: dict, paper: float) -> str:
     return "agrees" if abs(stat["value"] - paper) <= K * stat["u"] else "disagrees"
 
 
+def row_verdict(stat: dict, paper: float, planned: int) -> str:
+    """:func:`verdict`, except that a row some of whose ``planned`` placements were not run (a cut-off
+    simulation) is "not run" while those placements could still change it: "no estimate" is final only when even
+    a value from every missing placement would leave fewer than 2, and a value from fewer than every placement is
+    kept (its spread is over the placements run, stated in the cell)."""
+    v = verdict(stat, paper)
+    missing = planned - stat.get("placements_run", planned)
+    if v == "no estimate" and missing > 0 and stat["n"] + missing >= 2:
+        return "not run"
+    return v
+
+
 def linreg(x, y) -> tuple[float, float, float]:
     return rp.linreg(np.asarray(x, float), np.asarray(y, float))
 
@@ -361,6 +373,7 @@ def model_rows(model: str, cache_dir: Path) -> dict:
                 st["objects_fitted"] = [r["n_fit"] for r in per_p]
                 st["omega_levels"] = [r["n_levels"] for r in per_p]
                 st["objects"] = len(sws)
+                st["placements_run"] = len(per_p)
                 rows[f"eq10_{a:g}deg_{k}"] = st
     # Section 5: which objects give a first-hump fit at 12 deg (alpha 36.9 deg), in a majority of placements.
     usable, missing = {}, []
@@ -380,11 +393,13 @@ def model_rows(model: str, cache_dir: Path) -> dict:
     if c12 is not None:
         rows["centred_12deg"] = c12
     by_stage = {}
+    tag, done = backend_tag(backend(model)), load_cache(cache_path(cache_dir, model))
     for stage in (1, 2, 3):
         sws = [sw for sw in plan(model) if sw.stage == stage]
         missing = [(sw, p) for sw in sws for p in range(n_pl) if (sw, p) not in got]
+        keys = [spec_key(tag, s) for sw in sws for p in range(n_pl) for s in sw.specs(model, p)]
         by_stage[str(stage)] = {"sweeps_cached": len(sws) * n_pl - len(missing), "sweeps_planned": len(sws) * n_pl,
-                                "probes_missing": sum(len(freqs(model, sw.a_p_deg)) for sw, _ in missing)}
+                                "probes_planned": len(keys), "probes_missing": sum(k not in done for k in keys)}
     return {"placements": n_pl, "sweeps_complete": len(got), "sweeps_planned": len(plan(model)) * n_pl,
             "by_stage": by_stage, "backend_tag": backend_tag(backend(model)), "rows": rows}
 
@@ -515,7 +530,9 @@ def build(cache_dir: Path) -> dict:
             if st is None:
                 row["models"][m] = {"verdict": "not run"}
             else:
-                row["models"][m] = {**st, "verdict": verdict(st, pr["paper"])}
+                row["models"][m] = {**st, "verdict": row_verdict(st, pr["paper"], PLACEMENTS[m])}
+                if st.get("placements_run", PLACEMENTS[m]) < PLACEMENTS[m]:
+                    row["models"][m]["of_planned"] = PLACEMENTS[m]
                 vals = [v for v in st.get("over_alpha", {}).values() if v is not None]
                 if len(vals) == len(ALPHAS) and st.get("u") is not None:
                     lo, hi = min(vals), max(vals)
@@ -534,7 +551,7 @@ def build(cache_dir: Path) -> dict:
             "placements": PLACEMENTS, "freqs_hz": {m: {f"{a:g}": list(freqs(m, a)) for a in (3.0, 12.0)}
                                                    for m in MODELS},
             "models": {m: {k: v for k, v in models[m].items() if k != "rows"} for m in MODELS},
-            "table": table, "ranges_and_sec5": extra,
+            "table": table, "verdict_counts": verdict_counts(table), "ranges_and_sec5": extra,
             "centred_12deg": {m: models[m]["rows"].get("centred_12deg") for m in MODELS},
             "atlas_crosscheck": {m: atlas_rows(m) for m in MODELS}}
 
@@ -548,9 +565,17 @@ def eq10_no_estimate(c: dict) -> str:
             f">= {MIN_OMEGA_LEVELS} omega_n)")
 
 
+VERDICTS = ("agrees", "disagrees", "no estimate", "not run")
+
+
+def verdict_counts(table: list[dict]) -> dict[str, dict[str, int]]:
+    """Per model, how many of the scalar rows each verdict got."""
+    return {m: {v: sum(r["models"][m]["verdict"] == v for r in table) for v in VERDICTS} for m in MODELS}
+
+
 def _cell(c: dict, digits: int) -> str:
     if c["verdict"] == "not run":
-        return "not run"
+        return f"not run ({c['placements_run']}/{c['of_planned']} placements run)" if "of_planned" in c else "not run"
     if c["verdict"] == "no estimate":  # never a bare number: the JSON keeps a single placement's value
         if "objects_fitted" in c:
             return eq10_no_estimate(c)
@@ -650,19 +675,21 @@ def markdown(res: dict) -> str:
                           f"{r['f0_min']['value']:.1f}-{r['f0_max']['value']:.1f} |")
     md += ["", "## Coverage", "", "A \"not run\" cell's sweeps are not in the cache: the stage that holds them was not "
            "simulated in the time the shared machine allowed (the rigid limit costs ~3 wall s a probe on an idle "
-           "core, PyBullet ~16-20 s). `python experiments/validate_paper.py --models M --stage N` fills them.", "",
+           "core; a PyBullet probe 1-7 s alone, an unstable one ending early, and several times that on a shared "
+           "machine). A row whose missing placements could still change its verdict is \"not run (k/N placements "
+           "run)\"; one that has no estimate whatever they give keeps \"no estimate\". "
+           "`python experiments/validate_paper.py --models M --stage N` fills them. Cells: sweeps complete / planned "
+           "(probes in the cache / planned).", "",
            "| model | sweeps in cache / planned | stage 1 (Figs. 3, 7) | stage 2 (Table 1, Sec. 5) | "
            "stage 3 (other alphas: Eq. 10, Figs. 9-10) | backend |", "|---|---|---|---|---|---|"]
     for m, info in res["models"].items():
-        st = [f"{d['sweeps_cached']}/{d['sweeps_planned']}" + (f" ({d['probes_missing']} probes missing)"
-                                                               if d["probes_missing"] else "")
-              for d in info["by_stage"].values()]
+        st = [f"{d['sweeps_cached']}/{d['sweeps_planned']}"
+              + (f" (probes {d['probes_planned'] - d['probes_missing']}/{d['probes_planned']})"
+                 if d["probes_missing"] else "") for d in info["by_stage"].values()]
         md.append(f"| {m} | {info['sweeps_complete']} / {info['sweeps_planned']} | " + " | ".join(st)
                   + f" | `{info['backend_tag']}` |")
-    counts = {m: {v: sum(r["models"][m]["verdict"] == v for r in res["table"])
-                  for v in ("agrees", "disagrees", "no estimate", "not run")} for m in MODELS}
     md += ["", "Verdicts over the scalar rows: " + "; ".join(
-        f"{m}: " + ", ".join(f"{k} {n}" for k, n in c.items()) for m, c in counts.items()) + ".", ""]
+        f"{m}: " + ", ".join(f"{k} {n}" for k, n in c.items()) for m, c in res["verdict_counts"].items()) + ".", ""]
     return "\n".join(md)
 
 

@@ -82,7 +82,7 @@ def test_falling_side_peak_is_the_hump_not_the_climb_above_the_window():
     assert m["ratio"] > 0.6  # against the climb's 800 it would read 0.51
 
 
-def _planted_rows(monkeypatch, tmp_path, fitted: dict[tuple[float, float], float]):
+def _planted_rows(monkeypatch, tmp_path, fitted: dict[tuple[float, float], float], drop_placement: int | None = None):
     """model_rows("rigid_limit") on planted sweeps: every sweep of the plan complete and stable, and a first-hump fit
     (f0 from ``fitted[(omega_pi, alpha_deg)]`` at 12 deg, 25 Hz + omega_pi / 10 at 3 deg) only where planted."""
     from types import SimpleNamespace
@@ -100,6 +100,8 @@ def _planted_rows(monkeypatch, tmp_path, fitted: dict[tuple[float, float], float
     got = {}
     for sw in vp.plan("rigid_limit"):
         for p in range(vp.PLACEMENTS["rigid_limit"]):
+            if p == drop_placement and sw.stage == 3:  # a simulation cut off before this placement's stage 3
+                continue
             got[(sw, p)] = [SimpleNamespace(spec=SimpleNamespace(motion=SimpleNamespace(freq_hz=f)), unstable=False,
                                             omega_b_deg_s=300.0, stderr_deg_s=1.0, reason=None, planted=fit_of(sw))
                             for f in vp.freqs("rigid_limit", sw.a_p_deg)]
@@ -154,3 +156,19 @@ def test_a_soft_disc_at_12_deg_is_reported_as_folded_or_slipped(model, reason):
     assert res.unstable and res.reason == reason, (res.unstable, res.reason, res.omega_b_deg_s)
     assert res.sim_s < spec.motion.ramp_s + spec.settle_s + spec.measure_s
     assert vp._stats([None if res.unstable else abs(res.omega_b_deg_s)])["value"] is None
+
+
+def test_a_cut_off_row_is_not_run_while_its_missing_placements_could_change_it(monkeypatch, tmp_path):
+    """PyBullet's stage 3 may be cut off after its first placement: a row that one more placement could still turn
+    into an estimate is "not run (1/2 placements run)"; one that has no estimate whatever it gives keeps that."""
+    rows = _planted_rows(monkeypatch, tmp_path, {(10.0, 30.0): 14.0}, drop_placement=1)
+    three = rows["eq10_3deg_p1"]  # placement 0 gives p1 = 10 exactly; placement 1 missing
+    assert three["placements_run"] == 1 and three["n"] == 1
+    assert vp.row_verdict(three, 5.3, 2) == "not run"
+    assert vp._cell({**three, "verdict": "not run", "of_planned": 2}, 2) == "not run (1/2 placements run)"
+    twelve = rows["eq10_12deg_p1"]  # placement 0 has no estimate: one more placement cannot give two values
+    assert twelve["placements_run"] == 1 and twelve["n"] == 0
+    assert vp.row_verdict(twelve, 5.65, 2) == "no estimate"
+    assert vp.row_verdict(twelve, 5.65, 3) == "not run"  # with 3 planned, two more could still give two values
+    full = vp._stats([10.0, 12.0, 14.0])
+    assert vp.row_verdict(full, 12.0, 3) == vp.verdict(full, 12.0) == "agrees"
