@@ -12,10 +12,11 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
 import falling_side as fs  # noqa: E402
+import kept_12deg as k12  # noqa: E402
 import validate_paper as vp  # noqa: E402
 
 import plate_env as pe  # noqa: E402
-from plate_env.identify.fitting import fit_lorentzian, lorentzian  # noqa: E402
+from plate_env.identify.fitting import LorentzFit, fit_lorentzian, lorentzian  # noqa: E402
 
 
 def test_stats_median_spread_and_uncertainty():
@@ -65,8 +66,6 @@ def test_falling_side_bar_on_planted_curves():
 
 
 def test_observed_allows_half_a_probe_spacing_beyond_the_fitted_probes():
-    from plate_env.identify.fitting import LorentzFit
-
     f = np.arange(20.0, 30.0)
     used = f <= 25.0
     assert vp.observed(LorentzFit(ok=True, reason=None, f0=25.4, used=used), f)
@@ -86,8 +85,6 @@ def _planted_rows(monkeypatch, tmp_path, fitted: dict[tuple[float, float], float
     """model_rows("rigid_limit") on planted sweeps: every sweep of the plan complete and stable, and a first-hump fit
     (f0 from ``fitted[(omega_pi, alpha_deg)]`` at 12 deg, 25 Hz + omega_pi / 10 at 3 deg) only where planted."""
     from types import SimpleNamespace
-
-    from plate_env.identify.fitting import LorentzFit
 
     def fit_of(sw):
         if sw.a_p_deg == 3.0:
@@ -172,3 +169,23 @@ def test_a_cut_off_row_is_not_run_while_its_missing_placements_could_change_it(m
     assert vp.row_verdict(twelve, 5.65, 3) == "not run"  # with 3 planned, two more could still give two values
     full = vp._stats([10.0, 12.0, 14.0])
     assert vp.row_verdict(full, 12.0, 3) == vp.verdict(full, 12.0) == "agrees"
+
+
+def test_kept_12deg_keeps_only_slipped_probes_that_measured_a_period():
+    from plate_env.core.probe import ProbeResult
+
+    spec = vp.Sweep(10.0, 36.9, 12.0, 2).specs("rigid", 0)[0]
+    mk = lambda un, why, n: ProbeResult(spec=spec, omega_b_deg_s=300.0, stderr_deg_s=1.0, unstable=un,  # noqa: E731
+                                        reason=why, sim_s=1.0, wall_s=0.1, periods_measured=n)
+    out = k12.kept([mk(True, "slipped", 3), mk(True, "slipped", 0), mk(True, "folded", 5), mk(False, None, 12)])
+    assert [r.unstable for r in out] == [False, True, True, False]
+
+
+def test_kept_12deg_bar_needs_every_soft_object_in_range_and_a_rising_f0():
+    paper = {w: (w + 64.51) / 5.65 for w in (1.4, 3.5, 6.5, 10.0)}  # Eq. (10) at 12 deg: 11.7-13.2 Hz
+    assert k12.bar(paper)["meets_bar"]
+    assert not k12.bar({**paper, 1.4: None})["meets_bar"]  # one object lost
+    assert not k12.bar({**paper, 10.0: 14.2})["meets_bar"]  # above 14 Hz
+    assert not k12.bar({w: 14.0 - 0.1 * w for w in paper})["meets_bar"]  # falling with omega_n
+    assert k12.median_f0([LorentzFit(ok=True, reason=None, f0=12.0), LorentzFit(ok=False, reason="x")]) == 12.0
+    assert k12.median_f0([LorentzFit(ok=True, reason=None, f0=12.0)] + [LorentzFit(ok=False, reason="x")] * 2) is None
