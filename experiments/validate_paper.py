@@ -486,13 +486,17 @@ def paper_rows() -> list[dict]:
     return out
 
 
-def range_verdict(rows: dict, a: float) -> dict:
+def range_verdict(rows: dict, a: float, planned: int) -> dict:
     """Fig. 10's f0 range: agrees when the model's lowest and highest f0 (medians over placements) each lie within
-    K u of the paper's ends (23-30 Hz at 3 deg, 11-14 Hz at 12 deg)."""
+    K u of the paper's ends (23-30 Hz at 3 deg, 11-14 Hz at 12 deg); "not run" as in :func:`row_verdict`."""
     lo, hi = FIG10_RANGE[a]
     smin, smax = rows.get(f"eq10_{a:g}deg_f0_min"), rows.get(f"eq10_{a:g}deg_f0_max")
-    if not smin or not smax or smin["u"] is None or smax["u"] is None:
-        return {"paper": [lo, hi], "verdict": "no estimate", **({"why": eq10_no_estimate(smin)[12:-1]} if smin else {})}
+    if not smin or not smax:
+        return {"paper": [lo, hi], "verdict": "not run"}
+    if row_verdict(smin, lo, planned) == "not run":
+        return {"paper": [lo, hi], "verdict": "not run", "why": f"{smin['placements_run']}/{planned} placements run"}
+    if smin["u"] is None or smax["u"] is None:
+        return {"paper": [lo, hi], "verdict": "no estimate", "why": eq10_why(smin)}
     ok = abs(smin["value"] - lo) <= K * smin["u"] and abs(smax["value"] - hi) <= K * smax["u"]
     return {"paper": [lo, hi], "value": [smin["value"], smax["value"]], "u": [smin["u"], smax["u"]],
             "verdict": "agrees" if ok else "disagrees"}
@@ -540,8 +544,8 @@ def build(cache_dir: Path) -> dict:
                     row["models"][m]["verdict_alpha_range"] = (
                         "agrees" if lo - K * st["u"] <= pr["paper"] <= hi + K * st["u"] else "disagrees")
         table.append(row)
-    extra = {m: {"fig10_range_3deg": range_verdict(models[m]["rows"], 3.0),
-                 "fig10_range_12deg": range_verdict(models[m]["rows"], 12.0),
+    extra = {m: {"fig10_range_3deg": range_verdict(models[m]["rows"], 3.0, PLACEMENTS[m]),
+                 "fig10_range_12deg": range_verdict(models[m]["rows"], 12.0, PLACEMENTS[m]),
                  "sec5": sec5_verdict(models[m]["rows"])} for m in MODELS}
     return {"command": f"python {SCRIPT}", "commit": git_commit(),
             "generated_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
@@ -556,13 +560,12 @@ def build(cache_dir: Path) -> dict:
             "atlas_crosscheck": {m: atlas_rows(m) for m in MODELS}}
 
 
-def eq10_no_estimate(c: dict) -> str:
-    """The cell of a regression row without an estimate: how many objects each placement fitted, at how many
-    omega_n."""
+def eq10_why(c: dict) -> str:
+    """Why a regression row has no estimate: how many objects each placement fitted, at how many omega_n."""
     fits = ", ".join(str(n) for n in c["objects_fitted"])
     levels = ", ".join(str(k) for k in c["omega_levels"])
-    return (f"no estimate (fits of {c['objects']} per placement: {fits}, at {levels} omega_n; the line needs "
-            f">= {MIN_OMEGA_LEVELS} omega_n)")
+    return (f"fits of {c['objects']} per placement: {fits}, at {levels} omega_n; the line needs "
+            f">= {MIN_OMEGA_LEVELS} omega_n")
 
 
 VERDICTS = ("agrees", "disagrees", "no estimate", "not run")
@@ -578,7 +581,7 @@ def _cell(c: dict, digits: int) -> str:
         return f"not run ({c['placements_run']}/{c['of_planned']} placements run)" if "of_planned" in c else "not run"
     if c["verdict"] == "no estimate":  # never a bare number: the JSON keeps a single placement's value
         if "objects_fitted" in c:
-            return eq10_no_estimate(c)
+            return f"no estimate ({eq10_why(c)})"
         why = ", ".join(sorted({r for r in c.get("fit_fail", []) if r}))[:60]
         extra = f"; {c['unstable']}/{c['placements_run']} unstable" if "unstable" in c else ""
         return f"no estimate ({c['n']}/{c['of']} placements gave a value{extra}{'; ' + why if why else ''})"

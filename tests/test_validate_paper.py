@@ -118,7 +118,7 @@ def test_eq10_rows_from_fits_at_one_omega_n_say_no_estimate(monkeypatch, tmp_pat
         assert st["objects_fitted"] == [3, 3] and st["omega_levels"] == [1, 1]
         cell = vp._cell({**st, "verdict": vp.verdict(st, 5.65)}, 2)
         assert cell.startswith("no estimate (fits of 16 per placement: 3, 3, at 1, 1 omega_n"), cell
-    assert vp.range_verdict(rows, 12.0)["verdict"] == "no estimate"
+    assert vp.range_verdict(rows, 12.0, 2)["verdict"] == "no estimate"
     # at 3 deg every object fitted, on a planted line omega_n = 10 (f0 - 25): the regression is exact
     assert rows["eq10_3deg_p1"]["value"] == pytest.approx(10.0)
     assert rows["eq10_3deg_q1"]["value"] == pytest.approx(-250.0)
@@ -167,6 +167,9 @@ def test_a_cut_off_row_is_not_run_while_its_missing_placements_could_change_it(m
     assert twelve["placements_run"] == 1 and twelve["n"] == 0
     assert vp.row_verdict(twelve, 5.65, 2) == "no estimate"
     assert vp.row_verdict(twelve, 5.65, 3) == "not run"  # with 3 planned, two more could still give two values
+    assert vp.range_verdict(rows, 3.0, 2) == {"paper": [23.0, 30.0], "verdict": "not run",
+                                              "why": "1/2 placements run"}
+    assert vp.range_verdict(rows, 12.0, 2)["verdict"] == "no estimate"
     full = vp._stats([10.0, 12.0, 14.0])
     assert vp.row_verdict(full, 12.0, 3) == vp.verdict(full, 12.0) == "agrees"
 
