@@ -205,6 +205,14 @@ def _paired(suite: str) -> str:
 
 
 #: Every generated table: its name in the markers, the result file it is rendered from, and the renderer.
+def validate_paper_counts() -> str:
+    """How many of the paper's published numbers each physics model matches (experiments/validate_paper.py)."""
+    d = _load("validate_paper.json")
+    head = ["model", *d["verdict_counts"][next(iter(d["verdict_counts"]))]]
+    rows = [[f"`{m}`", *(str(n) for n in c.values())] for m, c in d["verdict_counts"].items()]
+    return _table(head, rows) + f"\n\nCounts over the table's {len(d['table'])} scalar rows."
+
+
 TABLES: dict[str, tuple[str, Callable[[], str]]] = {
     "forward_models_within": ("forward_models_within.json", forward_models_within),
     "forward_models_within_sampling": ("forward_models_within.json", forward_models_within_sampling),
@@ -219,6 +227,7 @@ TABLES: dict[str, tuple[str, Callable[[], str]]] = {
     "leaderboard_tilelink-v0_full": ("leaderboard_tilelink-v0.json", lambda: _leaderboard("tilelink-v0", True)),
     "leaderboard_tilelink-v0_paired": ("leaderboard_tilelink-v0.json", lambda: _paired("tilelink-v0")),
     "leaderboard_atlas-v0": ("leaderboard_atlas-v0.json", lambda: _leaderboard("atlas-v0", False)),
+    "validate_paper_counts": ("validate_paper.json", validate_paper_counts),
 }
 
 

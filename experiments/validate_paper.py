@@ -103,13 +103,18 @@ class Sweep:
     def obj(self) -> pe.ObjectSpec:
         return pe.ObjectSpec.from_paper(self.omega_pi, self.alpha_deg)
 
-    def specs(self, model: str, placement: int) -> list[ProbeSpec]:
+    def specs(self, model: str, placement: int, freqs_hz: tuple[float, ...] | None = None) -> list[ProbeSpec]:
         """The sweep at one seeded placement: each probe placed by ``ProbeSpec.perturbed`` from a generator seeded
-        by (placement, object, amplitude), so every model sees the same placements."""
+        by (placement, object, amplitude), so every model sees the same placements. ``freqs_hz`` (a subset of
+        :func:`canonical_freqs`) replaces the model's frequencies; a probe at a shared frequency is the same."""
         rng = np.random.default_rng([placement, round(self.omega_pi * 10), round(self.alpha_deg * 10),
                                      round(self.a_p_deg * 10)])
         every = bm.placed_sweeps([self.obj], canonical_freqs(self.a_p_deg), self.a_p_deg, rng, **windows(model))
-        keep = set(freqs(model, self.a_p_deg))
+        keep = set(freqs(model, self.a_p_deg) if freqs_hz is None else freqs_hz)
+        if not keep <= set(canonical_freqs(self.a_p_deg)):
+            raise ValueError(f"frequencies {sorted(keep - set(canonical_freqs(self.a_p_deg)))} Hz are not on the "
+                             f"{self.a_p_deg:g} deg grid (whole Hz, {canonical_freqs(self.a_p_deg)[0]:g}-"
+                             f"{canonical_freqs(self.a_p_deg)[-1]:g})")
         return [sp for sp in every if sp.motion.freq_hz in keep]
 
 

@@ -192,3 +192,29 @@ def test_kept_12deg_bar_needs_every_soft_object_in_range_and_a_rising_f0():
     assert not k12.bar({w: 14.0 - 0.1 * w for w in paper})["meets_bar"]  # falling with omega_n
     assert k12.median_f0([LorentzFit(ok=True, reason=None, f0=12.0), LorentzFit(ok=False, reason="x")]) == 12.0
     assert k12.median_f0([LorentzFit(ok=True, reason=None, f0=12.0)] + [LorentzFit(ok=False, reason="x")] * 2) is None
+
+
+def test_pybullet_hump_finer_sweep_copies_the_tables_probes_and_refuses_off_grid(tmp_path):
+    import json
+
+    import pybullet_hump as ph
+
+    assert ph.parse_freqs("12:16:1") == (12.0, 13.0, 14.0, 15.0, 16.0)
+    with pytest.raises(ValueError, match="LO:HI:STEP"):
+        ph.parse_freqs("12-24")
+    with pytest.raises(ValueError, match="not on the 3 deg grid"):
+        vp.Sweep(10.0, 36.9, 3.0, 1).specs("pybullet", 0, (12.5,))
+    physics, _ = ph.variant("static")
+    fine = vp.Sweep(10.0, 36.9, 3.0, 1).specs("pybullet", 0, (12.0, 13.0, 14.0))
+    table = vp.Sweep(10.0, 36.9, 3.0, 1).specs("pybullet", 0)
+    assert fine[0] == table[0] and fine[2] == table[1]  # the shared frequencies are the table's own probes
+    tag = vp.backend_tag(physics)
+    source, cache = tmp_path / "table.jsonl", tmp_path / "hump.jsonl"
+    source.write_text("".join(json.dumps({"key": vp.spec_key(tag, s), "omega_b_deg_s": 1.0, "stderr_deg_s": 0.1,
+                                          "unstable": False, "reason": None, "sim_s": 1.0, "wall_s": 1.0,
+                                          "periods_measured": 5}) + "\n" for s in table[:2]))
+    before = source.read_text()
+    assert ph.copy_records(physics, fine, source, cache) == 2
+    assert ph.copy_records(physics, fine, source, cache) == 0  # already there
+    assert source.read_text() == before
+    assert set(vp.load_cache(cache)) == {vp.spec_key(tag, fine[0]), vp.spec_key(tag, fine[2])}
