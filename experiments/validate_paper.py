@@ -501,7 +501,9 @@ def range_verdict(rows: dict, a: float, planned: int) -> dict:
     if row_verdict(smin, lo, planned) == "not run":
         return {"paper": [lo, hi], "verdict": "not run", "why": f"{smin['placements_run']}/{planned} placements run"}
     if smin["u"] is None or smax["u"] is None:
-        return {"paper": [lo, hi], "verdict": "no estimate", "why": eq10_why(smin)}
+        run = smin.get("placements_run", planned)
+        return {"paper": [lo, hi], "verdict": "no estimate",
+                "why": eq10_why(smin) + (f"; {run}/{planned} placements run" if run < planned else "")}
     ok = abs(smin["value"] - lo) <= K * smin["u"] and abs(smax["value"] - hi) <= K * smax["u"]
     return {"paper": [lo, hi], "value": [smin["value"], smax["value"]], "u": [smin["u"], smax["u"]],
             "verdict": "agrees" if ok else "disagrees"}
@@ -586,7 +588,8 @@ def _cell(c: dict, digits: int) -> str:
         return f"not run ({c['placements_run']}/{c['of_planned']} placements run)" if "of_planned" in c else "not run"
     if c["verdict"] == "no estimate":  # never a bare number: the JSON keeps a single placement's value
         if "objects_fitted" in c:
-            return f"no estimate ({eq10_why(c)})"
+            run = f"; {c['placements_run']}/{c['of_planned']} placements run" if "of_planned" in c else ""
+            return f"no estimate ({eq10_why(c)}{run})"
         why = ", ".join(sorted({r for r in c.get("fit_fail", []) if r}))[:60]
         extra = f"; {c['unstable']}/{c['placements_run']} unstable" if "unstable" in c else ""
         return f"no estimate ({c['n']}/{c['of']} placements gave a value{extra}{'; ' + why if why else ''})"
