@@ -37,6 +37,7 @@ from plate_env.run.sweeps import backend_tag, load_cache, run_cached, spec_key
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import validate_paper as vp  # noqa: E402
+from kept_12deg import kept  # noqa: E402
 
 SCRIPT = "experiments/pybullet_hump.py"
 BETA = 0.53
@@ -98,6 +99,8 @@ def main() -> None:
     ap.add_argument("--no-simulate", action="store_true")
     ap.add_argument("--freqs", default=None, help="LO:HI:STEP Hz on the table's 1 Hz grid (default: the table's "
                     "12-34 Hz in 2 Hz steps); results go to pybullet_hump_LO-HI-STEP.{json,md}")
+    ap.add_argument("--kept", action="store_true", help="fit with slipped probes' pre-slip omega_B kept (the reading "
+                    "of experiments/kept_12deg.py); results go to ..._kept.{json,md}")
     args = ap.parse_args()
     names = [v.strip() for v in args.variants.split(",") if v.strip()]
     for n in names:
@@ -111,10 +114,11 @@ def main() -> None:
         ap.error(str(e))
     span = "12-34 Hz (2 Hz)" if grid is None else f"{args.freqs.replace(':', '-', 1).replace(':', ' Hz (')} Hz)"
     out = {"command": f"python {SCRIPT} --variants {args.variants} --objects {args.objects}"
-                      + (f" --freqs {args.freqs}" if grid else ""), "rows": []}
+                      + (f" --freqs {args.freqs}" if grid else "") + (" --kept" if args.kept else ""), "rows": []}
     md = ["# PyBullet sheet: friction and margin variants against a first hump", "",
           f"Regenerate: `{out['command']}`. 3 deg, alpha 36.9 deg, {span}, 0.3 s + 0.6 s windows, "
-          "validate_paper.py's placement 0. Fit: the project's first-hump Lorentzian, f0 inside the fitted probes.",
+          "validate_paper.py's placement 0. Fit: the project's first-hump Lorentzian, f0 inside the fitted probes"
+          + (" (slipped probes that measured a period read as stable: `--kept`)." if args.kept else "."),
           "", "| variant | object | fit | f0 [Hz] | b [Hz] | omega_Brmax [deg/s] | R^2 | unstable / probes | "
           "omega_B by f_p (u: unstable) |", "|---|---|---|---|---|---|---|---|---|"]
     for name in names:
@@ -140,7 +144,7 @@ def main() -> None:
                 if cache != table_cache:
                     copy_records(physics, specs, table_cache, cache)
                 res = run_cached(physics, specs, cache, chunk=12, progress=False)
-            fit = vp.fit_sweep(res)
+            fit = vp.fit_sweep(kept(res) if args.kept else res)
             curve = " ".join(f"{r.spec.motion.freq_hz:g}:{abs(r.omega_b_deg_s):.0f}{'u' if r.unstable else ''}"
                              for r in res)
             n_un = sum(r.unstable for r in res)
@@ -154,6 +158,7 @@ def main() -> None:
     od = Path(args.out_dir)
     od.mkdir(parents=True, exist_ok=True)
     stem = "pybullet_hump" + ("" if grid is None else "_" + args.freqs.replace(":", "-"))
+    stem += "_kept" if args.kept else ""
     (od / f"{stem}.json").write_text(json.dumps(out, indent=1, default=float) + "\n")
     (od / f"{stem}.md").write_text("\n".join(md) + "\n")
     print("\n".join(md))
