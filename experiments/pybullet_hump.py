@@ -29,12 +29,15 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from plate_env.physics.pybullet_sheet.scene import SheetConfig
 from plate_env.run.executor import BackendSpec
-from plate_env.run.sweeps import run_cached
+from plate_env.run.sweeps import backend_tag, load_cache, run_cached, spec_key
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import validate_paper as vp  # noqa: E402
+from kept_12deg import kept  # noqa: E402
 
 SCRIPT = "experiments/pybullet_hump.py"
 BETA = 0.53
@@ -62,6 +65,31 @@ def variant(name: str) -> tuple[BackendSpec, float]:
     raise ValueError(f"unknown variant {name!r}: static, kinetic, margin<mm>, thick<mm> or mesh<points per layer>")
 
 
+def parse_freqs(text: str | None) -> tuple[float, ...] | None:
+    """``LO:HI:STEP`` (Hz) -> the frequencies, or None for the table's own."""
+    if not text:
+        return None
+    try:
+        lo, hi, step = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise ValueError(f"--freqs {text!r} must be LO:HI:STEP in Hz, e.g. 12:24:1") from None
+    if not (step > 0 and hi >= lo):
+        raise ValueError(f"--freqs {text!r}: need STEP > 0 and HI >= LO")
+    return tuple(float(f) for f in np.arange(lo, hi + 1e-9, step))
+
+
+def copy_records(physics: BackendSpec, specs: list, source: Path, cache: Path) -> int:
+    """Append to ``cache`` the records of ``specs`` that ``source`` (the table's cache, only read) already holds
+    and ``cache`` lacks, so a finer sweep re-runs none of the table's probes. Returns how many were copied."""
+    tag = backend_tag(physics)
+    have, table = load_cache(cache), load_cache(source)
+    new = [table[k] for k in (spec_key(tag, s) for s in specs) if k in table and k not in have]
+    if new:
+        with cache.open("a") as fh:
+            fh.writelines(json.dumps(r) + "\n" for r in new)
+    return len(new)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--variants", default="static,kinetic,margin1.5")
@@ -69,29 +97,42 @@ def main() -> None:
     ap.add_argument("--cache-dir", default="experiments/cache")
     ap.add_argument("--out-dir", default="experiments/results")
     ap.add_argument("--no-simulate", action="store_true")
+    ap.add_argument("--freqs", default=None, help="LO:HI:STEP Hz on the table's 1 Hz grid (default: the table's "
+                    "12-34 Hz in 2 Hz steps); results go to pybullet_hump_LO-HI-STEP.{json,md}")
+    ap.add_argument("--kept", action="store_true", help="fit with slipped probes' pre-slip omega_B kept (the reading "
+                    "of experiments/kept_12deg.py); results go to ..._kept.{json,md}")
     args = ap.parse_args()
     names = [v.strip() for v in args.variants.split(",") if v.strip()]
     for n in names:
         variant(n)  # refuse bad names before any work
     omegas = [float(w) for w in args.objects.split(",")]
-    out = {"command": f"python {SCRIPT} --variants {args.variants} --objects {args.objects}", "rows": []}
+    try:
+        grid = parse_freqs(args.freqs)
+        if grid is not None:
+            vp.Sweep(10.0, vp.CHEESE, 3.0, 1).specs("pybullet", 0, grid)  # refuse a frequency off the grid
+    except ValueError as e:
+        ap.error(str(e))
+    span = "12-34 Hz (2 Hz)" if grid is None else f"{args.freqs.replace(':', '-', 1).replace(':', ' Hz (')} Hz)"
+    out = {"command": f"python {SCRIPT} --variants {args.variants} --objects {args.objects}"
+                      + (f" --freqs {args.freqs}" if grid else "") + (" --kept" if args.kept else ""), "rows": []}
     md = ["# PyBullet sheet: friction and margin variants against a first hump", "",
-          f"Regenerate: `{out['command']}`. 3 deg, alpha 36.9 deg, 12-34 Hz (2 Hz), 0.3 s + 0.6 s windows, "
-          "validate_paper.py's placement 0. Fit: the project's first-hump Lorentzian, f0 inside the fitted probes.",
+          f"Regenerate: `{out['command']}`. 3 deg, alpha 36.9 deg, {span}, 0.3 s + 0.6 s windows, "
+          "validate_paper.py's placement 0. Fit: the project's first-hump Lorentzian, f0 inside the fitted probes"
+          + (" (slipped probes that measured a period read as stable: `--kept`)." if args.kept else "."),
           "", "| variant | object | fit | f0 [Hz] | b [Hz] | omega_Brmax [deg/s] | R^2 | unstable / probes | "
           "omega_B by f_p (u: unstable) |", "|---|---|---|---|---|---|---|---|---|"]
     for name in names:
         physics, k = variant(name)
-        cache = vp.cache_path(Path(args.cache_dir), "pybullet") if name == "static" else \
-            Path(args.cache_dir) / "pybullet_hump.jsonl"
+        table_cache = vp.cache_path(Path(args.cache_dir), "pybullet")
+        cache = table_cache if name == "static" and grid is None else Path(args.cache_dir) / "pybullet_hump.jsonl"
         for w in omegas:
             sw = vp.Sweep(w, vp.CHEESE, 3.0, 1)
-            specs = sw.specs("pybullet", 0)
+            specs = sw.specs("pybullet", 0, grid)
             if k != 1.0:
                 a2 = math.atan(k * math.tan(math.radians(vp.CHEESE)))
                 specs = [replace(s, obj=replace(s.obj, alpha=a2)) for s in specs]
             if args.no_simulate:
-                from plate_env.run.sweeps import _from_record, backend_tag, load_cache, spec_key
+                from plate_env.run.sweeps import _from_record
                 done = load_cache(cache)
                 tag = backend_tag(physics)
                 recs = [done.get(spec_key(tag, s)) for s in specs]
@@ -100,8 +141,10 @@ def main() -> None:
                     continue
                 res = [_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
             else:
+                if cache != table_cache:
+                    copy_records(physics, specs, table_cache, cache)
                 res = run_cached(physics, specs, cache, chunk=12, progress=False)
-            fit = vp.fit_sweep(res)
+            fit = vp.fit_sweep(kept(res) if args.kept else res)
             curve = " ".join(f"{r.spec.motion.freq_hz:g}:{abs(r.omega_b_deg_s):.0f}{'u' if r.unstable else ''}"
                              for r in res)
             n_un = sum(r.unstable for r in res)
@@ -114,8 +157,10 @@ def main() -> None:
                       f"{n_un}/{len(res)} | {curve} |")
     od = Path(args.out_dir)
     od.mkdir(parents=True, exist_ok=True)
-    (od / "pybullet_hump.json").write_text(json.dumps(out, indent=1, default=float) + "\n")
-    (od / "pybullet_hump.md").write_text("\n".join(md) + "\n")
+    stem = "pybullet_hump" + ("" if grid is None else "_" + args.freqs.replace(":", "-"))
+    stem += "_kept" if args.kept else ""
+    (od / f"{stem}.json").write_text(json.dumps(out, indent=1, default=float) + "\n")
+    (od / f"{stem}.md").write_text("\n".join(md) + "\n")
     print("\n".join(md))
 
 

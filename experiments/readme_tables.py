@@ -207,7 +207,9 @@ def _paired(suite: str) -> str:
 
 
 #: The routes of experiments/results/rigid_fast.json shown in docs/rigid_fast.md, with the model each one is.
-RIGID_ROUTES = {"small_steps": "`rigid_fast` (shipped)", "rigid_2e-4": "`rigid` (shipped)",
+RIGID_ROUTES = {"small_steps_690d019": "`rigid_fast` (shipped)",
+                "small_steps": "`rigid_fast` on the faster kernel (15a37a8, not merged)",
+                "rigid_2e-4": "`rigid` (shipped)",
                 "small_steps_5e-5": "small steps at twice the step", "exact_joint_solve_1e-4": "joints solved exactly"}
 
 
@@ -231,6 +233,14 @@ def rigid_fast_routes() -> str:
                       "load"], rows))
 
 
+def validate_paper_counts() -> str:
+    """How many of the paper's published numbers each physics model matches (experiments/validate_paper.py)."""
+    d = _load("validate_paper.json")
+    head = ["model", *d["verdict_counts"][next(iter(d["verdict_counts"]))]]
+    rows = [[f"`{m}`", *(str(n) for n in c.values())] for m, c in d["verdict_counts"].items()]
+    return _table(head, rows) + f"\n\nCounts over the table's {len(d['table'])} scalar rows."
+
+
 #: Every generated table: its name in the markers, the result file it is rendered from, and the renderer.
 TABLES: dict[str, tuple[str, Callable[[], str]]] = {
     "forward_models_within": ("forward_models_within.json", forward_models_within),
@@ -247,6 +257,7 @@ TABLES: dict[str, tuple[str, Callable[[], str]]] = {
     "leaderboard_tilelink-v0_paired": ("leaderboard_tilelink-v0.json", lambda: _paired("tilelink-v0")),
     "leaderboard_atlas-v0": ("leaderboard_atlas-v0.json", lambda: _leaderboard("atlas-v0", False)),
     "rigid_fast_routes": ("rigid_fast.json", rigid_fast_routes),
+    "validate_paper_counts": ("validate_paper.json", validate_paper_counts),
 }
 
 

@@ -103,13 +103,18 @@ class Sweep:
     def obj(self) -> pe.ObjectSpec:
         return pe.ObjectSpec.from_paper(self.omega_pi, self.alpha_deg)
 
-    def specs(self, model: str, placement: int) -> list[ProbeSpec]:
+    def specs(self, model: str, placement: int, freqs_hz: tuple[float, ...] | None = None) -> list[ProbeSpec]:
         """The sweep at one seeded placement: each probe placed by ``ProbeSpec.perturbed`` from a generator seeded
-        by (placement, object, amplitude), so every model sees the same placements."""
+        by (placement, object, amplitude), so every model sees the same placements. ``freqs_hz`` (a subset of
+        :func:`canonical_freqs`) replaces the model's frequencies; a probe at a shared frequency is the same."""
         rng = np.random.default_rng([placement, round(self.omega_pi * 10), round(self.alpha_deg * 10),
                                      round(self.a_p_deg * 10)])
         every = bm.placed_sweeps([self.obj], canonical_freqs(self.a_p_deg), self.a_p_deg, rng, **windows(model))
-        keep = set(freqs(model, self.a_p_deg))
+        keep = set(freqs(model, self.a_p_deg) if freqs_hz is None else freqs_hz)
+        if not keep <= set(canonical_freqs(self.a_p_deg)):
+            raise ValueError(f"frequencies {sorted(keep - set(canonical_freqs(self.a_p_deg)))} Hz are not on the "
+                             f"{self.a_p_deg:g} deg grid (whole Hz, {canonical_freqs(self.a_p_deg)[0]:g}-"
+                             f"{canonical_freqs(self.a_p_deg)[-1]:g})")
         return [sp for sp in every if sp.motion.freq_hz in keep]
 
 
@@ -266,8 +271,47 @@ def verdict(stat: dict, paper: float) -> str:
     return "agrees" if abs(stat["value"] - paper) <= K * stat["u"] else "disagrees"
 
 
+def row_verdict(stat: dict, paper: float, planned: int) -> str:
+    """:func:`verdict`, except that a row some of whose ``planned`` placements were not run (a cut-off
+    simulation) is "not run" while those placements could still change it: "no estimate" is final only when even
+    a value from every missing placement would leave fewer than 2, and a value from fewer than every placement is
+    kept (its spread is over the placements run, stated in the cell)."""
+    v = verdict(stat, paper)
+    missing = planned - stat.get("placements_run", planned)
+    if v == "no estimate" and missing > 0 and stat["n"] + missing >= 2:
+        return "not run"
+    return v
+
+
 def linreg(x, y) -> tuple[float, float, float]:
     return rp.linreg(np.asarray(x, float), np.asarray(y, float))
+
+
+#: The regression values of Eq. (10), Fig. 9 and Fig. 10 per placement.
+EQ10_KEYS = ("p1", "q1", "r2_f0", "r2_max", "f0_min", "f0_max")
+#: Eq. (10)'s line needs first-hump fits at this many distinct omega_n (of the paper's 4 objects): at one omega_n the
+#: line omega_n ~ f0 is flat by construction (p1 0, q1 = that omega_n, R^2 0/0), at two it is drawn through two
+#: clusters and its R^2 measures only their scatter; at three the line has a level it does not pass through by fiat.
+MIN_OMEGA_LEVELS = 3
+
+
+def eq10_regression(points: list[tuple[float, float, float]], n_objects: int) -> dict:
+    """Eq. (10) (omega_n = p1 f0 + q1, omega_n in pi rad/s), Fig. 9's R^2 (omega_Brmax ~ omega_n) and Fig. 10's f0
+    range from one placement's observed first-hump fits ``points`` = [(omega_n_pi, f0_hz, omega_Brmax_deg_s)].
+
+    Returns ``n_fit``, ``n_levels`` (distinct omega_n among the fits) and ``n_objects``, plus every ``EQ10_KEYS``
+    value when the fits span at least ``MIN_OMEGA_LEVELS`` omega_n; otherwise those keys are absent and ``why`` says
+    "n fits of m at k omega_n" (a fit at a single omega_n gave p1 0.00 +- 0.00 before this rule)."""
+    levels = len({round(w, 6) for w, _, _ in points})
+    out: dict = {"n_fit": len(points), "n_levels": levels, "n_objects": n_objects}
+    if levels < MIN_OMEGA_LEVELS:
+        out["why"] = (f"{len(points)} fits of {n_objects} at {levels} omega_n; the line needs fits at "
+                      f">= {MIN_OMEGA_LEVELS}")
+        return out
+    wn, f0, wm = (np.array([pt[i] for pt in points], float) for i in range(3))
+    p1, q1, r2f = linreg(f0, wn)
+    out.update(p1=p1, q1=q1, r2_f0=r2f, r2_max=linreg(wn, wm)[2], f0_min=float(f0.min()), f0_max=float(f0.max()))
+    return out
 
 
 def model_rows(model: str, cache_dir: Path) -> dict:
@@ -321,32 +365,20 @@ def model_rows(model: str, cache_dir: Path) -> dict:
                 rows[f"table1_{a:g}deg_{w:g}pi"] = st
     # Eq. (10), Figs. 9 and 10: regressions over the 16 objects (4 omega_n x 4 alpha) per placement.
     for a in (3.0, 12.0):
-        per_p = {"p1": [], "q1": [], "r2_f0": [], "r2_max": [], "f0_min": [], "f0_max": [], "n_fit": []}
-        complete = 0
+        sws = [sweep_of(w, al, a) for w in rp.FIG8_OMEGAS_PI[a] for al in ALPHAS]
+        per_p = []
         for p in range(n_pl):
-            sws = [sweep_of(w, al, a) for w in rp.FIG8_OMEGAS_PI[a] for al in ALPHAS]
             if not all((s, p) in fits for s in sws):
                 continue
-            complete += 1
-            ok = [(s, fits[(s, p)]) for s in sws if fits[(s, p)].ok]
-            per_p["n_fit"].append(len(ok))
-            if len(ok) < 3:
-                for k in ("p1", "q1", "r2_f0", "r2_max", "f0_min", "f0_max"):
-                    per_p[k].append(None)
-                continue
-            wn = [s.omega_pi for s, _ in ok]
-            f0 = [f.f0 for _, f in ok]
-            p1, q1, r2f = linreg(f0, wn)
-            per_p["p1"].append(p1)
-            per_p["q1"].append(q1)
-            per_p["r2_f0"].append(r2f)
-            per_p["r2_max"].append(linreg(wn, [f.omega_max for _, f in ok])[2])
-            per_p["f0_min"].append(min(f0))
-            per_p["f0_max"].append(max(f0))
-        if complete:
-            for k in ("p1", "q1", "r2_f0", "r2_max", "f0_min", "f0_max"):
-                st = _stats(per_p[k])
-                st["objects_fitted"] = per_p["n_fit"]
+            per_p.append(eq10_regression([(s.omega_pi, fits[(s, p)].f0, fits[(s, p)].omega_max)
+                                          for s in sws if fits[(s, p)].ok], len(sws)))
+        if per_p:
+            for k in EQ10_KEYS:
+                st = _stats([r.get(k) for r in per_p])
+                st["objects_fitted"] = [r["n_fit"] for r in per_p]
+                st["omega_levels"] = [r["n_levels"] for r in per_p]
+                st["objects"] = len(sws)
+                st["placements_run"] = len(per_p)
                 rows[f"eq10_{a:g}deg_{k}"] = st
     # Section 5: which objects give a first-hump fit at 12 deg (alpha 36.9 deg), in a majority of placements.
     usable, missing = {}, []
@@ -366,11 +398,13 @@ def model_rows(model: str, cache_dir: Path) -> dict:
     if c12 is not None:
         rows["centred_12deg"] = c12
     by_stage = {}
+    tag, done = backend_tag(backend(model)), load_cache(cache_path(cache_dir, model))
     for stage in (1, 2, 3):
         sws = [sw for sw in plan(model) if sw.stage == stage]
         missing = [(sw, p) for sw in sws for p in range(n_pl) if (sw, p) not in got]
+        keys = [spec_key(tag, s) for sw in sws for p in range(n_pl) for s in sw.specs(model, p)]
         by_stage[str(stage)] = {"sweeps_cached": len(sws) * n_pl - len(missing), "sweeps_planned": len(sws) * n_pl,
-                                "probes_missing": sum(len(freqs(model, sw.a_p_deg)) for sw, _ in missing)}
+                                "probes_planned": len(keys), "probes_missing": sum(k not in done for k in keys)}
     return {"placements": n_pl, "sweeps_complete": len(got), "sweeps_planned": len(plan(model)) * n_pl,
             "by_stage": by_stage, "backend_tag": backend_tag(backend(model)), "rows": rows}
 
@@ -457,13 +491,19 @@ def paper_rows() -> list[dict]:
     return out
 
 
-def range_verdict(rows: dict, a: float) -> dict:
+def range_verdict(rows: dict, a: float, planned: int) -> dict:
     """Fig. 10's f0 range: agrees when the model's lowest and highest f0 (medians over placements) each lie within
-    K u of the paper's ends (23-30 Hz at 3 deg, 11-14 Hz at 12 deg)."""
+    K u of the paper's ends (23-30 Hz at 3 deg, 11-14 Hz at 12 deg); "not run" as in :func:`row_verdict`."""
     lo, hi = FIG10_RANGE[a]
     smin, smax = rows.get(f"eq10_{a:g}deg_f0_min"), rows.get(f"eq10_{a:g}deg_f0_max")
-    if not smin or not smax or smin["u"] is None or smax["u"] is None:
-        return {"paper": [lo, hi], "verdict": "no estimate"}
+    if not smin or not smax:
+        return {"paper": [lo, hi], "verdict": "not run"}
+    if row_verdict(smin, lo, planned) == "not run":
+        return {"paper": [lo, hi], "verdict": "not run", "why": f"{smin['placements_run']}/{planned} placements run"}
+    if smin["u"] is None or smax["u"] is None:
+        run = smin.get("placements_run", planned)
+        return {"paper": [lo, hi], "verdict": "no estimate",
+                "why": eq10_why(smin) + (f"; {run}/{planned} placements run" if run < planned else "")}
     ok = abs(smin["value"] - lo) <= K * smin["u"] and abs(smax["value"] - hi) <= K * smax["u"]
     return {"paper": [lo, hi], "value": [smin["value"], smax["value"]], "u": [smin["u"], smax["u"]],
             "verdict": "agrees" if ok else "disagrees"}
@@ -501,7 +541,9 @@ def build(cache_dir: Path) -> dict:
             if st is None:
                 row["models"][m] = {"verdict": "not run"}
             else:
-                row["models"][m] = {**st, "verdict": verdict(st, pr["paper"])}
+                row["models"][m] = {**st, "verdict": row_verdict(st, pr["paper"], PLACEMENTS[m])}
+                if st.get("placements_run", PLACEMENTS[m]) < PLACEMENTS[m]:
+                    row["models"][m]["of_planned"] = PLACEMENTS[m]
                 vals = [v for v in st.get("over_alpha", {}).values() if v is not None]
                 if len(vals) == len(ALPHAS) and st.get("u") is not None:
                     lo, hi = min(vals), max(vals)
@@ -509,8 +551,8 @@ def build(cache_dir: Path) -> dict:
                     row["models"][m]["verdict_alpha_range"] = (
                         "agrees" if lo - K * st["u"] <= pr["paper"] <= hi + K * st["u"] else "disagrees")
         table.append(row)
-    extra = {m: {"fig10_range_3deg": range_verdict(models[m]["rows"], 3.0),
-                 "fig10_range_12deg": range_verdict(models[m]["rows"], 12.0),
+    extra = {m: {"fig10_range_3deg": range_verdict(models[m]["rows"], 3.0, PLACEMENTS[m]),
+                 "fig10_range_12deg": range_verdict(models[m]["rows"], 12.0, PLACEMENTS[m]),
                  "sec5": sec5_verdict(models[m]["rows"])} for m in MODELS}
     return {"command": f"python {SCRIPT}", "commit": git_commit(),
             "generated_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
@@ -520,23 +562,42 @@ def build(cache_dir: Path) -> dict:
             "placements": PLACEMENTS, "freqs_hz": {m: {f"{a:g}": list(freqs(m, a)) for a in (3.0, 12.0)}
                                                    for m in MODELS},
             "models": {m: {k: v for k, v in models[m].items() if k != "rows"} for m in MODELS},
-            "table": table, "ranges_and_sec5": extra,
+            "table": table, "verdict_counts": verdict_counts(table), "ranges_and_sec5": extra,
             "centred_12deg": {m: models[m]["rows"].get("centred_12deg") for m in MODELS},
             "atlas_crosscheck": {m: atlas_rows(m) for m in MODELS}}
 
 
+def eq10_why(c: dict) -> str:
+    """Why a regression row has no estimate: how many objects each placement fitted, at how many omega_n."""
+    fits = ", ".join(str(n) for n in c["objects_fitted"])
+    levels = ", ".join(str(k) for k in c["omega_levels"])
+    return (f"fits of {c['objects']} per placement: {fits}, at {levels} omega_n; the line needs "
+            f">= {MIN_OMEGA_LEVELS} omega_n")
+
+
+VERDICTS = ("agrees", "disagrees", "no estimate", "not run")
+
+
+def verdict_counts(table: list[dict]) -> dict[str, dict[str, int]]:
+    """Per model, how many of the scalar rows each verdict got."""
+    return {m: {v: sum(r["models"][m]["verdict"] == v for r in table) for v in VERDICTS} for m in MODELS}
+
+
 def _cell(c: dict, digits: int) -> str:
     if c["verdict"] == "not run":
-        return "not run"
-    if c.get("value") is None:
+        return f"not run ({c['placements_run']}/{c['of_planned']} placements run)" if "of_planned" in c else "not run"
+    if c["verdict"] == "no estimate":  # never a bare number: the JSON keeps a single placement's value
+        if "objects_fitted" in c:
+            run = f"; {c['placements_run']}/{c['of_planned']} placements run" if "of_planned" in c else ""
+            return f"no estimate ({eq10_why(c)}{run})"
         why = ", ".join(sorted({r for r in c.get("fit_fail", []) if r}))[:60]
         extra = f"; {c['unstable']}/{c['placements_run']} unstable" if "unstable" in c else ""
-        return f"no estimate ({c['n']}/{c['of']} placements{extra}{'; ' + why if why else ''})"
+        return f"no estimate ({c['n']}/{c['of']} placements gave a value{extra}{'; ' + why if why else ''})"
     u = c.get("u")
     txt = f"{c['value']:.{digits}f}" + (f" ± {u:.{digits}f}" if u is not None else "")
     if c["n"] < c["of"]:
         txt += f" ({c['n']}/{c['of']})"
-    mark = {"agrees": "✓", "disagrees": "✗", "no estimate": "?"}[c["verdict"]]
+    mark = {"agrees": "✓", "disagrees": "✗"}[c["verdict"]]
     if "alpha_range" in c:
         lo, hi = c["alpha_range"]
         mark += f" [alpha range {lo:.0f}-{hi:.0f} {'✓' if c['verdict_alpha_range'] == 'agrees' else '✗'}]"
@@ -571,7 +632,7 @@ def markdown(res: dict) -> str:
         for m in MODELS:
             r = res["ranges_and_sec5"][m][f"fig10_range_{a:g}deg"]
             cells.append(f"{r['value'][0]:.1f}-{r['value'][1]:.1f} Hz ({r['verdict']})" if "value" in r
-                         else r["verdict"])
+                         else r["verdict"] + (f" ({r['why']})" if "why" in r else ""))
         lo, hi = FIG10_RANGE[a]
         md.append(f"| Fig. 10: f0 range at {a:g} deg | {lo:g}-{hi:g} Hz | " + " | ".join(cells) + " |")
     cells = []
@@ -625,19 +686,21 @@ def markdown(res: dict) -> str:
                           f"{r['f0_min']['value']:.1f}-{r['f0_max']['value']:.1f} |")
     md += ["", "## Coverage", "", "A \"not run\" cell's sweeps are not in the cache: the stage that holds them was not "
            "simulated in the time the shared machine allowed (the rigid limit costs ~3 wall s a probe on an idle "
-           "core, PyBullet ~16-20 s). `python experiments/validate_paper.py --models M --stage N` fills them.", "",
+           "core; a PyBullet probe 1-7 s alone, an unstable one ending early, and several times that on a shared "
+           "machine). A row whose missing placements could still change its verdict is \"not run (k/N placements "
+           "run)\"; one that has no estimate whatever they give keeps \"no estimate\". "
+           "`python experiments/validate_paper.py --models M --stage N` fills them. Cells: sweeps complete / planned "
+           "(probes in the cache / planned).", "",
            "| model | sweeps in cache / planned | stage 1 (Figs. 3, 7) | stage 2 (Table 1, Sec. 5) | "
            "stage 3 (other alphas: Eq. 10, Figs. 9-10) | backend |", "|---|---|---|---|---|---|"]
     for m, info in res["models"].items():
-        st = [f"{d['sweeps_cached']}/{d['sweeps_planned']}" + (f" ({d['probes_missing']} probes missing)"
-                                                               if d["probes_missing"] else "")
-              for d in info["by_stage"].values()]
+        st = [f"{d['sweeps_cached']}/{d['sweeps_planned']}"
+              + (f" (probes {d['probes_planned'] - d['probes_missing']}/{d['probes_planned']})"
+                 if d["probes_missing"] else "") for d in info["by_stage"].values()]
         md.append(f"| {m} | {info['sweeps_complete']} / {info['sweeps_planned']} | " + " | ".join(st)
                   + f" | `{info['backend_tag']}` |")
-    counts = {m: {v: sum(r["models"][m]["verdict"] == v for r in res["table"])
-                  for v in ("agrees", "disagrees", "no estimate", "not run")} for m in MODELS}
     md += ["", "Verdicts over the scalar rows: " + "; ".join(
-        f"{m}: " + ", ".join(f"{k} {n}" for k, n in c.items()) for m, c in counts.items()) + ".", ""]
+        f"{m}: " + ", ".join(f"{k} {n}" for k, n in c.items()) for m, c in res["verdict_counts"].items()) + ".", ""]
     return "\n".join(md)
 
 
