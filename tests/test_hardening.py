@@ -591,6 +591,30 @@ def test_item12_ctrl_c_ends_a_pool_sweep_without_waiting_for_running_chunks():
     assert elapsed < 20.0 and pids == [], elapsed
 
 
+def test_item12_ctrl_c_that_lands_on_another_thread_still_ends_a_pool_sweep():
+    """The kernel may hand a process's Ctrl-C to any of its threads: here to the timer's own thread. The driver must
+    still see it within a poll, not when the running chunk ends (it waited 60 s: the wait blocked in C)."""
+    import signal
+    import threading
+    import time
+
+    from plate_env.run.executor import make_executor
+
+    ex = make_executor("pool:1")
+    it = ex.map(_slow_item, [1, 2])
+    timer = threading.Timer(3.0, lambda: signal.pthread_kill(threading.get_ident(), signal.SIGINT))
+    t0 = time.perf_counter()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            next(it)
+        elapsed = time.perf_counter() - t0
+        ex.close()
+    finally:
+        timer.cancel()
+    assert elapsed < 20.0, elapsed
+
+
 @pytest.mark.parametrize("body, needle", [("raise RuntimeError('agent bug')", "failed in next_probe: RuntimeError"),
                                           ("return None", "stopped before its first probe"),
                                           ("import sys; sys.exit(5)", "failed in next_probe: SystemExit")])

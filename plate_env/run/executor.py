@@ -215,7 +215,6 @@ class PoolExecutor:
         return [p.pid for p in procs.values() if p.is_alive()]
 
     def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[int, Any]]:
-        from concurrent.futures import as_completed
         from concurrent.futures.process import BrokenProcessPool
 
         pending = list(range(len(items)))
@@ -226,7 +225,7 @@ class PoolExecutor:
             with _env(WORKER_ENV):  # workers spawn during submit and inherit this environment
                 futures = {self._pool.submit(fn, items[i]): i for i in pending}
             try:
-                for fut in as_completed(futures):
+                for fut in _completed(futures):
                     i = futures[fut]
                     res = fut.result()
                     pending.remove(i)
@@ -252,6 +251,23 @@ class PoolExecutor:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+
+
+#: How often (s) a pool's driver wakes while it waits for chunks, to see a Ctrl-C.
+POLL_S = 0.2
+
+
+def _completed(futures: dict) -> Iterator:
+    """``concurrent.futures.as_completed``, waking every :data:`POLL_S` s. The kernel hands a Ctrl-C to any thread of
+    this process that does not block it (the pool's manager thread, a BLAS or numba thread): a wait without a
+    timeout then blocks the main thread in C, where Python cannot run its handler, until a chunk ends. Futures done
+    together come in submission order."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    left = set(futures)
+    while left:
+        done, left = wait(left, timeout=POLL_S, return_when=FIRST_COMPLETED)
+        yield from sorted(done, key=futures.__getitem__)
 
 
 def ignore_interrupts() -> None:
