@@ -241,6 +241,31 @@ def validate_paper_counts() -> str:
     return _table(head, rows) + f"\n\nCounts over the table's {len(d['table'])} scalar rows."
 
 
+def bench_models() -> str:
+    """The tile-link models' first-hump fits beside the paper's (Fig. 7 objects), their f0 slopes and speeds
+    (experiments/bench_models.py)."""
+    d = _load("bench_models.json")
+    models = list(d["slope_hz_per_pi"])
+    fits = {(f["omega_n_pi"], f["alpha_deg"], f["model"]): f for f in d["fits"]}
+
+    def fbw(f0: float, b: float, wmax: float) -> str:
+        return f"{f0:.1f} / {b:.1f} / {wmax:.0f}"
+
+    def rtf(x: float) -> str:
+        return f"{x:.0f}x" if x >= 10 else f"{x:.1f}x"
+
+    rows = []
+    for wn, alpha, _ in (k for k in fits if k[2] == models[0] and fits[k]["paper"]):
+        paper = fits[(wn, alpha, models[0])]["paper"]
+        rows.append([f"{wn:g}π, {alpha:g}°", fbw(*paper),
+                     *(fbw(*(fits[(wn, alpha, m)][k] for k in ("f0_hz", "b_hz", "omega_max_deg_s"))) for m in models)])
+    rows.append(["f0 slope (Hz per π rad/s)", f"{d['paper_slope_hz_per_pi']:.3f}",
+                 *(f"{d['slope_hz_per_pi'][m]:.3f}" for m in models)])
+    rows.append(["one probe / batch of 32, real-time factor", "",
+                 *(f"{rtf(d['speed'][m]['one_probe_rtf'])} / {rtf(d['speed'][m]['batch32_rtf'])}" for m in models)])
+    return _table(["ω_n, α", "paper f0 / b / ω_max", *(m.replace("pointmass", "point mass") for m in models)], rows)
+
+
 #: Every generated table: its name in the markers, the result file it is rendered from, and the renderer.
 TABLES: dict[str, tuple[str, Callable[[], str]]] = {
     "forward_models_within": ("forward_models_within.json", forward_models_within),
@@ -258,6 +283,7 @@ TABLES: dict[str, tuple[str, Callable[[], str]]] = {
     "leaderboard_atlas-v0": ("leaderboard_atlas-v0.json", lambda: _leaderboard("atlas-v0", False)),
     "rigid_fast_routes": ("rigid_fast.json", rigid_fast_routes),
     "validate_paper_counts": ("validate_paper.json", validate_paper_counts),
+    "bench_models": ("bench_models.json", bench_models),
 }
 
 

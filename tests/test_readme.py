@@ -179,7 +179,7 @@ def test_an_edited_number_is_caught():
             text = page_text[:m.start("body")] + edited + page_text[m.end("body"):]
             assert readme_tables.stale(text) == [m["name"]], (page.name, m["name"])
             checked.add(m["name"])
-    assert {"leaderboard_tilelink-v0", "leaderboard_atlas-v0", "rigid_fast_routes"} <= checked
+    assert {"leaderboard_tilelink-v0", "leaderboard_atlas-v0", "rigid_fast_routes", "bench_models"} <= checked
 
 
 def test_generator_renders_every_table():
