@@ -29,8 +29,8 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
+from plate_env.cli import CliError
+from plate_env.cli import parse_freqs as cli_parse_freqs
 from plate_env.physics.pybullet_sheet.scene import SheetConfig
 from plate_env.run.executor import BackendSpec
 from plate_env.run.sweeps import backend_tag, load_cache, run_cached, spec_key
@@ -66,16 +66,16 @@ def variant(name: str) -> tuple[BackendSpec, float]:
 
 
 def parse_freqs(text: str | None) -> tuple[float, ...] | None:
-    """``LO:HI:STEP`` (Hz) -> the frequencies, or None for the table's own."""
+    """``LO:HI:STEP`` (Hz) -> the frequencies (the command line's :func:`plate_env.cli.parse_freqs`, its range and
+    probe-count checks), or None for the table's own."""
     if not text:
         return None
+    if text.count(":") != 2:
+        raise ValueError(f"--freqs {text!r} must be LO:HI:STEP in Hz, e.g. 12:24:1")
     try:
-        lo, hi, step = (float(x) for x in text.split(":"))
-    except ValueError:
-        raise ValueError(f"--freqs {text!r} must be LO:HI:STEP in Hz, e.g. 12:24:1") from None
-    if not (step > 0 and hi >= lo):
-        raise ValueError(f"--freqs {text!r}: need STEP > 0 and HI >= LO")
-    return tuple(float(f) for f in np.arange(lo, hi + 1e-9, step))
+        return tuple(float(f) for f in cli_parse_freqs(text))
+    except CliError as e:
+        raise ValueError(str(e)) from None
 
 
 def copy_records(physics: BackendSpec, specs: list, source: Path, cache: Path) -> int:
