@@ -129,10 +129,21 @@ class Codec:
         unstable, window s; the first ``max_probes``), the fraction of probes left and of simulated seconds left."""
         obs = np.zeros(self.obs_dim, dtype=np.float32)
         for i, r in enumerate(list(rows)[: self.max_probes]):
-            obs[N_FEATURES * i: N_FEATURES * (i + 1)] = self.row(*r[:6])
-        obs[-2] = probes_left
-        obs[-1] = sim_left
-        return np.clip(obs, -10.0, 10.0)
+            self.put_row(obs, i, r)
+        return self.completed(obs, probes_left, sim_left)
+
+    def put_row(self, obs: np.ndarray, i: int, r: Sequence[float]) -> None:
+        """Write probe ``r`` (the fields of :meth:`observation`'s rows) as row ``i`` of the observation buffer
+        ``obs`` (an env writes each probe's row once, as it arrives)."""
+        obs[N_FEATURES * i: N_FEATURES * (i + 1)] = self.row(*r[:6])
+
+    def completed(self, obs: np.ndarray, probes_left: float, sim_left: float) -> np.ndarray:
+        """The observation of a buffer of rows (:meth:`put_row`): a new array with the fraction of probes left and
+        of simulated seconds left, clipped to [-10, 10]; ``obs`` is not changed."""
+        out = obs.copy()
+        out[-2] = probes_left
+        out[-1] = sim_left
+        return np.clip(out, -10.0, 10.0)
 
     def resized(self, obs: np.ndarray, n_probes: int) -> np.ndarray:
         """An observation of another slot count laid out in this one: the filled rows copied (up to this codec's

@@ -26,7 +26,7 @@ from plate_env.core.probe import (
 )
 from plate_env.core.probe_table import ProbeTable
 from plate_env.core.setup import B_P_RANGE_M, DEFAULT_MAX_PROBES, FREQ_RANGE_HZ, MAX_PROBES_RANGE, PAPER_SETUP
-from plate_env.env.codec import ACTION_SIZE, N_FEATURES, Codec
+from plate_env.env.codec import ACTION_SIZE, Codec
 from plate_env.identify.api import METHODS
 from plate_env.identify.estimate import Estimate
 from plate_env.physics import PHYSICS_NAMES, make_physics
@@ -345,8 +345,8 @@ class PlateRotationEnv(gym.Env):
             spec = result.spec
             self._rows.append((spec.motion.freq_hz, spec.motion.a_p_deg, omega, se, result.unstable, spec.measure_s))
             k = len(self._rows) - 1
-            if k < self.max_probes:  # the observation's row of this probe (Codec.observation's, written once)
-                self._obs_rows[N_FEATURES * k: N_FEATURES * (k + 1)] = self.codec.row(*self._rows[k])
+            if k < self.max_probes:  # the observation's row of this probe, written once
+                self.codec.put_row(self._obs_rows, k, self._rows[k])
             self._results.append(result)
             self._sim_s += result.sim_s
             self._wall_s += result.wall_s
@@ -447,10 +447,7 @@ class PlateRotationEnv(gym.Env):
     def _obs(self) -> np.ndarray:
         """``Codec.observation`` of the probes so far, from the rows written as each probe arrived."""
         sim_left = 1.0 - self._sim_s / self.max_sim_s if self.max_sim_s else 1.0
-        obs = self._obs_rows.copy()
-        obs[-2] = 1.0 - len(self._rows) / self.max_probes
-        obs[-1] = sim_left
-        return np.clip(obs, -10.0, 10.0)
+        return self.codec.completed(self._obs_rows, 1.0 - len(self._rows) / self.max_probes, sim_left)
 
     def _info(self) -> dict[str, Any]:
         info: dict[str, Any] = {"omega_n_true": self._obj.omega_n if self._obj else None,
