@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from plate_env.bench.scoring import Scores, discrepancies, score
+from plate_env.build.eq10 import LAB_SETS, lab_backend_of, lab_fits, lab_line
 from plate_env.build.eval_sets import EvalSet, run_eval_set
 from plate_env.build.forward_models import FAMILIES
 from plate_env.core.probe_table import ProbeTable
@@ -258,25 +259,12 @@ def described(fm: ForwardModel, table: ProbeTable) -> ProbeTable:
 
 
 #: Data of each family: point-mass objects each with its own draw of the unknown joint/contact values, the
-#: paper-faithful rigid tiles (rigid_limit), the PyBullet sheet (which folds below ~5pi: objects from 5pi-33pi).
-DATA = {
-    "pointmass": EvalSet("tilelink_pointmass", 120, 400, (3.0,), nuisance=True),
-    "rigid": EvalSet("tilelink_rigid_limit", 20, 100, (3.0,)),
-    "pybullet": EvalSet("pybullet_pybullet", 24, 600, (3.0,), f_hz=tuple(float(f) for f in range(10, 27, 2)),
-                        settle_s=0.3, measure_s=0.6, omega_range_pi=(5.0, 33.0)),
-}
+#: paper-faithful rigid tiles (rigid_limit), the PyBullet sheet (which folds below ~5pi: objects from 5pi-33pi):
+#: the sets the shipped lab Eq. (10) line is pooled over (plate_env.build.eq10).
+DATA = LAB_SETS
+backend_of = lab_backend_of
 #: A second point-mass set with nuisance draws, to estimate the family's discrepancy apart from the test set.
 NUISANCE_CALIBRATION = EvalSet("tilelink_pointmass", 120, 410, (3.0,), nuisance=True)
-
-
-def backend_of(family: str):
-    def of(nuisance):
-        if family == "pybullet":  # the default sheet (182 nodes), as its shipped atlas
-            return BackendSpec.of("pybullet", n_workers=1)
-        if nuisance is not None:
-            return BackendSpec.of("tilelink", **nuisance.tilelink_options("pointmass"))
-        return BackendSpec.of("tilelink", model="rigid_limit" if family == "rigid" else family)
-    return of
 
 
 def data_of(family: str, executor, es: EvalSet | None = None) -> tuple[list[float], list[ProbeTable]]:
@@ -481,24 +469,14 @@ def stage_lorentz(args) -> None:
     line (its residual spread includes the models' disagreement) shipped as the ``lab`` calibration, and each
     family left out in turn (line from the other two) to test the Lorentzian intervals."""
     from plate_env.identify import identify_lorentz
-    from plate_env.identify.calibration import fit_calibration, load_calibrations, save_calibrations
-    from plate_env.identify.fitting import fit_lorentzian
+    from plate_env.identify.calibration import load_calibrations
 
     rng = np.random.default_rng(0)
-    fits, data = {}, {}
-    for fam in DATA:
-        data[fam] = data_of(fam, args.executor)
-        fits[fam] = [(w, fit_lorentzian(t.f_p_hz, t.omega_b_deg_s, t.stderr_deg_s, t.unstable))
-                     for w, t in zip(*data[fam], strict=True)]
+    data = {fam: data_of(fam, args.executor) for fam in DATA}
+    fits = lab_fits(data)
 
     def line(fams: list[str], physics: str, model: str):
-        pts = [(fit.f0, w, fam) for fam in fams for w, fit in fits[fam] if fit.ok]
-        f0, w, groups = zip(*pts, strict=True)
-        # a line pooled over models keeps each model's own line: a model never seen is offset from it by the
-        # models' spread (Student-t, one degree of freedom fewer than the models with a line of their own)
-        return fit_calibration(np.array(f0), np.array(w), physics, model, 3.0, groups=list(groups),
-                               provenance={"sweeps": {fam: DATA[fam].source for fam in fams}, "a_p_deg": 3.0,
-                                           "window": "first_hump", "script": "experiments/forward_models.py lorentz"})
+        return lab_line(fits, fams, physics, model)
 
     lines = ["# The paper's Lorentzian method across models (3 deg)", "",
              "| calibration line | points | p1 [pi rad/s per Hz] | q1 [pi rad/s] | R^2 | residual sd [pi rad/s] |",
@@ -522,12 +500,12 @@ def stage_lorentz(args) -> None:
         s = score(truth, [identify_lorentz(t, calibrations={3.0: cal}) for t in tables], rng)
         lines.append(row(f"{out} data, line from the others", s))
         numbers["lomo"][out] = s.to_dict()
-    cals = load_calibrations()
-    cals = [c for k, c in cals.items() if not k.startswith("lab/")] + [lab]
-    save_calibrations(cals, "plate_env/data/calibration.json")
-    lines += ["", f"Shipped as the `lab` calibration (`plate-env fit --method lorentz`): p1 = {lab.p1_pi:.2f}, "
-              f"q1 = {lab.q1_pi:.1f} pi rad/s, residual sd {lab.resid_std / math.pi:.1f} pi rad/s from {lab.n} "
-              "sweeps of every model; its intervals include the models' disagreement."]
+    shipped = load_calibrations()["lab/lab/3"]
+    same = "equals" if shipped.to_json() == lab.to_json() else "differs from"
+    lines += ["", f"Shipped as the `lab` calibration (`plate-env fit --method lorentz`, written by `plate-env build "
+              f"calibration eq10`): p1 = {lab.p1_pi:.2f}, q1 = {lab.q1_pi:.1f} pi rad/s, residual sd "
+              f"{lab.resid_std / math.pi:.1f} pi rad/s from {lab.n} sweeps of every model; its intervals include the "
+              f"models' disagreement. This line {same} the installed package's."]
     write("lorentz", lines, numbers)
 
 
