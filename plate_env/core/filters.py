@@ -129,15 +129,19 @@ def ppoly_eval(c: np.ndarray, x: np.ndarray, xval: float) -> np.ndarray:
     power first, in powers of ``xval - x[i]``), at one point, extrapolated from the first / last piece outside
     ``x`` (ascending): ``PPoly.construct_fast(c, x, extrapolate=True)(xval)``. NaN gives NaN."""
     xval = float(xval)
-    nx = len(x)
     if xval != xval:
         return np.full(c.shape[2:], np.nan)
-    i = int(np.searchsorted(x, xval, side="right")) - 1
-    i = min(max(i, 0), nx - 2)
-    s = xval - float(x[i])
+    i, s = ppoly_interval(x, xval)
     res = 0.0 + c[-1, i] * 1.0
     z = 1.0
     for kp in range(1, c.shape[0]):  # evaluate_poly1: res += c[k-kp] z; z *= s (z = s^kp)
         z = z * s
         res = res + c[c.shape[0] - kp - 1, i] * z
     return res
+
+
+def ppoly_interval(x: np.ndarray, xval: float) -> tuple[int, float]:
+    """:func:`ppoly_eval`'s piece ``i`` for ``xval`` (not NaN) and the offset ``xval - x[i]`` its powers take."""
+    i = int(np.searchsorted(x, xval, side="right")) - 1
+    i = min(max(i, 0), len(x) - 2)
+    return i, xval - float(x[i])

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from plate_env.core.jit import kernels
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify.estimate import Estimate, Posterior, PredictiveCheck
 from plate_env.identify.forward import ForwardModel, Member
@@ -63,6 +64,18 @@ def smoothed_p(p: np.ndarray, n_repeats: int) -> np.ndarray:
 def probe_log_likelihood(mu: np.ndarray, spread: np.ndarray, p_unstable: np.ndarray, omega_b: float,
                          stderr: float, unstable: bool, sigma_model: float, n_repeats: int) -> np.ndarray:
     """One probe's log-likelihood on a grid, from the atlas's mean, spread and raw unstable share there."""
+    fast = kernels() if mu.ndim == 2 and mu.shape == spread.shape == p_unstable.shape else None
+    if fast is not None:  # the same floats: the arithmetic in one pass each side of numpy's logarithms
+        out = np.empty(mu.shape)
+        if unstable:
+            fast.smoothed(p_unstable, float(n_repeats), out)
+            return np.log(out, out=out)
+        q, var = np.empty(mu.shape), np.empty(mu.shape)
+        fast.stable_parts(mu, spread, p_unstable, float(omega_b), float(stderr) ** 2, float(sigma_model) ** 2,
+                          float(n_repeats), NU, out, q, var)
+        np.log1p(out, out=out)
+        fast.stable_combine(out, np.log1p(q, out=q), np.log(var, out=var), -0.5 * (NU + 1.0), out)
+        return out
     p = smoothed_p(p_unstable, n_repeats)
     if unstable:
         return np.log(p)
@@ -95,7 +108,8 @@ def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
 
 def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     from plate_env.core.cache import cached_arrays, content_key
-    from plate_env.core.filters import ppoly_eval
+    from plate_env.core.filters import ppoly_eval, ppoly_interval
+    from plate_env.core.jit import kernels
 
     def build() -> dict[str, np.ndarray]:
         from scipy.interpolate import CubicSpline
@@ -112,9 +126,18 @@ def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     x = np.asarray(atlas.f_hz, float)
     coefs = [np.asarray(coef[name]) for name in RESPONSE]  # CubicSpline's own polynomials, as its PPoly evaluates
     inside = _covered(atlas, w, a)
+    flats = [c.reshape(c.shape[0], c.shape[1], -1) for c in coefs]
 
     def at(f_hz: float):
-        m, s, p = (ppoly_eval(c, x, float(f_hz)) for c in coefs)
+        f = float(f_hz)
+        fast = kernels() if f == f and all(c.ndim == 4 for c in coefs) else None
+        if fast is not None:  # the same floats in one pass (plate_env.core.grid_kernels)
+            i, s = ppoly_interval(x, f)
+            out = np.empty((3, *coefs[0].shape[2:]))
+            flat = out.reshape(3, -1)
+            fast.ppoly3_at(*flats, i, s, flat[0], flat[1], flat[2])
+            return out[0], out[1], out[2]
+        m, s, p = (ppoly_eval(c, x, f) for c in coefs)
         return m, np.maximum(s, 0.0), np.clip(p, 0.0, 1.0)
 
     return at, inside
@@ -139,8 +162,15 @@ def _covered(atlas: Atlas, w: np.ndarray, a: np.ndarray) -> np.ndarray:
 
 
 def member_coverage(member: Member, w: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """The grid points (n_omega, n_alpha) inside a member's atlas ranges."""
-    return _covered(member.atlas, w, a)
+    """The grid points (n_omega, n_alpha) inside a member's atlas ranges (read-only: kept on the atlas per grid)."""
+    w, a = np.asarray(w, float), np.asarray(a, float)
+
+    def build() -> np.ndarray:
+        inside = _covered(member.atlas, w, a)
+        inside.flags.writeable = False
+        return inside
+
+    return member.atlas.cached(("coverage", w.tobytes(), a.tobytes()), build)
 
 
 def member_rows(member: Member, w: np.ndarray) -> slice:
@@ -376,7 +406,13 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
     counts: dict[tuple, list[int]] = {}
     for k in idx:
         counts.setdefault(probe_key(table, int(k)), []).append(int(k))
+    fast = kernels() if reach == 0 else None
     for ks in counts.values():  # the surprise of every grid object, probe by probe (exact repeats computed once)
+        if fast is not None:  # the same floats, the arithmetic in kernels around numpy's logarithms
+            known[probe_key(table, ks[0])] = _surprise_into(fast, total, len(ks), m, table, ks[0],
+                                                            response(m, float(table.a_p_deg[ks[0]]), sub, a,
+                                                                     float(table.f_p_hz[ks[0]])))
+            continue
         z, pu = terms(ks[0])
         one = _surprise((z ** 2)[..., None], np.array([not table.unstable[ks[0]]]), pu[..., None])
         if reach > 0:
@@ -395,22 +431,43 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
         if key not in best:
             zz, pp = terms(k)
             zz, pp = zz[rows_c, c[1]], pp[rows_c, c[1]]
-            j = int(np.argmin(_surprise((zz ** 2)[:, None], np.array([st]), pp[:, None])))
+            j = int(np.argmin(_surprise((zz ** 2)[:, None], np.array([st]), pp[:, None]))) if zz.size > 1 else 0
             best[key] = (zz[j], pp[j])
         z.append(best[key][0])
         p_c.append(best[key][1])
     z, p_c = np.array(z), np.array(p_c)
     t_obs = float(_surprise(z ** 2, stable, p_c))
     u_rep, t_part = _check_replicates(n)
-    stable_rep = u_rep >= p_c
     # _surprise(z2_rep, stable_rep, p_c) term by term: its t part drawn once, the flags' logs taken per probe
-    t_rep = np.where(stable_rep, t_part + -np.log(1.0 - p_c), -np.log(p_c)).sum(-1)
-    p_value = float((1 + np.count_nonzero(t_rep >= t_obs)) / (CHECK_DRAWS + 1))
+    if fast is not None and n <= 128:
+        exceed = fast.replicates_at_least(u_rep, t_part, p_c, -np.log(1.0 - p_c), -np.log(p_c), t_obs)
+    else:
+        stable_rep = u_rep >= p_c
+        t_rep = np.where(stable_rep, t_part + -np.log(1.0 - p_c), -np.log(p_c)).sum(-1)
+        exceed = np.count_nonzero(t_rep >= t_obs)
+    p_value = float((1 + exceed) / (CHECK_DRAWS + 1))
     worst = None
     if np.any(stable):
         j = int(np.argmax(np.where(stable, np.abs(z), -1.0)))
         worst = (float(table.f_p_hz[idx[j]]), float(table.a_p_deg[idx[j]]), float(z[j]))
     return PredictiveCheck(statistic=t_obs, p_value=p_value, n_probes=n, member=m.label, worst=worst)
+
+
+def _surprise_into(fast, total: np.ndarray, count: int, m: Member, table: ProbeTable, k: int, response):
+    """``total += count * _surprise(...)`` of probe ``k`` over the grid, as :func:`predictive_check`'s numpy code
+    computes it (the same floats), with its arithmetic in :mod:`plate_env.core.grid_kernels`; returns the probe's
+    (z, smoothed p) grids (z is zeros for an unstable probe: its surprise does not read z)."""
+    mk, sk, pk = response
+    ps = np.empty(mk.shape)
+    if table.unstable[k]:
+        fast.smoothed(pk, float(m.atlas.n_repeats), ps)
+        total += count * (0.0 + -np.log(ps))
+        return np.zeros(mk.shape), ps
+    z, x, omp = np.empty(mk.shape), np.empty(mk.shape), np.empty(mk.shape)
+    fast.check_parts(mk, sk, pk, float(table.omega_b_deg_s[k]), float(table.stderr_deg_s[k]) ** 2,
+                     m.sigma_model ** 2, float(m.atlas.n_repeats), NU, z, x, omp, ps)
+    fast.check_add(total, np.log1p(x, out=x), np.log(omp, out=omp), 0.5 * (NU + 1.0), count)
+    return z, ps
 
 
 def predicted_curve(fm: ForwardModel, est: Estimate, f_hz: np.ndarray, a_p_deg: float) -> tuple[np.ndarray, str] | None:

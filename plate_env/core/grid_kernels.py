@@ -1,0 +1,239 @@
+"""numba kernels for the posterior's per-probe grid arithmetic: the same floats as the numpy code they replace.
+
+Each kernel does, element by element and in the same order, the additions, multiplications, divisions, square
+roots, minima and maxima the numpy expressions do (plain IEEE-754: no fastmath, so no reassociation and no FMA
+contraction), in one pass instead of one pass per numpy operation. Logarithms and exponentials are *not* taken
+here: numba calls the C library's, numpy its own SIMD code, and the two differ in the last bit for ~0.2-9 % of
+arguments; the callers take them with numpy between kernels. tests/test_grid_kernels.py checks every kernel
+against its numpy expression bit for bit, signed zeros and NaN included.
+
+Importing this module imports numba (~0.2 s); the kernels compile on first use (cached on disk afterwards).
+:mod:`plate_env.core.jit` decides when a process loads them.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+def _njit(fn):
+    """``numba.njit`` with numpy's error model (x / 0 is inf or NaN, as numpy gives), cached on disk where numba
+    can write (else compiled per process)."""
+    try:
+        return numba.njit(cache=True, error_model="numpy")(fn)
+    except RuntimeError:  # no writable cache location
+        return numba.njit(error_model="numpy")(fn)
+
+
+@_njit
+def _ppoly_at(c, i, zs, out):
+    """One piecewise polynomial's values at interval ``i`` (``c`` (k + 1, n_x - 1, n), ``zs`` the powers of the
+    offset) into ``out`` (n), summed from the highest power's coefficient down (one pass for cubics)."""
+    kk = c.shape[0]
+    if kk == 4:
+        c3, c2, c1, c0 = c[3, i], c[2, i], c[1, i], c[0, i]
+        z1, z2, z3 = zs[1], zs[2], zs[3]
+        for j in range(out.size):
+            v = 0.0 + c3[j] * 1.0
+            v = v + c2[j] * z1
+            v = v + c1[j] * z2
+            out[j] = v + c0[j] * z3
+        return
+    top = c[kk - 1, i]
+    for j in range(out.size):
+        out[j] = 0.0 + top[j] * 1.0
+    for kp in range(1, kk):
+        zk = zs[kp]
+        b = c[kk - kp - 1, i]
+        for j in range(out.size):
+            out[j] = out[j] + b[j] * zk
+
+
+@_njit
+def ppoly3_at(cm, cs, cp, i, s, out_m, out_s, out_p):
+    """Three piecewise polynomials (coefficients ``(k + 1, n_x - 1, n)``: :func:`plate_env.core.filters.ppoly_eval`'s
+    with the trailing axes flattened) at one point (interval ``i``, ``s = x - x[i]``) into ``out_m``, ``out_s`` (then
+    ``np.maximum(out_s, 0.0)``) and ``out_p`` (then ``np.clip(out_p, 0.0, 1.0)``), each (n). The powers of ``s``
+    are ppoly_eval's (``z = z * s`` from 1)."""
+    kk = cm.shape[0]
+    zs = np.empty(kk)
+    z = 1.0
+    zs[0] = 1.0
+    for kp in range(1, kk):
+        z = z * s
+        zs[kp] = z
+    _ppoly_at(cm, i, zs, out_m)
+    _ppoly_at(cs, i, zs, out_s)
+    _ppoly_at(cp, i, zs, out_p)
+    for j in range(out_s.size):
+        vs = out_s[j]
+        out_s[j] = vs if (vs > 0.0 or vs != vs) else 0.0  # np.maximum(s, 0.0): +0.0 for -0.0, NaN kept
+        vp = out_p[j]
+        vp = vp if (vp >= 0.0 or vp != vp) else 0.0  # np.clip(p, 0.0, 1.0): -0.0 kept, NaN kept
+        out_p[j] = vp if (vp <= 1.0 or vp != vp) else 1.0
+
+
+@_njit
+def smoothed(p, n_repeats, out):
+    """``(p * n_repeats + 0.5) / (n_repeats + 1.0)`` (:func:`plate_env.identify.inference.smoothed_p`)."""
+    den = n_repeats + 1.0
+    for r in range(p.shape[0]):
+        for a in range(p.shape[1]):
+            out[r, a] = (p[r, a] * n_repeats + 0.5) / den
+
+
+@_njit
+def stable_parts(mu, spread, p, omega_b, stderr2, sigma2, n_repeats, nu, neg_p, q, var):
+    """A stable probe's likelihood before its logarithms: ``neg_p = -smoothed_p(p)``, ``var = spread ** 2 +
+    stderr ** 2 + sigma_model ** 2`` and ``q = (omega_b - mu) ** 2 / (nu * var)`` (``stderr2``, ``sigma2``: the
+    squares, taken by the caller as Python takes them)."""
+    den = n_repeats + 1.0
+    for r in range(mu.shape[0]):
+        for a in range(mu.shape[1]):
+            neg_p[r, a] = -((p[r, a] * n_repeats + 0.5) / den)
+            sp = spread[r, a]
+            v = sp * sp + stderr2 + sigma2
+            var[r, a] = v
+            d = omega_b - mu[r, a]
+            q[r, a] = d * d / (nu * v)
+
+
+@_njit
+def stable_combine(log_1mp, log_q, log_var, half_nu1, out):
+    """``log1p(-p) + (-0.5 (nu + 1) log1p(q) - 0.5 log(var))`` from the three logarithms (``half_nu1`` =
+    ``-0.5 * (nu + 1.0)``), into ``out`` (which may be ``log_1mp``)."""
+    for r in range(out.shape[0]):
+        for a in range(out.shape[1]):
+            out[r, a] = log_1mp[r, a] + (half_nu1 * log_q[r, a] - 0.5 * log_var[r, a])
+
+
+@_njit
+def check_parts(mu, spread, p, omega_b, stderr2, sigma2, n_repeats, nu, z, x, one_minus_p, ps):
+    """A stable probe's predictive-check terms before their logarithms: ``z = (omega_b - mu) / sqrt(spread ** 2 +
+    stderr ** 2 + sigma_model ** 2)``, ``x = z ** 2 / nu``, ``ps = smoothed_p(p)`` and ``one_minus_p = 1.0 - ps``."""
+    den = n_repeats + 1.0
+    for r in range(mu.shape[0]):
+        for a in range(mu.shape[1]):
+            sp = spread[r, a]
+            zz = (omega_b - mu[r, a]) / np.sqrt(sp * sp + stderr2 + sigma2)
+            z[r, a] = zz
+            x[r, a] = zz * zz / nu
+            pr = (p[r, a] * n_repeats + 0.5) / den
+            ps[r, a] = pr
+            one_minus_p[r, a] = 1.0 - pr
+
+
+@_njit
+def check_add(total, log_x, log_1mp, half_nu1, count):
+    """``total += count * (0.5 (nu + 1) log1p(x) + -log(1 - p))`` (``half_nu1`` = ``0.5 * (nu + 1.0)``) for a
+    stable probe's surprise (summed over its one-element last axis as numpy sums: from 0.0)."""
+    c = float(count)
+    for r in range(total.shape[0]):
+        for a in range(total.shape[1]):
+            total[r, a] = total[r, a] + c * (0.0 + (half_nu1 * log_x[r, a] + -log_1mp[r, a]))
+
+
+@_njit
+def _pairwise(v, start, n):
+    """numpy's pairwise sum of ``v[start:start + n]`` for ``n <= 128`` (below 8 terms one by one from 0.0, else in
+    8 interleaved partial sums)."""
+    if n < 8:
+        res = 0.0
+        for j in range(n):
+            res += v[start + j]
+        return res
+    r0, r1, r2, r3 = v[start], v[start + 1], v[start + 2], v[start + 3]
+    r4, r5, r6, r7 = v[start + 4], v[start + 5], v[start + 6], v[start + 7]
+    i = 8
+    while i < n - (n % 8):
+        r0 += v[start + i]
+        r1 += v[start + i + 1]
+        r2 += v[start + i + 2]
+        r3 += v[start + i + 3]
+        r4 += v[start + i + 4]
+        r5 += v[start + i + 5]
+        r6 += v[start + i + 6]
+        r7 += v[start + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += v[start + i]
+        i += 1
+    return res
+
+
+@_njit
+def replicates_at_least(u, t_part, p, flag_stable, flag_unstable, t_obs):
+    """How many replicate sweeps (rows of ``u``, ``t_part``: (draws, n)) have a surprise >= ``t_obs``: per row
+    ``np.where(u >= p, t_part + flag_stable, flag_unstable).sum()``, summed as numpy sums a row (n <= 128)."""
+    n = u.shape[1]
+    row = np.empty(n)
+    count = 0
+    for d in range(u.shape[0]):
+        for j in range(n):
+            row[j] = t_part[d, j] + flag_stable[j] if u[d, j] >= p[j] else flag_unstable[j]
+        if _pairwise(row, 0, n) >= t_obs:
+            count += 1
+    return count
+
+
+@_njit
+def _find_interval(t, k, x):
+    """:func:`plate_env.surrogate.atlas._find_interval` (x not NaN)."""
+    n = t.size - k - 1
+    ell = k + 1
+    while x >= t[ell] and ell != n:
+        ell += 1
+    return ell - 1
+
+
+@_njit
+def _de_boor(t, x, k, ell, h, hh):
+    """:func:`plate_env.surrogate.atlas._de_boor` into ``h`` (k + 1; ``hh`` scratch of the same size)."""
+    h[0] = 1.0
+    for j in range(1, k + 1):
+        h[j] = 0.0
+    for j in range(1, k + 1):
+        for q in range(j):
+            hh[q] = h[q]
+        h[0] = 0.0
+        for n in range(1, j + 1):
+            ind = ell + n
+            xb, xa = t[ind], t[ind - j]
+            if xb == xa:
+                h[n] = 0.0
+                continue
+            w = hh[n - 1] / (xb - xa)
+            h[n - 1] += w * (xb - x)
+            h[n] = w * (x - xa)
+
+
+@_njit
+def spline3_point(t0, t1, t2, k0, k1, k2, c_a, c_b, c_c, x0, x1, x2):
+    """Three tensor-product cubic splines sharing knots ``t0, t1, t2`` and degrees at one point (not NaN), as
+    :meth:`plate_env.surrogate.atlas._TensorSpline.bases` and ``.contract`` compute them, term by term in scipy's
+    order: ``(value_a, value_b, value_c)``."""
+    b0, h0 = np.empty(k0 + 1), np.empty(k0 + 1)
+    b1, h1 = np.empty(k1 + 1), np.empty(k1 + 1)
+    b2, h2 = np.empty(k2 + 1), np.empty(k2 + 1)
+    l0 = _find_interval(t0, k0, x0)
+    l1 = _find_interval(t1, k1, x1)
+    l2 = _find_interval(t2, k2, x2)
+    _de_boor(t0, x0, k0, l0, b0, h0)
+    _de_boor(t1, x1, k1, l1, b1, h1)
+    _de_boor(t2, x2, k2, l2, b2, h2)
+    s0, s1, s2 = l0 - k0, l1 - k1, l2 - k2
+    va = 0.0
+    vb = 0.0
+    vc = 0.0
+    for i0 in range(k0 + 1):
+        w0 = b0[i0]
+        for i1 in range(k1 + 1):
+            f01 = 1.0 * w0 * b1[i1]
+            for i2 in range(k2 + 1):
+                f = f01 * b2[i2]
+                va += c_a[s0 + i0, s1 + i1, s2 + i2] * f
+                vb += c_b[s0 + i0, s1 + i1, s2 + i2] * f
+                vc += c_c[s0 + i0, s1 + i1, s2 + i2] * f
+    return va, vb, vc
