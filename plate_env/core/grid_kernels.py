@@ -4,7 +4,8 @@ Each kernel does, element by element and in the same order, the additions, multi
 roots, minima and maxima the numpy expressions do (plain IEEE-754: no fastmath, so no reassociation and no FMA
 contraction), in one pass instead of one pass per numpy operation. Logarithms and exponentials are *not* taken
 here: numba calls the C library's, numpy its own SIMD code, and the two differ in the last bit for ~0.2-9 % of
-arguments; the callers take them with numpy between kernels. tests/test_grid_kernels.py checks every kernel
+arguments; the callers take them with numpy between kernels. Elementwise kernels take flat (1-D, contiguous)
+views of the grids. tests/test_grid_kernels.py checks every kernel
 against its numpy expression bit for bit, signed zeros and NaN included.
 
 Importing this module imports numba (~0.2 s); the kernels compile on first use (cached on disk afterwards).
@@ -78,9 +79,8 @@ def ppoly3_at(cm, cs, cp, i, s, out_m, out_s, out_p):
 def smoothed(p, n_repeats, out):
     """``(p * n_repeats + 0.5) / (n_repeats + 1.0)`` (:func:`plate_env.identify.inference.smoothed_p`)."""
     den = n_repeats + 1.0
-    for r in range(p.shape[0]):
-        for a in range(p.shape[1]):
-            out[r, a] = (p[r, a] * n_repeats + 0.5) / den
+    for j in range(p.size):
+        out[j] = (p[j] * n_repeats + 0.5) / den
 
 
 @_njit
@@ -89,23 +89,21 @@ def stable_parts(mu, spread, p, omega_b, stderr2, sigma2, n_repeats, nu, neg_p, 
     stderr ** 2 + sigma_model ** 2`` and ``q = (omega_b - mu) ** 2 / (nu * var)`` (``stderr2``, ``sigma2``: the
     squares, taken by the caller as Python takes them)."""
     den = n_repeats + 1.0
-    for r in range(mu.shape[0]):
-        for a in range(mu.shape[1]):
-            neg_p[r, a] = -((p[r, a] * n_repeats + 0.5) / den)
-            sp = spread[r, a]
-            v = sp * sp + stderr2 + sigma2
-            var[r, a] = v
-            d = omega_b - mu[r, a]
-            q[r, a] = d * d / (nu * v)
+    for j in range(mu.size):
+        neg_p[j] = -((p[j] * n_repeats + 0.5) / den)
+        sp = spread[j]
+        v = sp * sp + stderr2 + sigma2
+        var[j] = v
+        d = omega_b - mu[j]
+        q[j] = d * d / (nu * v)
 
 
 @_njit
 def stable_combine(log_1mp, log_q, log_var, half_nu1, out):
     """``log1p(-p) + (-0.5 (nu + 1) log1p(q) - 0.5 log(var))`` from the three logarithms (``half_nu1`` =
     ``-0.5 * (nu + 1.0)``), into ``out`` (which may be ``log_1mp``)."""
-    for r in range(out.shape[0]):
-        for a in range(out.shape[1]):
-            out[r, a] = log_1mp[r, a] + (half_nu1 * log_q[r, a] - 0.5 * log_var[r, a])
+    for j in range(out.size):
+        out[j] = log_1mp[j] + (half_nu1 * log_q[j] - 0.5 * log_var[j])
 
 
 @_njit
@@ -113,15 +111,14 @@ def check_parts(mu, spread, p, omega_b, stderr2, sigma2, n_repeats, nu, z, x, on
     """A stable probe's predictive-check terms before their logarithms: ``z = (omega_b - mu) / sqrt(spread ** 2 +
     stderr ** 2 + sigma_model ** 2)``, ``x = z ** 2 / nu``, ``ps = smoothed_p(p)`` and ``one_minus_p = 1.0 - ps``."""
     den = n_repeats + 1.0
-    for r in range(mu.shape[0]):
-        for a in range(mu.shape[1]):
-            sp = spread[r, a]
-            zz = (omega_b - mu[r, a]) / np.sqrt(sp * sp + stderr2 + sigma2)
-            z[r, a] = zz
-            x[r, a] = zz * zz / nu
-            pr = (p[r, a] * n_repeats + 0.5) / den
-            ps[r, a] = pr
-            one_minus_p[r, a] = 1.0 - pr
+    for j in range(mu.size):
+        sp = spread[j]
+        zz = (omega_b - mu[j]) / np.sqrt(sp * sp + stderr2 + sigma2)
+        z[j] = zz
+        x[j] = zz * zz / nu
+        pr = (p[j] * n_repeats + 0.5) / den
+        ps[j] = pr
+        one_minus_p[j] = 1.0 - pr
 
 
 @_njit
@@ -129,9 +126,8 @@ def check_add(total, log_x, log_1mp, half_nu1, count):
     """``total += count * (0.5 (nu + 1) log1p(x) + -log(1 - p))`` (``half_nu1`` = ``0.5 * (nu + 1.0)``) for a
     stable probe's surprise (summed over its one-element last axis as numpy sums: from 0.0)."""
     c = float(count)
-    for r in range(total.shape[0]):
-        for a in range(total.shape[1]):
-            total[r, a] = total[r, a] + c * (0.0 + (half_nu1 * log_x[r, a] + -log_1mp[r, a]))
+    for j in range(total.size):
+        total[j] = total[j] + c * (0.0 + (half_nu1 * log_x[j] + -log_1mp[j]))
 
 
 @_njit
@@ -172,7 +168,8 @@ def replicates_at_least(u, t_part, p, flag_stable, flag_unstable, t_obs):
     count = 0
     for d in range(u.shape[0]):
         for j in range(n):
-            row[j] = t_part[d, j] + flag_stable[j] if u[d, j] >= p[j] else flag_unstable[j]
+            stable = t_part[d, j] + flag_stable[j]  # both sides computed: a select, not a branch
+            row[j] = stable if u[d, j] >= p[j] else flag_unstable[j]
         if _pairwise(row, 0, n) >= t_obs:
             count += 1
     return count
@@ -237,3 +234,12 @@ def spline3_point(t0, t1, t2, k0, k1, k2, c_a, c_b, c_c, x0, x1, x2):
                 vb += c_b[s0 + i0, s1 + i1, s2 + i2] * f
                 vc += c_c[s0 + i0, s1 + i1, s2 + i2] * f
     return va, vb, vc
+
+
+@_njit
+def check_add_unstable(total, log_p, count):
+    """``total += count * (0.0 + -log(p))`` for an unstable probe's surprise (``log_p``: numpy's log of the smoothed
+    instability share)."""
+    c = float(count)
+    for j in range(total.size):
+        total[j] = total[j] + c * (0.0 + -log_p[j])

@@ -27,8 +27,7 @@ from plate_env.core.probe import (
 from plate_env.core.probe_table import ProbeTable
 from plate_env.core.setup import B_P_RANGE_M, DEFAULT_MAX_PROBES, FREQ_RANGE_HZ, MAX_PROBES_RANGE, PAPER_SETUP
 from plate_env.env.codec import ACTION_SIZE, Codec
-from plate_env.identify.api import METHODS
-from plate_env.identify.estimate import Estimate
+from plate_env.identify.estimate import METHODS, Estimate
 from plate_env.physics import PHYSICS_NAMES, make_physics
 from plate_env.physics.camera import camera_omega_b
 from plate_env.physics.interface import refuse_early

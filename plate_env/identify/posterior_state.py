@@ -54,7 +54,7 @@ class PosteriorState:
                  grid: tuple[np.ndarray, np.ndarray] | None = None, blurs: Sequence[float] | None = None,
                  member_rows_only: bool = True, compare_on_common: bool = True) -> None:
         self.fm = fm
-        self.omega, self.alpha = grid if grid is not None else fm.grid(n_omega, n_alpha)
+        self.omega, self.alpha = grid if grid is not None else _shared_grid(fm, n_omega, n_alpha)
         step = math.log(self.omega[1] / self.omega[0])
         blurs = [m.blur for m in fm.members] if blurs is None else list(blurs)
         if len(blurs) != len(fm.members):
@@ -162,3 +162,22 @@ class PosteriorState:
             self.add_table(table.subset(np.arange(len(table)) == k))
             out.append(self.estimate())
         return tuple(out)
+
+
+#: ``fm.grid(n_omega, n_alpha)`` per forward model (kept with the model: an id is only unique while it lives).
+_GRIDS: dict[tuple[int, int, int], tuple[ForwardModel, tuple[np.ndarray, np.ndarray]]] = {}
+
+
+def _shared_grid(fm: ForwardModel, n_omega: int, n_alpha: int) -> tuple[np.ndarray, np.ndarray]:
+    """``fm.grid(n_omega, n_alpha)`` computed once per forward model and shared (read-only) by its states: an env
+    makes a state per episode."""
+    key = (id(fm), int(n_omega), int(n_alpha))
+    hit = _GRIDS.get(key)
+    if hit is None or hit[0] is not fm:
+        if len(_GRIDS) >= 32:
+            _GRIDS.clear()
+        w, a = fm.grid(n_omega, n_alpha)
+        w.flags.writeable = False
+        a.flags.writeable = False
+        hit = _GRIDS[key] = (fm, (w, a))
+    return hit[1]
