@@ -17,6 +17,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from plate_env.core import filters
+
 
 def _njit(fn):
     """``numba.njit`` with numpy's error model (x / 0 is inf or NaN, as numpy gives), cached on disk where numba
@@ -175,51 +177,22 @@ def replicates_at_least(u, t_part, p, flag_stable, flag_unstable, t_obs):
     return count
 
 
-@_njit
-def _find_interval(t, k, x):
-    """:func:`plate_env.surrogate.atlas._find_interval` (x not NaN)."""
-    n = t.size - k - 1
-    ell = k + 1
-    while x >= t[ell] and ell != n:
-        ell += 1
-    return ell - 1
-
-
-@_njit
-def _de_boor(t, x, k, ell, h, hh):
-    """:func:`plate_env.surrogate.atlas._de_boor` into ``h`` (k + 1; ``hh`` scratch of the same size)."""
-    h[0] = 1.0
-    for j in range(1, k + 1):
-        h[j] = 0.0
-    for j in range(1, k + 1):
-        for q in range(j):
-            hh[q] = h[q]
-        h[0] = 0.0
-        for n in range(1, j + 1):
-            ind = ell + n
-            xb, xa = t[ind], t[ind - j]
-            if xb == xa:
-                h[n] = 0.0
-                continue
-            w = hh[n - 1] / (xb - xa)
-            h[n - 1] += w * (xb - x)
-            h[n] = w * (x - xa)
+#: :func:`plate_env.core.filters.bspline_interval` and ``bspline_bases`` compiled (inlined where called).
+_interval = numba.njit(inline="always", error_model="numpy")(filters.bspline_interval)
+_bases = numba.njit(inline="always", error_model="numpy")(filters.bspline_bases)
 
 
 @_njit
 def spline3_point(t0, t1, t2, k0, k1, k2, c_a, c_b, c_c, x0, x1, x2):
-    """Three tensor-product cubic splines sharing knots ``t0, t1, t2`` and degrees at one point (not NaN), as
-    :meth:`plate_env.surrogate.atlas._TensorSpline.bases` and ``.contract`` compute them, term by term in scipy's
+    """Three tensor-product cubic splines sharing knots ``t0, t1, t2`` (arrays) and degrees at one point (not NaN),
+    as :meth:`plate_env.surrogate.atlas._TensorSpline.bases` and ``.contract`` compute them, term by term in scipy's
     order: ``(value_a, value_b, value_c)``."""
-    b0, h0 = np.empty(k0 + 1), np.empty(k0 + 1)
-    b1, h1 = np.empty(k1 + 1), np.empty(k1 + 1)
-    b2, h2 = np.empty(k2 + 1), np.empty(k2 + 1)
-    l0 = _find_interval(t0, k0, x0)
-    l1 = _find_interval(t1, k1, x1)
-    l2 = _find_interval(t2, k2, x2)
-    _de_boor(t0, x0, k0, l0, b0, h0)
-    _de_boor(t1, x1, k1, l1, b1, h1)
-    _de_boor(t2, x2, k2, l2, b2, h2)
+    l0 = _interval(t0, k0, x0)
+    l1 = _interval(t1, k1, x1)
+    l2 = _interval(t2, k2, x2)
+    b0 = _bases(t0, x0, k0, l0)
+    b1 = _bases(t1, x1, k1, l1)
+    b2 = _bases(t2, x2, k2, l2)
     s0, s1, s2 = l0 - k0, l1 - k1, l2 - k2
     va = 0.0
     vb = 0.0

@@ -398,8 +398,6 @@ class PlateRotationEnv(gym.Env):
         """The current omega_n estimate from the probes so far (method atlas: the episode's incremental posterior,
         :class:`plate_env.identify.posterior_state.PosteriorState`, brought up to date with the probes not in it;
         with a lab calibration: the probes read through it, :func:`plate_env.identify.identify`)."""
-        from plate_env.identify import identify
-
         if not self._rows:
             return Estimate(ok=False, method=self.method, reason="no probes")
         if self.method == "atlas" and self.calibration is None:
@@ -409,6 +407,8 @@ class PlateRotationEnv(gym.Env):
             if state.n_probes < len(self._rows):
                 state.add_table(self.table(), start=state.n_probes)
             return state.estimate()
+        from plate_env.identify import identify
+
         try:
             if self.calibration is not None:  # read through the lab's calibration (not incremental)
                 return identify(self.table(), calibration=self.calibration, known=self.known_inputs())

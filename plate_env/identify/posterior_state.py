@@ -66,7 +66,8 @@ class PosteriorState:
         self.inside = [member_coverage(m, self.omega, self.alpha) for m in fm.members]
         shape = (len(self.omega), len(self.alpha))
         self.log_likes = [np.zeros(shape) for _ in fm.members]
-        self._common = [np.zeros(shape) for _ in fm.members]
+        # the sums over probes every member describes: what members' evidences compare (only with several members)
+        self._common = [np.zeros(shape) for _ in fm.members] if len(fm.members) > 1 else []
         self.skipped = [0] * len(fm.members)
         self.n_probes = 0
         self.n_unstable = 0
@@ -84,7 +85,7 @@ class PosteriorState:
         reasons = [member_domain(m, f, amp) for m in self.fm.members]
         if all(r is not None for r in reasons):  # named by the last member's reason, as identify_atlas does
             self._orphans.add(str(reasons[-1]))
-        common = all(r is None for r in reasons)
+        common = len(reasons) > 1 and all(r is None for r in reasons)
         for i, (m, why) in enumerate(zip(self.fm.members, reasons, strict=True)):
             if why is not None:
                 self.skipped[i] += 1

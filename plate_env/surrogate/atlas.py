@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from plate_env.core.filters import bspline_bases, bspline_interval
 from plate_env.core.jit import kernels
 from plate_env.core.setup import PAPER_SETUP
 
@@ -286,8 +287,8 @@ class _TensorSpline:
         """The non-zero B-splines at ``x`` per dimension and the first coefficient index they multiply."""
         bases, starts = [], []
         for td, kd, xd in zip(self._t_lists, self.k, x, strict=True):
-            ell = _find_interval(td, kd, xd)
-            bases.append(_de_boor(td, xd, kd, ell))
+            ell = bspline_interval(td, kd, xd)
+            bases.append(bspline_bases(td, xd, kd, ell))
             starts.append(ell - kd)
         return bases, starts
 
@@ -311,37 +312,6 @@ class _TensorSpline:
 def _clip(x: float, lo: float, hi: float) -> float:
     """``float(np.clip(x, lo, hi))`` for one float (NaN stays NaN)."""
     return min(max(x, lo), hi) if x == x else x
-
-
-def _find_interval(t: list[float], k: int, x: float) -> int:
-    """``l`` with ``t[l] <= x < t[l + 1]`` (``k <= l < n``; x at the last knot: ``n - 1``), as scipy's
-    ``fitpack::_find_interval`` from ``prev_l = k``."""
-    n = len(t) - k - 1
-    if x != x:
-        return -1
-    ell = k + 1
-    while x >= t[ell] and ell != n:
-        ell += 1
-    return ell - 1
-
-
-def _de_boor(t: list[float], x: float, k: int, ell: int) -> list[float]:
-    """The ``k + 1`` non-zero B-splines at ``x`` in the interval ``ell``, as scipy's ``fitpack::_deBoor_D``
-    (``m = 0``) computes them."""
-    h = [1.0] + [0.0] * k
-    for j in range(1, k + 1):
-        hh = h[:j]
-        h[0] = 0.0
-        for n in range(1, j + 1):
-            ind = ell + n
-            xb, xa = t[ind], t[ind - j]
-            if xb == xa:
-                h[n] = 0.0
-                continue
-            w = hh[n - 1] / (xb - xa)
-            h[n - 1] += w * (xb - x)
-            h[n] = w * (x - xa)
-    return h
 
 
 #: The quantities an atlas interpolates, in :meth:`Atlas.predict`'s order.
