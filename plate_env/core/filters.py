@@ -13,6 +13,9 @@ tests/test_filters.py compares them with scipy), so the numbers a fit or a leade
   5-smooth transform length, numpy's pocketfft (the same library scipy.fft wraps).
 - :func:`ppoly_eval`: ``scipy.interpolate.PPoly(c, x, extrapolate=True)(xval)``: the interval search and the
   power sum of ``_ppoly.evaluate_poly1``.
+- :func:`bspline_interval`, :func:`bspline_bases`: ``fitpack``'s interval search and de Boor's recursion, the
+  B-spline bases of ``scipy.interpolate.NdBSpline`` at one point (plain Python; numba compiles the same functions
+  for :mod:`plate_env.core.grid_kernels`).
 """
 
 from __future__ import annotations
@@ -129,15 +132,50 @@ def ppoly_eval(c: np.ndarray, x: np.ndarray, xval: float) -> np.ndarray:
     power first, in powers of ``xval - x[i]``), at one point, extrapolated from the first / last piece outside
     ``x`` (ascending): ``PPoly.construct_fast(c, x, extrapolate=True)(xval)``. NaN gives NaN."""
     xval = float(xval)
-    nx = len(x)
     if xval != xval:
         return np.full(c.shape[2:], np.nan)
-    i = int(np.searchsorted(x, xval, side="right")) - 1
-    i = min(max(i, 0), nx - 2)
-    s = xval - float(x[i])
+    i, s = ppoly_interval(x, xval)
     res = 0.0 + c[-1, i] * 1.0
     z = 1.0
     for kp in range(1, c.shape[0]):  # evaluate_poly1: res += c[k-kp] z; z *= s (z = s^kp)
         z = z * s
         res = res + c[c.shape[0] - kp - 1, i] * z
     return res
+
+
+def ppoly_interval(x: np.ndarray, xval: float) -> tuple[int, float]:
+    """:func:`ppoly_eval`'s piece ``i`` for ``xval`` (not NaN) and the offset ``xval - x[i]`` its powers take."""
+    i = int(np.searchsorted(x, xval, side="right")) - 1
+    i = min(max(i, 0), len(x) - 2)
+    return i, xval - float(x[i])
+
+
+def bspline_interval(t: list[float], k: int, x: float) -> int:
+    """A B-spline's knot interval: ``l`` with ``t[l] <= x < t[l + 1]`` (``k <= l < n``; x at the last knot:
+    ``n - 1``), as scipy's ``fitpack::_find_interval`` from ``prev_l = k``."""
+    n = len(t) - k - 1
+    if x != x:
+        return -1
+    ell = k + 1
+    while x >= t[ell] and ell != n:
+        ell += 1
+    return ell - 1
+
+
+def bspline_bases(t: list[float], x: float, k: int, ell: int) -> list[float]:
+    """The ``k + 1`` non-zero B-splines at ``x`` in the interval ``ell``, as scipy's ``fitpack::_deBoor_D``
+    (``m = 0``) computes them."""
+    h = [1.0] + [0.0] * k
+    for j in range(1, k + 1):
+        hh = h[:j]
+        h[0] = 0.0
+        for n in range(1, j + 1):
+            ind = ell + n
+            xb, xa = t[ind], t[ind - j]
+            if xb == xa:
+                h[n] = 0.0
+                continue
+            w = hh[n - 1] / (xb - xa)
+            h[n - 1] += w * (xb - x)
+            h[n] = w * (x - xa)
+    return h

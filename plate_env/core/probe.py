@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from enum import IntEnum
 
 import numpy as np
@@ -111,9 +111,11 @@ class ProbeSpec:
         The tile-link disc's centred position is an unstable equilibrium at most frequencies: the share of
         probes that slip 10 mm (A_p = 3 deg, 14-26 Hz, 15pi) was 0/48 centred, 11/48 with 0.2 mm and 36/48 with
         1 mm placement error. The default 0.2 mm is a careful robot placement."""
-        offset = np.clip(rng.normal(0.0, offset_std, 2), -0.5 * SLIP_LIMIT_M, 0.5 * SLIP_LIMIT_M)
-        return replace(self, initial_yaw=float(rng.uniform(0.0, math.pi / 2)),
-                       initial_offset=(float(offset[0]), float(offset[1])))
+        du, dv = rng.normal(0.0, offset_std, 2).tolist()
+        lim = 0.5 * SLIP_LIMIT_M
+        offset = (min(max(du, -lim), lim), min(max(dv, -lim), lim))  # np.clip's values (normal draws: no NaN)
+        return ProbeSpec(self.obj, self.motion, self.settle_s, self.measure_s, self.record_trace,
+                         initial_yaw=float(rng.uniform(0.0, math.pi / 2)), initial_offset=offset)
 
     @property
     def measure_start_s(self) -> float:

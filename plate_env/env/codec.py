@@ -33,6 +33,11 @@ def unit(x, lo: float, hi: float):
     return 2 * (np.asarray(x, dtype=np.float64) - lo) / (hi - lo) - 1
 
 
+def _clip(x: float, lo: float, hi: float) -> float:
+    """``np.clip(x, lo, hi)``'s value for one float (NaN stays NaN, -0.0 stays -0.0)."""
+    return min(max(x, lo), hi) if x == x else x
+
+
 def phys(u, lo: float, hi: float):
     """A [-1, 1] coordinate over (lo, hi) -> the physical value (float64)."""
     return lo + (np.asarray(u, dtype=np.float64) + 1) / 2 * (hi - lo)
@@ -85,15 +90,18 @@ class Codec:
         return min(int((u + 1) / 2 * n), n - 1)
 
     def nearest_amp(self, a_p_deg: float) -> int:
-        """The index of the amplitude nearest ``a_p_deg`` (the first of equals)."""
-        return int(np.argmin(np.abs(np.asarray(self.amplitudes_deg) - a_p_deg)))
+        """The index of the amplitude nearest ``a_p_deg`` (the first of equals; 0 for NaN, as np.argmin)."""
+        dist = [abs(float(a) - float(a_p_deg)) for a in self.amplitudes_deg]
+        return 0 if dist[0] != dist[0] else dist.index(min(dist))
 
     # ------------------------------------------------------------------ actions
     def decode(self, action: np.ndarray) -> tuple[float, float, float]:
         """A checked action (float64, in [-1, 1]) -> (f_p Hz, A_p deg, window s). Stop is the caller's (a[3] > 0)."""
-        f = phys(action[0], *self.f_band_hz)
-        window = phys(action[2], *self.measure_range_s)
-        return float(f), self.amplitudes_deg[self.amp_index(action[1])], float(window)
+        (f_lo, f_hi), (w_lo, w_hi) = self.f_band_hz, self.measure_range_s
+        # phys()'s operations on Python floats (the same floats, without numpy's per-call cost)
+        f = f_lo + (float(action[0]) + 1) / 2 * (f_hi - f_lo)
+        window = w_lo + (float(action[2]) + 1) / 2 * (w_hi - w_lo)
+        return f, self.amplitudes_deg[self.amp_index(action[1])], window
 
     def encode(self, f_p_hz: float, a_p_deg: float, measure_s: float, stop: float = -1.0) -> np.ndarray:
         """The action (float32) of a probe at ``f_p_hz`` (clipped to the band), amplitude ``a_p_deg`` (one of the
@@ -120,9 +128,11 @@ class Codec:
     def row(self, f_p_hz: float, a_p_deg: float, omega_b_deg_s: float, stderr_deg_s: float, unstable: bool,
             measure_s: float) -> tuple[float, ...]:
         """One probe's observation row."""
-        return (unit(f_p_hz, *self.f_band_hz), self.amp_code(self.nearest_amp(a_p_deg)),
-                np.clip(omega_b_deg_s / 1000.0, -10, 10), np.clip(stderr_deg_s / 1000.0, 0, 10), float(unstable),
-                unit(measure_s, *self.measure_range_s), 1.0)
+        (f_lo, f_hi), (w_lo, w_hi) = self.f_band_hz, self.measure_range_s
+        # unit() and np.clip's values on Python floats (np.clip keeps -0.0 and NaN, as _clip does)
+        return (2 * (float(f_p_hz) - f_lo) / (f_hi - f_lo) - 1, self.amp_code(self.nearest_amp(a_p_deg)),
+                _clip(float(omega_b_deg_s) / 1000.0, -10.0, 10.0), _clip(float(stderr_deg_s) / 1000.0, 0.0, 10.0),
+                float(unstable), 2 * (float(measure_s) - w_lo) / (w_hi - w_lo) - 1, 1.0)
 
     def observation(self, rows: Iterable[Sequence[float]], probes_left: float, sim_left: float) -> np.ndarray:
         """The observation (float32) of the probes ``rows`` (f_p Hz, A_p deg, omega_B deg/s, its standard error,

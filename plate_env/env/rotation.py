@@ -27,8 +27,7 @@ from plate_env.core.probe import (
 from plate_env.core.probe_table import ProbeTable
 from plate_env.core.setup import B_P_RANGE_M, DEFAULT_MAX_PROBES, FREQ_RANGE_HZ, MAX_PROBES_RANGE, PAPER_SETUP
 from plate_env.env.codec import ACTION_SIZE, Codec
-from plate_env.identify.api import METHODS
-from plate_env.identify.estimate import Estimate
+from plate_env.identify.estimate import METHODS, Estimate
 from plate_env.physics import PHYSICS_NAMES, make_physics
 from plate_env.physics.camera import camera_omega_b
 from plate_env.physics.interface import refuse_early
@@ -399,8 +398,6 @@ class PlateRotationEnv(gym.Env):
         """The current omega_n estimate from the probes so far (method atlas: the episode's incremental posterior,
         :class:`plate_env.identify.posterior_state.PosteriorState`, brought up to date with the probes not in it;
         with a lab calibration: the probes read through it, :func:`plate_env.identify.identify`)."""
-        from plate_env.identify import identify
-
         if not self._rows:
             return Estimate(ok=False, method=self.method, reason="no probes")
         if self.method == "atlas" and self.calibration is None:
@@ -410,6 +407,8 @@ class PlateRotationEnv(gym.Env):
             if state.n_probes < len(self._rows):
                 state.add_table(self.table(), start=state.n_probes)
             return state.estimate()
+        from plate_env.identify import identify
+
         try:
             if self.calibration is not None:  # read through the lab's calibration (not incremental)
                 return identify(self.table(), calibration=self.calibration, known=self.known_inputs())

@@ -14,14 +14,11 @@ import numpy as np
 from plate_env.core.probe import ProbeResult
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify.calibration import Calibration, get_calibration
-from plate_env.identify.estimate import Estimate
+from plate_env.identify.estimate import METHODS, Estimate
 from plate_env.identify.fitting import LorentzFit, fit_lorentzian
 from plate_env.identify.forward import ForwardModel, load_forward_model
 from plate_env.identify.inference import GAUSS_HERMITE, identify_atlas
 from plate_env.surrogate.conditioning import KnownInputs
-
-#: The identification methods: ``"atlas"``, a forward model's posterior; ``"lorentz"``, the paper's Eqs. 9-10.
-METHODS = ("atlas", "lorentz")
 
 
 def _table(probes: Sequence[ProbeResult] | ProbeTable) -> ProbeTable:

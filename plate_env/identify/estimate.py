@@ -16,6 +16,9 @@ import numpy as np
 
 from plate_env.identify.fitting import LorentzFit
 
+#: The identification methods: ``"atlas"``, a forward model's posterior; ``"lorentz"``, the paper's Eqs. 9-10.
+METHODS = ("atlas", "lorentz")
+
 #: Share of the posterior allowed in an edge zone of the identifiable range before the answer becomes a bound.
 EDGE_MASS = 0.05
 #: The alpha edge rule's factor: an end of the friction-angle range holding this many times its prior share piles.

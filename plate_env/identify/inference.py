@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from plate_env.core.jit import kernels
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify.estimate import Estimate, Posterior, PredictiveCheck
 from plate_env.identify.forward import ForwardModel, Member
@@ -63,6 +64,20 @@ def smoothed_p(p: np.ndarray, n_repeats: int) -> np.ndarray:
 def probe_log_likelihood(mu: np.ndarray, spread: np.ndarray, p_unstable: np.ndarray, omega_b: float,
                          stderr: float, unstable: bool, sigma_model: float, n_repeats: int) -> np.ndarray:
     """One probe's log-likelihood on a grid, from the atlas's mean, spread and raw unstable share there."""
+    fast = kernels() if mu.ndim == 2 and mu.shape == spread.shape == p_unstable.shape else None
+    if fast is not None:  # the same floats: the arithmetic in one pass each side of numpy's logarithms
+        out = np.empty(mu.shape)
+        flat = out.reshape(-1)
+        p_flat = p_unstable.reshape(-1)
+        if unstable:
+            fast.smoothed(p_flat, float(n_repeats), flat)
+            return np.log(out, out=out)
+        q, var = np.empty(flat.size), np.empty(flat.size)
+        fast.stable_parts(mu.reshape(-1), spread.reshape(-1), p_flat, float(omega_b), float(stderr) ** 2,
+                          float(sigma_model) ** 2, float(n_repeats), NU, flat, q, var)
+        np.log1p(flat, out=flat)
+        fast.stable_combine(flat, np.log1p(q, out=q), np.log(var, out=var), -0.5 * (NU + 1.0), flat)
+        return out
     p = smoothed_p(p_unstable, n_repeats)
     if unstable:
         return np.log(p)
@@ -95,7 +110,8 @@ def member_domain(member: Member, f_hz: float, a_p_deg: float) -> str | None:
 
 def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     from plate_env.core.cache import cached_arrays, content_key
-    from plate_env.core.filters import ppoly_eval
+    from plate_env.core.filters import ppoly_eval, ppoly_interval
+    from plate_env.core.jit import kernels
 
     def build() -> dict[str, np.ndarray]:
         from scipy.interpolate import CubicSpline
@@ -112,9 +128,18 @@ def _response(atlas: Atlas, a_p_deg: float, w: np.ndarray, a: np.ndarray):
     x = np.asarray(atlas.f_hz, float)
     coefs = [np.asarray(coef[name]) for name in RESPONSE]  # CubicSpline's own polynomials, as its PPoly evaluates
     inside = _covered(atlas, w, a)
+    flats = [c.reshape(c.shape[0], c.shape[1], -1) for c in coefs]
 
     def at(f_hz: float):
-        m, s, p = (ppoly_eval(c, x, float(f_hz)) for c in coefs)
+        f = float(f_hz)
+        fast = kernels() if f == f and all(c.ndim == 4 for c in coefs) else None
+        if fast is not None:  # the same floats in one pass (plate_env.core.grid_kernels)
+            i, s = ppoly_interval(x, f)
+            out = np.empty((3, *coefs[0].shape[2:]))
+            flat = out.reshape(3, -1)
+            fast.ppoly3_at(*flats, i, s, flat[0], flat[1], flat[2])
+            return out[0], out[1], out[2]
+        m, s, p = (ppoly_eval(c, x, f) for c in coefs)
         return m, np.maximum(s, 0.0), np.clip(p, 0.0, 1.0)
 
     return at, inside
@@ -139,8 +164,15 @@ def _covered(atlas: Atlas, w: np.ndarray, a: np.ndarray) -> np.ndarray:
 
 
 def member_coverage(member: Member, w: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """The grid points (n_omega, n_alpha) inside a member's atlas ranges."""
-    return _covered(member.atlas, w, a)
+    """The grid points (n_omega, n_alpha) inside a member's atlas ranges (read-only: kept on the atlas per grid)."""
+    w, a = np.asarray(w, float), np.asarray(a, float)
+
+    def build() -> np.ndarray:
+        inside = _covered(member.atlas, w, a)
+        inside.flags.writeable = False
+        return inside
+
+    return member.atlas.cached(("coverage", w.tobytes(), a.tobytes()), build)
 
 
 def member_rows(member: Member, w: np.ndarray) -> slice:
@@ -194,6 +226,13 @@ def probe_key(table: ProbeTable, k: int) -> tuple[float, float, float, float, bo
             float(table.stderr_deg_s[k]), bool(table.unstable[k]))
 
 
+def _probe_keys(table: ProbeTable) -> list[tuple[float, float, float, float, bool]]:
+    """:func:`probe_key` of every row (the same tuples, read in one pass)."""
+    return list(zip(np.asarray(table.f_p_hz, float).tolist(), np.asarray(table.a_p_deg, float).tolist(),
+                    np.asarray(table.omega_b_deg_s, float).tolist(), np.asarray(table.stderr_deg_s, float).tolist(),
+                    [bool(u) for u in table.unstable.tolist()], strict=True))
+
+
 def distinct_probes(table: ProbeTable) -> int:
     """How many distinct rows (:func:`probe_key`) a table has: the likelihood's cost grows with these."""
     return len({probe_key(table, k) for k in range(len(table))})
@@ -233,13 +272,17 @@ def _t_kernel(half: int, sigma_steps: float, nu: float) -> np.ndarray:
 
 
 def _log_evidence(ll: np.ndarray, inside: np.ndarray, sigma_steps: float, nu: float = math.inf,
-                  offset: tuple[float, float] = (0.0, math.inf)) -> tuple[np.ndarray, float]:
+                  offset: tuple[float, float] = (0.0, math.inf), peaked: tuple[np.ndarray, float] | None = None
+                  ) -> tuple[np.ndarray, float]:
     """The smoothed likelihood grid of one member (unnormalised, peak-scaled) and its log evidence under a prior
     uniform over the grid points it covers; ``offset`` (scale in grid steps, nu): a second smoothing, the offset
-    between models."""
-    ll = np.where(inside, ll, -np.inf)
-    top = float(ll.max())
-    like = _smooth_log_omega(np.exp(ll - top), sigma_steps, nu)
+    between models. ``peaked``: ``(exp(ll - top), top)`` over the covered points, when the caller has it."""
+    if peaked is None:
+        ll = np.where(inside, ll, -np.inf)
+        top = float(ll.max())
+        peaked = (np.exp(ll - top), top)
+    top = peaked[1]
+    like = _smooth_log_omega(peaked[0], sigma_steps, nu)
     if offset[0] > 0:
         like = _smooth_log_omega(like, offset[0], offset[1])
     mass = float(like.sum())
@@ -260,9 +303,12 @@ def pool(fm: ForwardModel, w: np.ndarray, a: np.ndarray, log_likes: Sequence[np.
     parts, raw, log_z = [], [], []
     for i, (m, ll) in enumerate(zip(fm.members, log_likes, strict=True)):
         inside = member_coverage(m, w, a)
-        own = np.exp(np.where(inside, ll, -np.inf) - np.max(ll, where=inside, initial=-np.inf)).sum(1)
+        masked = np.where(inside, ll, -np.inf)
+        top = float(masked.max())
+        peaked = np.exp(masked - top)  # the member's likelihood over its prior's support, peak-scaled
+        own = peaked.sum(1)
         raw.append(own / own.sum())
-        like, lz = _log_evidence(ll, inside, sigma / step, nu, offset)
+        like, lz = _log_evidence(ll, inside, sigma / step, nu, offset, peaked=(peaked, top))
         if evidence_likes is not None:
             lz = _log_evidence(evidence_likes[i], inside, sigma / step, nu, offset)[1]
         mass = float(like.sum())
@@ -361,7 +407,7 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
     known: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 
     def terms(k: int):  # a probe's z-scores and instability shares over the grid (once per distinct probe)
-        key = probe_key(table, k)
+        key = keys[k]
         if key not in known:
             amp = float(table.a_p_deg[k])
             mk, sk, pk = response(m, amp, sub, a, float(table.f_p_hz[k]))
@@ -374,9 +420,15 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
     reach = int(round(CHECK_BLURS * m.blur / math.log(w[1] / w[0]))) if len(w) > 1 else 0
     total = np.zeros((sub.size, a.size))
     counts: dict[tuple, list[int]] = {}
+    keys = _probe_keys(table)
     for k in idx:
-        counts.setdefault(probe_key(table, int(k)), []).append(int(k))
+        counts.setdefault(keys[k], []).append(int(k))
+    fast = kernels() if reach == 0 else None
     for ks in counts.values():  # the surprise of every grid object, probe by probe (exact repeats computed once)
+        if fast is not None:  # the same floats, the arithmetic in kernels around numpy's logarithms
+            key = keys[ks[0]]
+            known[key] = _surprise_into(fast, total, len(ks), m, key, response(m, key[1], sub, a, key[0]))
+            continue
         z, pu = terms(ks[0])
         one = _surprise((z ** 2)[..., None], np.array([not table.unstable[ks[0]]]), pu[..., None])
         if reach > 0:
@@ -391,26 +443,49 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
     z, p_c = [], []
     best: dict[tuple, tuple[float, float]] = {}
     for k, st in zip(idx, stable, strict=True):  # each probe at its best omega_n within the reach of the object
-        key = probe_key(table, int(k))
+        key = keys[k]
         if key not in best:
             zz, pp = terms(k)
             zz, pp = zz[rows_c, c[1]], pp[rows_c, c[1]]
-            j = int(np.argmin(_surprise((zz ** 2)[:, None], np.array([st]), pp[:, None])))
+            j = int(np.argmin(_surprise((zz ** 2)[:, None], np.array([st]), pp[:, None]))) if zz.size > 1 else 0
             best[key] = (zz[j], pp[j])
         z.append(best[key][0])
         p_c.append(best[key][1])
     z, p_c = np.array(z), np.array(p_c)
     t_obs = float(_surprise(z ** 2, stable, p_c))
     u_rep, t_part = _check_replicates(n)
-    stable_rep = u_rep >= p_c
     # _surprise(z2_rep, stable_rep, p_c) term by term: its t part drawn once, the flags' logs taken per probe
-    t_rep = np.where(stable_rep, t_part + -np.log(1.0 - p_c), -np.log(p_c)).sum(-1)
-    p_value = float((1 + np.count_nonzero(t_rep >= t_obs)) / (CHECK_DRAWS + 1))
+    if fast is not None and n <= 128:
+        exceed = fast.replicates_at_least(u_rep, t_part, p_c, -np.log(1.0 - p_c), -np.log(p_c), t_obs)
+    else:
+        stable_rep = u_rep >= p_c
+        t_rep = np.where(stable_rep, t_part + -np.log(1.0 - p_c), -np.log(p_c)).sum(-1)
+        exceed = np.count_nonzero(t_rep >= t_obs)
+    p_value = float((1 + exceed) / (CHECK_DRAWS + 1))
     worst = None
     if np.any(stable):
         j = int(np.argmax(np.where(stable, np.abs(z), -1.0)))
         worst = (float(table.f_p_hz[idx[j]]), float(table.a_p_deg[idx[j]]), float(z[j]))
     return PredictiveCheck(statistic=t_obs, p_value=p_value, n_probes=n, member=m.label, worst=worst)
+
+
+def _surprise_into(fast, total: np.ndarray, count: int, m: Member, key: tuple, response):
+    """``total += count * _surprise(...)`` of the probe ``key`` (:func:`probe_key`) over the grid (``total``
+    contiguous), as :func:`predictive_check`'s numpy code computes it (the same floats), with its arithmetic in
+    :mod:`plate_env.core.grid_kernels`; returns the probe's (z, smoothed p) grids (z is zeros for an unstable probe:
+    its surprise does not read z)."""
+    mk, sk, pk = (v.reshape(-1) for v in response)
+    ps = np.empty(response[0].shape)
+    flat = ps.reshape(-1)
+    if key[4]:  # unstable
+        fast.smoothed(pk, float(m.atlas.n_repeats), flat)
+        fast.check_add_unstable(total.reshape(-1), np.log(flat), count)
+        return np.zeros(ps.shape), ps
+    z, x, omp = np.empty(ps.shape), np.empty(flat.size), np.empty(flat.size)
+    fast.check_parts(mk, sk, pk, key[2], key[3] ** 2, m.sigma_model ** 2, float(m.atlas.n_repeats), NU,
+                     z.reshape(-1), x, omp, flat)
+    fast.check_add(total.reshape(-1), np.log1p(x, out=x), np.log(omp, out=omp), 0.5 * (NU + 1.0), count)
+    return z, ps
 
 
 def predicted_curve(fm: ForwardModel, est: Estimate, f_hz: np.ndarray, a_p_deg: float) -> tuple[np.ndarray, str] | None:

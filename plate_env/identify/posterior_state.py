@@ -54,7 +54,7 @@ class PosteriorState:
                  grid: tuple[np.ndarray, np.ndarray] | None = None, blurs: Sequence[float] | None = None,
                  member_rows_only: bool = True, compare_on_common: bool = True) -> None:
         self.fm = fm
-        self.omega, self.alpha = grid if grid is not None else fm.grid(n_omega, n_alpha)
+        self.omega, self.alpha = grid if grid is not None else _shared_grid(fm, n_omega, n_alpha)
         step = math.log(self.omega[1] / self.omega[0])
         blurs = [m.blur for m in fm.members] if blurs is None else list(blurs)
         if len(blurs) != len(fm.members):
@@ -66,7 +66,8 @@ class PosteriorState:
         self.inside = [member_coverage(m, self.omega, self.alpha) for m in fm.members]
         shape = (len(self.omega), len(self.alpha))
         self.log_likes = [np.zeros(shape) for _ in fm.members]
-        self._common = [np.zeros(shape) for _ in fm.members]
+        # the sums over probes every member describes: what members' evidences compare (only with several members)
+        self._common = [np.zeros(shape) for _ in fm.members] if len(fm.members) > 1 else []
         self.skipped = [0] * len(fm.members)
         self.n_probes = 0
         self.n_unstable = 0
@@ -84,7 +85,7 @@ class PosteriorState:
         reasons = [member_domain(m, f, amp) for m in self.fm.members]
         if all(r is not None for r in reasons):  # named by the last member's reason, as identify_atlas does
             self._orphans.add(str(reasons[-1]))
-        common = all(r is None for r in reasons)
+        common = len(reasons) > 1 and all(r is None for r in reasons)
         for i, (m, why) in enumerate(zip(self.fm.members, reasons, strict=True)):
             if why is not None:
                 self.skipped[i] += 1
@@ -162,3 +163,22 @@ class PosteriorState:
             self.add_table(table.subset(np.arange(len(table)) == k))
             out.append(self.estimate())
         return tuple(out)
+
+
+#: ``fm.grid(n_omega, n_alpha)`` per forward model (kept with the model: an id is only unique while it lives).
+_GRIDS: dict[tuple[int, int, int], tuple[ForwardModel, tuple[np.ndarray, np.ndarray]]] = {}
+
+
+def _shared_grid(fm: ForwardModel, n_omega: int, n_alpha: int) -> tuple[np.ndarray, np.ndarray]:
+    """``fm.grid(n_omega, n_alpha)`` computed once per forward model and shared (read-only) by its states: an env
+    makes a state per episode."""
+    key = (id(fm), int(n_omega), int(n_alpha))
+    hit = _GRIDS.get(key)
+    if hit is None or hit[0] is not fm:
+        if len(_GRIDS) >= 32:
+            _GRIDS.clear()
+        w, a = fm.grid(n_omega, n_alpha)
+        w.flags.writeable = False
+        a.flags.writeable = False
+        hit = _GRIDS[key] = (fm, (w, a))
+    return hit[1]

@@ -67,6 +67,7 @@ class AtlasPhysics:
         self.rho = instability_rho
         self.corr_hz = instability_corr_hz
         self._grid = np.arange(0.0, 60.0, 0.25)
+        self._fields: dict[bytes, np.ndarray] = {}
 
     def __repr__(self) -> str:
         return f"AtlasPhysics(source={self.source!r}, model={self.model!r})"
@@ -79,17 +80,24 @@ class AtlasPhysics:
         o, m = spec.obj, spec.motion
         key = repr((o.omega_n, o.alpha, o.mass, m.freq_hz, m.amp_rad, m.b_p, spec.settle_s, spec.measure_s,
                     spec.initial_yaw, spec.initial_offset)).encode()
-        return np.random.default_rng(int.from_bytes(hashlib.sha256(key).digest()[:8], "little"))
+        # default_rng(seed) is Generator(PCG64(seed)): the same stream, without its dispatch
+        return np.random.Generator(np.random.PCG64(int.from_bytes(hashlib.sha256(key).digest()[:8], "little")))
 
     def _field(self, spec: ProbeSpec) -> np.ndarray:
         """The object's smooth standard-normal field along f_p (on ``self._grid``) for correlated instability."""
         o = spec.obj
         key = repr((o.omega_n, o.alpha, o.mass, round(abs(spec.motion.a_p_deg), 6))).encode()
-        rng = np.random.default_rng(int.from_bytes(hashlib.sha256(key).digest()[:8], "little"))
-        white = rng.normal(size=self._grid.size)
-        k = np.arange(-40, 41) * 0.25
-        kern = np.exp(-0.5 * (k / self.corr_hz) ** 2)
-        return np.convolve(white, kern, mode="same") / math.sqrt(np.sum(kern ** 2))
+        if key not in self._fields:  # one per object and amplitude: an episode's probes share it
+            if len(self._fields) >= 64:
+                self._fields.clear()
+            rng = np.random.default_rng(int.from_bytes(hashlib.sha256(key).digest()[:8], "little"))
+            white = rng.normal(size=self._grid.size)
+            k = np.arange(-40, 41) * 0.25
+            kern = np.exp(-0.5 * (k / self.corr_hz) ** 2)
+            field = np.convolve(white, kern, mode="same") / math.sqrt(np.sum(kern ** 2))
+            field.flags.writeable = False
+            self._fields[key] = field
+        return self._fields[key]
 
     def _uniform(self, spec: ProbeSpec, rng: np.random.Generator) -> float:
         """The probe's U(0, 1) instability draw (independent, or correlated along f_p within the object)."""
@@ -113,18 +121,15 @@ class AtlasPhysics:
                 self._conditioned[key] = (self.atlas, str(exc))
         return self._conditioned[key][0]
 
-    def _unconditioned(self, spec: ProbeSpec) -> str | None:
-        """Why no atlas answers the probe's known inputs (naming the atlases built), or None."""
-        self.atlas_for(spec)
-        return self._conditioned[(abs(spec.motion.b_p), spec.obj.mass, spec.obj.diameter)][1]
-
     def check(self, probes: Sequence[ProbeSpec]) -> None:
         """Refuse (ProbeRefused naming the value and the atlas's range) any probe outside what the atlas describes:
         f_p, omega_n or alpha outside its grid, an amplitude it does not tabulate, or a B_p, mass or diameter no
         atlas was built at or around. The atlas would otherwise answer with a clipped or unrelated response."""
         for i, spec in enumerate(check_probes(probes)):
-            problems = self.atlas_for(spec).outside(**probe_point(spec))
-            why = self._unconditioned(spec)
+            atlas = self.atlas_for(spec)
+            problems = atlas.outside(**probe_point(spec))
+            # why no atlas answers the probe's known inputs (naming the atlases built), or None
+            why = self._conditioned[(abs(spec.motion.b_p), spec.obj.mass, spec.obj.diameter)][1]
             if why is not None and "mass" in problems:  # name the masses built, not only the nearest atlas's
                 problems = {**problems, "mass": why}
             if problems:
@@ -158,7 +163,8 @@ class AtlasPhysics:
             trace = None
             if spec.record_trace:
                 t = np.arange(0.0, sim_s + 1e-12, 1e-3)
-                yaw = np.radians(omega) * np.clip(t - spec.motion.ramp_s, 0.0, None) + spec.initial_yaw
+                # np.maximum: np.clip's floats here (t - ramp_s is never -0.0, the one value where they differ)
+                yaw = np.radians(omega) * np.maximum(t - spec.motion.ramp_s, 0.0) + spec.initial_yaw
                 trace = YawTrace(t=t, yaw=yaw, centre_u=np.zeros_like(t), centre_v=np.zeros_like(t))
             out.append(ProbeResult(spec=spec, omega_b_deg_s=omega if used > 0 else 0.0, stderr_deg_s=se,
                                    unstable=unstable, reason=SLIPPED if unstable else None, sim_s=sim_s,

@@ -31,7 +31,8 @@ def camera_omega_b(result: ProbeResult, rng: np.random.Generator, fps: float = 3
     yaw = np.degrees(np.interp(frames, tr.t, tr.yaw)) + rng.normal(0.0, angle_noise_deg, frames.size)
     tc = frames - frames.mean()
     sxx = float(tc @ tc)
-    slope = float(tc @ (yaw - yaw.mean()) / sxx)
-    resid = yaw - yaw.mean() - slope * tc
+    centred = yaw - yaw.mean()
+    slope = float(tc @ centred / sxx)
+    resid = centred - slope * tc
     se = math.sqrt(max(float(resid @ resid) / (frames.size - 2), angle_noise_deg ** 2) / sxx)
     return sign * slope, se

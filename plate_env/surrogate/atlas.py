@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from plate_env.core.filters import bspline_bases, bspline_interval
+from plate_env.core.jit import kernels
 from plate_env.core.setup import PAPER_SETUP
 
 
@@ -158,8 +160,13 @@ class Atlas:
         x = [_clip(float(f_hz), float(self.f_hz[0]), float(self.f_hz[-1])),
              _clip(float(np.log(np.asarray(omega_n, float))), math.log(self.omega_n[0]), math.log(self.omega_n[-1])),
              _clip(float(alpha), float(self.alpha[0]), float(self.alpha[-1]))]
-        bases = splines[0].bases(x)
-        mean, spread, pu = (sp.contract(*bases) for sp in splines)
+        fast = kernels() if x[0] == x[0] and x[1] == x[1] and x[2] == x[2] else None
+        if fast is not None and all(sp.c.ndim == 3 for sp in splines):  # the same floats, compiled
+            s0 = splines[0]
+            mean, spread, pu = fast.spline3_point(*s0.t, *s0.k, *(sp.c for sp in splines), *x)
+        else:
+            bases = splines[0].bases(x)
+            mean, spread, pu = (sp.contract(*bases) for sp in splines)
         return mean, max(spread, 0.0), min(max(pu, 0.0), 1.0)
 
     def resampled(self, omega_n: np.ndarray) -> Atlas:
@@ -280,8 +287,8 @@ class _TensorSpline:
         """The non-zero B-splines at ``x`` per dimension and the first coefficient index they multiply."""
         bases, starts = [], []
         for td, kd, xd in zip(self._t_lists, self.k, x, strict=True):
-            ell = _find_interval(td, kd, xd)
-            bases.append(_de_boor(td, xd, kd, ell))
+            ell = bspline_interval(td, kd, xd)
+            bases.append(bspline_bases(td, xd, kd, ell))
             starts.append(ell - kd)
         return bases, starts
 
@@ -305,37 +312,6 @@ class _TensorSpline:
 def _clip(x: float, lo: float, hi: float) -> float:
     """``float(np.clip(x, lo, hi))`` for one float (NaN stays NaN)."""
     return min(max(x, lo), hi) if x == x else x
-
-
-def _find_interval(t: list[float], k: int, x: float) -> int:
-    """``l`` with ``t[l] <= x < t[l + 1]`` (``k <= l < n``; x at the last knot: ``n - 1``), as scipy's
-    ``fitpack::_find_interval`` from ``prev_l = k``."""
-    n = len(t) - k - 1
-    if x != x:
-        return -1
-    ell = k + 1
-    while x >= t[ell] and ell != n:
-        ell += 1
-    return ell - 1
-
-
-def _de_boor(t: list[float], x: float, k: int, ell: int) -> list[float]:
-    """The ``k + 1`` non-zero B-splines at ``x`` in the interval ``ell``, as scipy's ``fitpack::_deBoor_D``
-    (``m = 0``) computes them."""
-    h = [1.0] + [0.0] * k
-    for j in range(1, k + 1):
-        hh = h[:j]
-        h[0] = 0.0
-        for n in range(1, j + 1):
-            ind = ell + n
-            xb, xa = t[ind], t[ind - j]
-            if xb == xa:
-                h[n] = 0.0
-                continue
-            w = hh[n - 1] / (xb - xa)
-            h[n - 1] += w * (xb - x)
-            h[n] = w * (x - xa)
-    return h
 
 
 #: The quantities an atlas interpolates, in :meth:`Atlas.predict`'s order.
