@@ -2,8 +2,9 @@
 
 The shipped PPO policy must act as it did before the codec existed: tests/data/ppo_actions.json holds its actions
 on seeded episodes (the training settings, other budgets, another band/amplitudes/windows, and acting without an
-observation), recorded by ``python tests/test_codec.py --record`` at commit 402136d, before the env and the agent
-shared the codec; the tests replay the episodes and compare the actions bit for bit.
+observation), recorded with the code of commit 402136d, before the env and the agent shared the codec, and the shipped
+model files (``experiments/record_ppo_actions.py`` says how; re-recorded that way when the policy was rebuilt); the
+tests replay the episodes and compare the actions bit for bit.
 """
 
 from __future__ import annotations
