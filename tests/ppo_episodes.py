@@ -1,14 +1,18 @@
-"""Record the shipped PPO policy's actions on tests/test_codec.py's seeded episodes with the code of the tree on
-PYTHONPATH: the fixture tests/data/ppo_actions.json, recorded with the code from before the env and the agent shared
-the codec (402136d) and the shipped model files, so the test compares the codec's path against the old one.
+"""The shipped PPO policy's actions on seeded atlas episodes: tests/test_codec.py's scenarios and their recorder.
+
+This module imports nothing the code before the codec (402136d) lacks, so the fixture tests/data/ppo_actions.json is
+recorded with that code and the shipped model files, and test_codec compares the codec's path against the old one:
 
     T=/tmp/tree402; mkdir -p $T/ov && git archive 402136d | tar -x -C $T
     cp agents/models/ppo_plate.* $T/agents/models/
     ln -s $T/plate_env $T/ov/plate_env && ln -s $T/agents $T/ov/plate_env_agents
-    PYTHONPATH=$T/ov python experiments/record_ppo_actions.py > tests/data/ppo_actions.json
+    PYTHONPATH=$T/ov python tests/ppo_episodes.py > tests/data/ppo_actions.json
 
-The scenarios are tests/test_codec.py's (copied: that file imports the codec, which the old tree lacks).
+(re-recorded that way whenever the policy is rebuilt).
 """
+
+from __future__ import annotations
+
 import json
 import warnings
 
@@ -16,8 +20,8 @@ import numpy as np
 
 from plate_env.env.protocol import ProbeContext
 from plate_env.env.rotation import PlateRotationEnv
-from plate_env_agents import make_agent
 
+#: Seeded episodes of the shipped PPO policy: env settings and whether the agent sees the observation.
 SCENARIOS = {
     "trained": ({}, True),
     "budget_20": ({"max_probes": 20}, True),
@@ -31,7 +35,10 @@ SCENARIOS = {
 SEEDS = (0, 1)
 
 
-def ppo_actions(settings, with_obs, seed):
+def ppo_actions(settings: dict, with_obs: bool, seed: int) -> list[list[float]]:
+    """The shipped PPO agent's raw actions on one seeded atlas episode (probing until it stops or the env ends)."""
+    from plate_env_agents import make_agent
+
     agent = make_agent("ppo")
     env = PlateRotationEnv(physics="atlas", **settings)
     obs, _ = env.reset(seed=seed)
@@ -51,5 +58,6 @@ def ppo_actions(settings, with_obs, seed):
     return actions
 
 
-print(json.dumps({name: {str(s): ppo_actions(*SCENARIOS[name], s) for s in SEEDS} for name in sorted(SCENARIOS)},
-                 indent=0))
+if __name__ == "__main__":
+    print(json.dumps({name: {str(s): ppo_actions(*SCENARIOS[name], s) for s in SEEDS} for name in sorted(SCENARIOS)},
+                     indent=0))
