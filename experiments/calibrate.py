@@ -2,35 +2,28 @@
 
     python experiments/calibrate.py [--physics tilelink] [--model pointmass] [--amps 3,12] [--executor local|ray|...]
 
-Sweeps 10-40 Hz (1 Hz) for the calibration objects (plate_env.benchmarks), cached in experiments/cache (a re-run
+Sweeps 10-40 Hz (1 Hz) for the calibration objects (plate_env.build.eval_sets), cached in experiments/cache (a re-run
 only simulates what is missing), then:
 1. for several Lorentzian fit-window rules, the R^2 of omega_n on f0 (which rule makes f0 track omega_n best);
-2. the calibration with the package's default rule, written to plate_env/data/calibration.json with provenance;
+2. the calibration with the package's default rule (plate_env.build.eq10.sweep_line), written to
+   experiments/results/calibration_<physics>_<model>.json; the shipped tile-link lines of
+   plate_env/data/calibration.json are the same fit, written by `plate-env build calibration eq10`;
 3. Fig. 10 analogue (f0 vs omega_n per alpha) as a PNG, and a markdown report beside the paper's coefficients.
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime
 import math
 
 import numpy as np
 
-import plate_env as pe
 from plate_env.build import eval_sets as bm
-from plate_env.identify.calibration import (
-    DATA_FILE,
-    fit_calibration,
-    linear_fit,
-    load_calibrations,
-    paper_calibration,
-    save_calibrations,
-)
+from plate_env.build.eq10 import sweep_line, tilelink_sweeps
+from plate_env.identify.calibration import linear_fit, paper_calibration, save_calibrations
 from plate_env.identify.fitting import DEFAULT_DROP, DEFAULT_FLOOR, fit_results
 from plate_env.plotting import new_figure, save_figure
 from plate_env.run.executor import BackendSpec, add_executor_argument, make_executor
-from plate_env.run.sweeps import run_cached
 
 RULES = [("all", 0.05, 0.0), ("first_hump", 0.05, 0.0), ("first_hump", 0.05, 0.2), ("first_hump", 0.05, 0.4),
          ("first_hump", 0.10, 0.4), ("first_hump", 0.05, 0.6)]
@@ -57,15 +50,14 @@ def _calibrate(args, backend, physics, executor) -> None:
     objs = bm.objects(bm.CALIBRATION_OMEGAS_PI, bm.CALIBRATION_ALPHAS_DEG)
     lines = [f"# Eq. (10) calibration: {args.physics} / {args.model}", "",
              f"Objects: omega_n in {bm.CALIBRATION_OMEGAS_PI} pi rad/s x alpha in {bm.CALIBRATION_ALPHAS_DEG} deg; "
-             "sweeps 10-40 Hz step 1 Hz, B_p = 3 mm. Regenerate: `python experiments/calibrate.py`.", ""]
+             "sweeps 10-40 Hz step 1 Hz, B_p = 3 mm. Regenerate: `python experiments/calibrate.py`. The shipped "
+             "tile-link lines (plate_env/data/calibration.json) are the default rule's, written by `plate-env build "
+             "calibration eq10`.", ""]
     cals = []
     plots = {}
     for amp in (float(a) for a in args.amps.split(",")):
-        specs = [s for o in objs for s in bm.sweep_specs(o, bm.SWEEP_F_HZ, amp)]
-        res = run_cached(backend, specs, f"experiments/cache/sweeps_{args.physics}_{args.model}.jsonl",
-                         desc=f"A_p={amp:g}", executor=executor)
-        n = len(bm.SWEEP_F_HZ)
-        sweeps = [res[i * n:(i + 1) * n] for i in range(len(objs))]
+        sweeps = tilelink_sweeps(amp, f"experiments/cache/sweeps_{args.physics}_{args.model}.jsonl", executor,
+                                 progress=True, backend=backend)
         lines += [f"## A_p = {amp:g} deg", "", "| fit window | drop | floor | R^2 (omega_n on f0) | p1 [pi rad/s/Hz] "
                   "| q1 [pi rad/s] | residual [pi rad/s] | sweeps that cannot be fitted |",
                   "|---|---|---|---|---|---|---|---|"]
@@ -80,18 +72,10 @@ def _calibrate(args, backend, physics, executor) -> None:
                 lines.append(f"| {window} | {drop} | {floor} | - | - | - | - | {len(fits) - len(ok)} |")
         fits = [fit_results(sw) for sw in sweeps]
         good = [(f, o) for f, o in zip(fits, objs, strict=True) if f.ok]
-        if len(good) < 3:
+        cal = sweep_line(sweeps, amp, getattr(physics, "dt", None), args.physics, args.model)
+        if cal is None:
             lines += ["", f"Too few fittable sweeps at A_p = {amp:g} deg ({len(good)}): no calibration.", ""]
             continue
-        cal = fit_calibration([f.f0 for f, _ in good], [o.omega_n for _, o in good], args.physics, args.model, amp,
-                              omega_max_deg_s=[f.omega_max for f, _ in good], alpha_rad=[o.alpha for _, o in good],
-                              provenance={"objects_omega_n_pi": bm.CALIBRATION_OMEGAS_PI,
-                                          "objects_alpha_deg": bm.CALIBRATION_ALPHAS_DEG,
-                                          "f_p_hz": "10:40:1", "b_p_mm": 3.0, "window": "first_hump",
-                                          "drop": DEFAULT_DROP, "floor": DEFAULT_FLOOR,
-                                          "dt_s": getattr(physics, "dt", None), "sweeps_fitted": len(good),
-                                          "sweeps_total": len(fits), "plate_env": pe.__version__,
-                                          "date": datetime.date.today().isoformat()})
         cals.append(cal)
         paper = paper_calibration(amp) if amp in (3.0, 12.0) else None
         lines += ["", f"Default rule (first hump, drop {DEFAULT_DROP}, floor {DEFAULT_FLOOR}): "
@@ -106,21 +90,13 @@ def _calibrate(args, backend, physics, executor) -> None:
                       f"{math.degrees(cal.alpha_resid_std):.1f} deg over alphas {bm.CALIBRATION_ALPHAS_DEG}."]
         lines.append("")
         plots[amp] = good
-    merged = load_calibrations(f"plate_env/data/{DATA_FILE}") if _exists(f"plate_env/data/{DATA_FILE}") else {}
-    keep = [c for c in merged.values() if not (c.physics == args.physics and c.model == args.model)]
-    save_calibrations(keep + cals, f"plate_env/data/{DATA_FILE}")
     stem = f"experiments/results/calibration_{args.physics}_{args.model}"
+    save_calibrations(cals, stem + ".json")
     _plot(plots, cals, stem + ".png", f"{args.physics}/{args.model}")
     lines.append(f"![f0 vs omega_n]({stem.split('/')[-1]}.png)")
     with open(stem + ".md", "w") as fh:
         fh.write("\n".join(lines) + "\n")
     print("\n".join(lines))
-
-
-def _exists(path: str) -> bool:
-    import os
-
-    return os.path.exists(path)
 
 
 def _plot(plots, cals, path, title) -> None:

@@ -2,60 +2,24 @@
 
 The shipped PPO policy must act as it did before the codec existed: tests/data/ppo_actions.json holds its actions
 on seeded episodes (the training settings, other budgets, another band/amplitudes/windows, and acting without an
-observation), recorded by ``python tests/test_codec.py --record`` at commit 402136d, before the env and the agent
-shared the codec; the tests replay the episodes and compare the actions bit for bit.
+observation), recorded with the code of commit 402136d, before the env and the agent shared the codec, and the shipped
+model files (tests/ppo_episodes.py says how; re-recorded that way when the policy was rebuilt); the tests replay the
+episodes and compare the actions bit for bit.
 """
 
 from __future__ import annotations
 
 import json
-import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
+from ppo_episodes import SCENARIOS, SEEDS, ppo_actions
 
 from plate_env.env.codec import N_FEATURES, Codec
-from plate_env.env.protocol import ProbeContext
 from plate_env.env.rotation import PlateRotationEnv
 
 RECORD = Path(__file__).parent / "data" / "ppo_actions.json"
-#: Seeded episodes of the shipped PPO policy: env settings and whether the agent sees the observation.
-SCENARIOS = {
-    "trained": ({}, True),
-    "budget_20": ({"max_probes": 20}, True),
-    "budget_40": ({"max_probes": 40}, True),
-    "other_coordinates": ({"f_band_hz": (12.0, 36.0), "amplitudes_deg": (12.0, 3.0),
-                           "measure_range_s": (0.5, 1.5)}, True),
-    "no_observation": ({}, False),
-    "other_no_observation": ({"f_band_hz": (12.0, 36.0), "amplitudes_deg": (3.0,), "measure_range_s": (0.5, 1.5)},
-                             False),
-}
-SEEDS = (0, 1)
-
-
-def ppo_actions(settings: dict, with_obs: bool, seed: int) -> list[list[float]]:
-    """The shipped PPO agent's raw actions on one seeded atlas episode (probing until it stops or the env ends)."""
-    from plate_env_agents import make_agent
-
-    agent = make_agent("ppo")
-    env = PlateRotationEnv(physics="atlas", **settings)
-    obs, _ = env.reset(seed=seed)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        agent.reset(ProbeContext.from_env(env), np.random.default_rng(seed))
-    actions = []
-    while True:
-        action = agent.next_probe(env.table(), obs if with_obs else None)
-        if action is None:
-            break
-        actions.append([float(x) for x in np.asarray(action, dtype=np.float32)])
-        obs, _, terminated, truncated, _ = env.step(action)
-        if terminated or truncated:
-            break
-    env.close()
-    return actions
 
 
 @pytest.mark.parametrize("scenario", sorted(SCENARIOS))
@@ -110,9 +74,3 @@ def test_an_observation_is_resized_to_another_slot_count():
     np.testing.assert_array_equal(out[: 3 * N_FEATURES], obs[: 3 * N_FEATURES])
     with pytest.raises(ValueError, match="not a PlateRotation-v0 observation"):
         TRAINED.resized(np.zeros(10), 0)
-
-
-if __name__ == "__main__" and "--record" in sys.argv:
-    RECORD.write_text(json.dumps({name: {str(s): ppo_actions(*SCENARIOS[name], s) for s in SEEDS}
-                                  for name in sorted(SCENARIOS)}, indent=0) + "\n")
-    print("wrote", RECORD)

@@ -34,7 +34,7 @@ PAPER_F_HZ = tuple(float(f) for f in range(14, 35))
 PAPER_STDERR = 10.0
 #: The amplitude the paper's Eq. (10) and Table 1 hold at (deg).
 PAPER_A_P_DEG = 3.0
-#: What ``plate-env build calibration`` builds.
+#: What ``plate-env build calibration`` builds here (``eq10``: :mod:`plate_env.build.eq10`).
 CALIBRATIONS = ("paper",)
 
 
@@ -72,7 +72,7 @@ def build_calibration(name: str, out: str | Path, record: dict) -> dict:
     """Write calibration ``name`` (:data:`CALIBRATIONS`) to ``out`` and the build record to ``out`` +
     ``.provenance.json``; returns the calibration's JSON. ValueError for another name, before any work."""
     if name not in CALIBRATIONS:
-        raise ValueError(f"unknown calibration {name!r}; this package builds {list(CALIBRATIONS)}")
+        raise ValueError(f"unknown calibration {name!r}; this package builds {[*CALIBRATIONS, 'eq10']}")
     from plate_env.identify import lab_calibration_file as lcf
 
     cal = paper_calibration()

@@ -1,7 +1,7 @@
-"""``plate-env build suite|atlas|forward-models|calibration|design-discrepancy|policy``: rebuild a shipped artifact
-from the installed package. Every artifact written records the command, the package version and the git commit
-(:mod:`plate_env.build.provenance`). ``policy`` trains with the agents' package (``plate_env_agents.train``), which
-only the command line may import: :mod:`plate_env.cli` runs it."""
+"""``plate-env build suite|atlas|forward-models|calibration|design-discrepancy|pybullet-table|policy``: rebuild a
+shipped artifact from the installed package. Every artifact written records the command, the package version and the
+git commit (:mod:`plate_env.build.provenance`). ``policy`` trains with the agents' package (``plate_env_agents.train``),
+which only the command line may import: :mod:`plate_env.cli` runs it."""
 
 from __future__ import annotations
 
@@ -11,13 +11,13 @@ from collections.abc import Sequence
 from plate_env.run.executor import add_executor_argument
 
 #: What ``plate-env build`` can rebuild.
-ARTIFACTS = ("suite", "atlas", "forward-models", "calibration", "design-discrepancy", "policy")
+ARTIFACTS = ("suite", "atlas", "forward-models", "calibration", "design-discrepancy", "pybullet-table", "policy")
 
 
 def add_build_parser(sub) -> None:
     """The ``build`` command and its artifacts on the CLI's subparsers ``sub``."""
     b = sub.add_parser("build", help="rebuild a shipped artifact (suite, atlas, forward-models, calibration, "
-                       "design-discrepancy, policy) from the installed package")
+                       "design-discrepancy, pybullet-table, policy) from the installed package")
     kinds = b.add_subparsers(dest="artifact", required=True)
     s = kinds.add_parser("suite", help="write an evaluation suite exactly as shipped (plate_env/data/suites)")
     s.add_argument("name", help="the suite (atlas-v0, tilelink-v0, pybullet-v0)")
@@ -57,17 +57,32 @@ def add_build_parser(sub) -> None:
                    "forward_models_lomo.json)")
     f.add_argument("--out", required=True, help="the registry to write; the build record goes to "
                    "OUT.provenance.json")
-    c = kinds.add_parser("calibration", help="write a shipped calibration (paper: plate_env/data/"
-                         "calibration_paper.json, --calibration paper) from the paper's published numbers")
-    c.add_argument("name", help="the calibration (paper)")
+    c = kinds.add_parser("calibration", help="write a shipped calibration: paper (plate_env/data/"
+                         "calibration_paper.json, --calibration paper) from the paper's published numbers; eq10 "
+                         "(plate_env/data/calibration.json, fit --method lorentz) from sweeps")
+    c.add_argument("name", help="the calibration (paper, eq10)")
     c.add_argument("--out", required=True, help="the calibration to write; the build record goes to "
                    "OUT.provenance.json")
+    c.add_argument("--sweeps", default=None, help="eq10: where the simulated sweeps are cached, resumable (the "
+                   "tile-link lines' 2,232 probes and the lab line's 3,720 point-mass probes, about 2 minutes here; "
+                   "default: the user cache directory's sweeps/)")
+    c.add_argument("--lab-sweeps", default=None, help="eq10, required: the directory holding the lab line's "
+                   "rigid-limit and PyBullet sweeps (eval_tilelink_rigid_limit_A3_s100.jsonl, "
+                   "eval_pybullet_pybullet_A3_s600.jsonl; a checkout's experiments/cache). They are inputs, never "
+                   "simulated by the builder: about a quarter of an hour and hours of simulation here, and their "
+                   "last bits depend on the CPU")
+    add_executor_argument(c)
     d = kinds.add_parser("design-discrepancy", help="write the bayes agent's design discrepancy "
                          "(plate_env_agents/models/bayes_design_discrepancy.json) from the fit of "
                          "experiments/forward_models.py's within stage")
     d.add_argument("--within", required=True, help="the within stage's numbers (experiments/results/"
                    "forward_models_within.json)")
     d.add_argument("--out", required=True, help="the file to write; the build record goes to OUT.provenance.json")
+    t = kinds.add_parser("pybullet-table", help="measure the PyBullet sheet's stiffness -> omega_n table "
+                         "(plate_env/data/pybullet_calibration.json): 11 ring-downs of the default sheet, about "
+                         "20 s of PyBullet here")
+    t.add_argument("--out", required=True, help="the table to write; the build record (with the machine) goes to "
+                   "OUT.provenance.json")
     add_policy_parser(kinds)
 
 
@@ -141,6 +156,20 @@ def atlas_job(args: argparse.Namespace, record: dict):
     return job
 
 
+def _sweeps_dir(given: str | None):
+    """``--sweeps``, else the user cache directory's ``sweeps/`` (ValueError when the cache is off)."""
+    from pathlib import Path
+
+    from plate_env.core.cache import cache_dir
+
+    if given is not None:
+        return Path(given)
+    root = cache_dir()
+    if root is None:
+        raise ValueError("the cache is off (PLATE_ENV_CACHE_DIR=off): give --sweeps DIR for the simulated sweeps")
+    return root / "sweeps"
+
+
 def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
     """Run ``plate-env build``; ``argv`` are the arguments after ``build`` (recorded in the artifact)."""
     from plate_env.build.provenance import build_record
@@ -158,9 +187,22 @@ def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
         reg = build_forward_models(args.within, args.lomo, args.out, record)
         print(f"wrote {args.out} ({', '.join(reg)}) and {args.out}.provenance.json")
         return 0
+    if args.artifact == "calibration" and args.name == "eq10":
+        from plate_env.build.eq10 import build_eq10
+
+        if args.lab_sweeps is None:
+            raise ValueError("calibration eq10 needs --lab-sweeps DIR: the lab line's rigid-limit and PyBullet sweeps "
+                             "(a checkout's experiments/cache)")
+        cals = build_eq10(args.out, record, _sweeps_dir(args.sweeps), args.lab_sweeps, args.executor)
+        print("\n".join(f"{c.physics}/{c.model}/{c.a_p_deg:g}: p1 = {c.p1_pi:.2f}, q1 = {c.q1_pi:.1f} pi rad/s, "
+                        f"R^2 {c.r2:.2f}, {c.n} sweeps" for c in cals))
+        print(f"wrote {args.out} and {args.out}.provenance.json")
+        return 0
     if args.artifact == "calibration":
         from plate_env.build.calibration import build_calibration
 
+        if args.sweeps is not None or args.lab_sweeps is not None:
+            raise ValueError(f"calibration {args.name}: --sweeps and --lab-sweeps are eq10's options")
         body = build_calibration(args.name, args.out, record)
         print(f"wrote {args.out} (calibration {args.name}, content sha256 {body['content_sha256']}) and "
               f"{args.out}.provenance.json")
@@ -170,6 +212,12 @@ def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
 
         content = build_design_discrepancy(args.within, args.out, record)
         print(f"wrote {args.out} ({content['design_discrepancy']}) and {args.out}.provenance.json")
+        return 0
+    if args.artifact == "pybullet-table":
+        from plate_env.build.pybullet_table import build_pybullet_table
+
+        table = build_pybullet_table(args.out, record)
+        print(f"wrote {args.out} ({len(table['k_elastic'])} stiffnesses) and {args.out}.provenance.json")
         return 0
     if args.artifact == "policy":
         raise ValueError("plate-env build policy runs from the command line (plate_env.cli), which may import the "

@@ -7,8 +7,8 @@ estimates, fitted by maximum likelihood on 100 calibration episodes of the agent
 (``python experiments/forward_models.py within --episodes 100``: objects of the prior, seed 510; tested on 100 others,
 seed 520). That stage records the fit in ``experiments/results/forward_models_within.json`` under ``bayes``
 (``sigma_design_fit``, ``nu_design_fit``); this builder reads it from there and rounds the scale to
-:data:`SCALE_DECIMALS` decimals, the precision the agent has shipped with. The episodes themselves are not
-committed: refitting from them means rerunning that stage.
+:data:`SCALE_DECIMALS` decimals, the precision the agent has shipped with. The episodes are kept in a checkout's
+experiments/cache (forward_models_bayes_s510.jsonl, _s520.jsonl); refitting from them means rerunning that stage.
 
 The file is read as data, so the build record (command, version, commit) goes beside it, ``FILE.provenance.json``,
 and the file stays byte-identical to the shipped one.
@@ -23,7 +23,7 @@ from pathlib import Path
 
 #: The forward model the within stage's episodes were estimated with (its point-mass model).
 FORWARD = "tilelink/pointmass"
-#: Decimals the shipped scale keeps (0.009114 -> 0.0091).
+#: Decimals the shipped scale keeps (0.009925 -> 0.0099).
 SCALE_DECIMALS = 4
 #: The shipped file's name, in plate_env_agents/models/.
 FILE_NAME = "bayes_design_discrepancy.json"

@@ -6,6 +6,7 @@ Calibration and atlas grid objects never coincide with the held-out objects used
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -124,13 +125,16 @@ class EvalSet:
         return placed_sweeps(self.objects(), self.f_hz, a_p_deg, np.random.default_rng(self.seed + 1),
                              settle_s=self.settle_s, measure_s=self.measure_s)
 
-    def cache(self, a_p_deg: float) -> str:
+    def cache(self, a_p_deg: float, root: str | Path = "experiments/cache") -> str:
+        """The set's sweep cache at one amplitude, in directory ``root`` (a checkout's ``experiments/cache`` by
+        default)."""
         tag = "evalnuis" if self.nuisance else "eval"
-        return f"experiments/cache/{tag}_{self.source}_A{a_p_deg:g}_s{self.seed}.jsonl"
+        return f"{Path(root).as_posix()}/{tag}_{self.source}_A{a_p_deg:g}_s{self.seed}.jsonl"
 
 
-def run_eval_set(es: EvalSet, backend_of, executor=None, progress: bool = False) -> dict:
-    """``{A_p: [ProbeTable per object]}`` for an :class:`EvalSet`, run resumably (its cache files).
+def run_eval_set(es: EvalSet, backend_of, executor=None, progress: bool = False,
+                 cache_dir: str | Path = "experiments/cache") -> dict:
+    """``{A_p: [ProbeTable per object]}`` for an :class:`EvalSet`, run resumably (its cache files in ``cache_dir``).
 
     ``backend_of(nuisance)`` gives the :class:`plate_env.run.executor.BackendSpec` for an object's nuisance draw (None
     for a set without nuisances); objects sharing a backend run as one batch."""
@@ -148,7 +152,7 @@ def run_eval_set(es: EvalSet, backend_of, executor=None, progress: bool = False)
             groups.setdefault(backend_of(nu), []).append(i)
         for backend, idx in groups.items():
             sub = [s for i in idx for s in specs[i * m:(i + 1) * m]]
-            res = run_cached(backend, sub, es.cache(amp), chunk=m, progress=progress,
+            res = run_cached(backend, sub, es.cache(amp, cache_dir), chunk=m, progress=progress,
                              desc=f"{es.source} A_p={amp:g}", executor=executor)
             for j, i in enumerate(idx):
                 tables[i] = ProbeTable.from_results(res[j * m:(j + 1) * m])

@@ -209,6 +209,7 @@ def get_calibration(physics: str, model: str, a_p_deg: float, path: str | Path |
     cals = load_calibrations(path)
     key = _key(physics, model, a_p_deg)
     if key not in cals:
-        raise ValueError(f"no calibration for {key}; available: {sorted(cals) or 'none'} "
-                         f"(run experiments/calibrate.py)")
+        raise ValueError(f"no calibration for {key}; available: {sorted(cals) or 'none'} (the package's lines are "
+                         "rebuilt by `plate-env build calibration eq10`; a line of another physics or model is "
+                         "fitted by experiments/calibrate.py in a checkout)")
     return cals[key]

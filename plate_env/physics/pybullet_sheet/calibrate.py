@@ -204,16 +204,11 @@ def _ringdown_k(obj: ObjectSpec, config: SheetConfig, tol: float, max_iter: int)
     return best
 
 
-def main() -> None:
-    """Measure the default table and write it to ``plate_env/data/pybullet_calibration.json``."""
-    from pathlib import Path
-
-    tab = measure_table(SheetConfig())
-    out = Path(__file__).resolve().parents[2] / "data" / TABLE_FILE
-    out.write_text(json.dumps(tab, indent=1) + "\n")
-    for k, w in zip(tab["k_elastic"], tab["omega_n"], strict=True):
-        print(f"k = {k:8.2f} N/m  omega_n = {w:8.2f} rad/s = {w / math.pi:6.2f} pi")
+def table_text(table: dict) -> str:
+    """The text of a :func:`measure_table` table as shipped in ``plate_env/data/pybullet_calibration.json``."""
+    return json.dumps(table, indent=1) + "\n"
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit("the table is rebuilt by `plate-env build pybullet-table --out pybullet_calibration.json` "
+                     "(plate_env.build.pybullet_table)")
