@@ -116,3 +116,25 @@ def test_probe_spec_windows():
 def test_unknown_physics_is_named():
     with pytest.raises(ValueError, match="unknown physics 'bullet'"):
         pe.make_physics("bullet")
+
+
+def test_first_atlas_step_imports_neither_the_posterior_nor_numba():
+    """gym.make + reset + a first atlas probe load only the env, the physics and the atlas: the posterior's modules
+    come with the first episode end, numba with the compiled kernels (plate_env.core.jit), and plate_env.identify's
+    public names still resolve."""
+    import subprocess
+    import sys
+
+    code = ("import sys, gymnasium as gym, plate_env\n"
+            "env = gym.make('PlateRotation-v0', physics='atlas'); env.reset(seed=0)\n"
+            "env.step(env.unwrapped.encode_action(20.0, 3.0, 1.0))\n"
+            "mods = ('plate_env.identify.api', 'plate_env.identify.inference', 'plate_env.identify.forward', 'numba')\n"
+            "print([m for m in mods if m in sys.modules])\n"
+            "_, _, term, _, info = env.step(env.unwrapped.encode_action(stop=True))\n"
+            "print(term, 'omega_n_rad_s' in info['estimate'], 'numba' in sys.modules)\n"
+            "import plate_env.identify as idf\n"
+            "print(idf.METHODS, callable(idf.identify), 'plate_env.identify.api' in sys.modules)")
+    env = {k: v for k, v in __import__("os").environ.items() if k != "PLATE_ENV_JIT"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         env=env).stdout.splitlines()
+    assert out == ["[]", "True True False", "('atlas', 'lorentz') True True"]

@@ -136,21 +136,49 @@ def test_replicate_count_sums_as_numpy():
             assert g.replicates_at_least(u, t_part, p, flag_s, flag_u, t_obs) == np.count_nonzero(t_rep >= t_obs)
 
 
-def test_kernels_load_after_warm_calls(monkeypatch):
+def test_kernels_load_at_the_warm_episode_end(monkeypatch):
     monkeypatch.delenv("PLATE_ENV_JIT", raising=False)
     monkeypatch.setitem(jit._state, "module", None)
-    monkeypatch.setitem(jit._state, "calls", 0)
-    assert all(jit.kernels() is None for _ in range(jit.WARM_CALLS - 1))
-    assert jit.kernels() is not None and jit.kernels() is not None
+    monkeypatch.setitem(jit._state, "episodes", 0)
+    assert all(jit.kernels() is None for _ in range(1000))  # requests alone never load them
+    for _ in range(jit.WARM_EPISODES - 1):
+        jit.episode_ended()
+        assert jit.kernels() is None
+    jit.episode_ended()
+    assert jit.kernels() is not None
     jit.force(False)
     assert jit.kernels() is None
-    monkeypatch.setitem(jit._state, "module", None)
-    monkeypatch.setitem(jit._state, "calls", 0)
     jit.force(None)
+    monkeypatch.setitem(jit._state, "module", None)
+    monkeypatch.setitem(jit._state, "episodes", 0)
     monkeypatch.setenv("PLATE_ENV_JIT", "0")
-    assert all(jit.kernels() is None for _ in range(jit.WARM_CALLS + 5))
+    for _ in range(jit.WARM_EPISODES + 5):
+        jit.episode_ended()
+    assert jit.kernels() is None
     monkeypatch.setenv("PLATE_ENV_JIT", "1")
     assert jit.kernels() is not None
+
+
+def test_env_episode_ends_load_the_kernels():
+    """An env process switches to the kernels at its WARM_EPISODES-th episode end (in a fresh interpreter)."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np\n"
+            "from plate_env.env import PlateRotationEnv\n"
+            "from plate_env.core import jit\n"
+            "env = PlateRotationEnv(physics='atlas')\n"
+            "seen = []\n"
+            "for seed in range(jit.WARM_EPISODES):\n"
+            "    env.reset(seed=seed)\n"
+            "    env.step(env.encode_action(20.0, 3.0, 1.0))\n"
+            "    seen.append('numba' in sys.modules)\n"
+            "    env.step(env.encode_action(stop=True))\n"
+            "print(seen, jit.kernels() is not None)")
+    env = {k: v for k, v in os.environ.items() if k != "PLATE_ENV_JIT"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
+    assert out.strip() == "[False, False, False, False, False] True"
 
 
 def test_env_episodes_same_with_and_without_kernels():

@@ -14,7 +14,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from plate_env.core import checks
+from plate_env.core import checks, jit
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import ObjectPrior, ObjectSpec
 from plate_env.core.probe import (
@@ -365,6 +365,7 @@ class PlateRotationEnv(gym.Env):
             else:
                 info["relative_error"] = None
                 reward -= self.no_estimate_penalty
+            jit.episode_ended()  # a process that runs many episodes loads the compiled kernels (plate_env.core.jit)
         if self.render_mode == "human":
             self.render()
         return self._obs(), float(reward), bool(terminated), False, info

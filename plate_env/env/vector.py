@@ -90,16 +90,16 @@ class PlateRotationVectorEnv(VectorEnv):
         """Step the sub-environments where ``active`` is True, their probes in one batched physics call: per
         sub-environment ``(obs, reward, terminated, truncated, info)``, or None where inactive. (The step of this
         vector env and of :class:`plate_env.env.sb3.PlateRotationSB3VecEnv`; they differ in how they reset.)"""
-        for i, env in enumerate(self.envs):  # every sub-env's step refused before any draws (a clean rerun matches)
-            if active[i]:
-                env.check_step(actions[i])
+        # every sub-env's step refused before any draws (a clean rerun matches); check_step is pure, so its checked
+        # action serves the decoding below (what prepare() does: _decode(check_step(action)))
+        checked = [env.check_step(actions[i]) if active[i] else None for i, env in enumerate(self.envs)]
         plans: list[tuple[str, int | None]] = []
         specs = []
         for i, env in enumerate(self.envs):
             if not active[i]:
                 plans.append(("skip", None))
                 continue
-            stop, spec = env.prepare(actions[i])
+            stop, spec = env._decode(checked[i])
             if stop:
                 plans.append(("stop", None))
             else:
