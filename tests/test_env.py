@@ -113,7 +113,8 @@ def test_stop_without_probes_is_ignored_and_stop_later_ends_with_penalty_when_no
     _, r, term, _, _ = env.step(np.array([0.0, -1.0, 0.0, 1.0], np.float32))  # stop ignored: no probe yet
     assert not term and r < 0
     _, r, term, _, info = env.step(np.array([0.0, -1.0, 0.0, 1.0], np.float32))
-    assert term and info["relative_error"] is None and r == pytest.approx(-2.0)
+    assert term and "relative_error" not in info and r == pytest.approx(-2.0)
+    assert not info["estimate"]["ok"] and None not in info["estimate"].values()  # no None: absent instead
 
 
 @pytest.mark.parametrize("physics", ["tilelink", "atlas"])
@@ -219,6 +220,28 @@ def test_vector_env_equals_n_single_envs(mode):
             assert np.array_equal(x, y)
     vec.close()
     ref.close()
+
+
+@pytest.mark.parametrize("mode", ["vector_entry_point", "sync"])
+def test_vector_infos_batch_episode_ends_with_and_without_estimates(mode):
+    """Gymnasium batches each info key into one array: a key that is None in one sub-env and a number or a dict in
+    another used to crash it (estimate.check.worst, estimate.bound, relative_error). Random stops make some
+    episodes end without an estimate (a single probe) and others with one."""
+    vec = gym.make_vec("PlateRotation-v0", num_envs=4, vectorization_mode=mode, physics="atlas", max_probes=6)
+    vec.reset(seed=3)
+    rng = np.random.default_rng(3)
+    with_est = without = 0
+    for _ in range(120):
+        a = rng.uniform(-1, 1, (4, 4)).astype(np.float32)
+        a[:, 3] = np.where(rng.uniform(size=4) < 0.3, 1.0, -1.0)
+        _, _, term, _, info = vec.step(a)
+        if term.any():
+            ok = info["estimate"]["ok"][term]
+            has_error = info.get("_relative_error", np.zeros(4, dtype=bool))
+            assert np.array_equal(has_error[term], ok)  # an error exactly where there is an estimate
+            with_est, without = with_est + int(ok.sum()), without + int((~ok).sum())
+    assert with_est > 0 and without > 0
+    vec.close()
 
 
 def test_pybullet_rgb_array_uses_tiny_renderer():

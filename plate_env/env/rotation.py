@@ -108,9 +108,12 @@ class PlateRotationEnv(gym.Env):
     Terminated when the action says stop (after the first probe), when ``max_probes`` probes have run, or when the
     probes have taken ``max_sim_s`` simulated seconds (the probe that crosses it still runs). Never truncated.
     The final step's ``info`` carries the estimate (``estimate``: omega_n_hat and its 68 %/95 % intervals, alpha_hat;
-    ``relative_error``, None without estimate) and ``wall_s``, the episode's wall-clock seconds (the one
+    ``relative_error``, absent without estimate) and ``wall_s``, the episode's wall-clock seconds (the one
     non-deterministic number). Every ``info`` has ``omega_n_true`` (rad/s), ``alpha_true`` (rad), ``mass_true`` (kg),
-    ``probes``, ``sim_s`` and, after a probe, ``last_probe`` (the probe's settings and outcome).
+    ``probes``, ``sim_s`` and, after a probe, ``last_probe`` (the probe's settings and outcome). A field without a
+    value is left out rather than None, at every depth (``estimate``'s ``bound``, ``reason``, ``check.worst``; the
+    probe's ``reason``): Gymnasium's vector envs batch each info key into one array with a presence mask ``_key``,
+    and None cannot share that array with numbers or dicts.
 
     ## Arguments
 
@@ -358,12 +361,11 @@ class PlateRotationEnv(gym.Env):
             self._done = True
             info["wall_s"] = self._wall_s
             est = self.estimate()
-            info["estimate"] = est.to_dict()
+            info["estimate"] = _present(est.to_dict())
             if est.ok:
                 info["relative_error"] = est.relative_error(self._obj.omega_n)
                 reward -= min(info["relative_error"], self.error_cap)
             else:
-                info["relative_error"] = None
                 reward -= self.no_estimate_penalty
             jit.episode_ended()  # a process that runs many episodes loads the compiled kernels (plate_env.core.jit)
         if self.render_mode == "human":
@@ -457,7 +459,7 @@ class PlateRotationEnv(gym.Env):
         if self._last is not None:
             last = self._last.to_dict()
             last.pop("wall_s")
-            info["last_probe"] = last
+            info["last_probe"] = _present(last)
         return info
 
     # ------------------------------------------------------------------ render / close
@@ -508,6 +510,11 @@ class PlateRotationEnv(gym.Env):
         self.__dict__.update(state)
         self.physics = make_physics(self.physics_name, **self.physics_options)
         self._closed = False
+
+
+def _present(d: dict) -> dict:
+    """``d`` without its None values, at every depth (the env's info: see the class's Episode End)."""
+    return {k: _present(v) if isinstance(v, dict) else v for k, v in d.items() if v is not None}
 
 
 def _build_physics(name: str, options: dict):
