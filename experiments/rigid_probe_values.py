@@ -18,15 +18,10 @@ from dataclasses import replace
 import plate_env as pe
 from plate_env.physics.tilelink import rigid
 
-try:  # the layered path (issue 24); older trees have the flat one
-    from plate_env.core.probe import ProbeSpec
-except ImportError:
-    from plate_env.physics.base import ProbeSpec
-
 
 def main() -> None:
     obj = pe.ObjectSpec.from_paper(10.0, 36.9)
-    probes = [ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(f, 3.0, 3.0), settle_s=0.6, measure_s=1.0)
+    probes = [pe.ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(f, 3.0, 3.0), settle_s=0.6, measure_s=1.0)
               for f in (18.0, 22.0, 25.0)]
     base = rigid.RigidTileConfig()
     cfg = replace(base, iterations=base.iterations)
