@@ -58,12 +58,16 @@ def layer_function():
     return layer
 
 
+#: The stable probes of a tile-link point-mass sweep of the README's object (omega_n 17 pi rad/s, alpha 45 deg, 3 deg,
+#: 10-26 Hz; experiments/bench_speed.py's SWEEP_CSV): every layout's ``fit`` gives an estimate from it (a made-up
+#: Lorentzian hump did until the predictive check, then the traced path was that of a refusal).
+SWEEP_ROWS = ((10, 12.0143, 0.0067), (12, 70.3582, 0.0252), (14, 87.0871, 0.3142), (16, 113.6140, 1.3952),
+              (18, 183.7253, 1.0915), (22, 417.7760, 2.2727), (24, 510.5472, 3.0620), (26, 555.6221, 3.4492))
+
+
 def write_sweep_csv(path: Path) -> None:
-    """A synthetic lab sweep at 3 deg (a Lorentzian-shaped hump; the numbers only need to be fit-able)."""
-    rows = ["f_p_hz,omega_b_deg_s,stderr_deg_s"]
-    for f in range(10, 41):
-        w = 40.0 / (1.0 + ((f - 21.0) / 4.0) ** 2) + 2.0
-        rows.append(f"{f},{w:.4f},{0.3 + 0.01 * f:.3f}")
+    """The sweep ``fit`` reads (f_p, omega_B, its standard error; A_p given by ``--amp 3``)."""
+    rows = ["f_p_hz,omega_b_deg_s,stderr_deg_s"] + [f"{f},{w},{se}" for f, w, se in SWEEP_ROWS]
     path.write_text("\n".join(rows) + "\n")
 
 
