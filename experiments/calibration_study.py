@@ -57,8 +57,8 @@ class LabEvalSet(fmod.EvalSet):
         shared = PRIOR.draw(np.random.default_rng(self.seed + 2))
         return [shared] * self.n
 
-    def cache(self, a_p_deg: float) -> str:
-        return f"experiments/cache/evallab_{self.source}_A{a_p_deg:g}_s{self.seed}.jsonl"
+    def cache(self, a_p_deg: float, root: str | Path = "experiments/cache") -> str:
+        return f"{Path(root).as_posix()}/evallab_{self.source}_A{a_p_deg:g}_s{self.seed}.jsonl"
 
 
 #: The lab-level-nuisance source: several simulated labs (seeded), each its own nuisance draw shared by its discs.
