@@ -57,8 +57,8 @@ class LabEvalSet(fmod.EvalSet):
         shared = PRIOR.draw(np.random.default_rng(self.seed + 2))
         return [shared] * self.n
 
-    def cache(self, a_p_deg: float) -> str:
-        return f"experiments/cache/evallab_{self.source}_A{a_p_deg:g}_s{self.seed}.jsonl"
+    def cache(self, a_p_deg: float, root: str | Path = "experiments/cache") -> str:
+        return f"{Path(root).as_posix()}/evallab_{self.source}_A{a_p_deg:g}_s{self.seed}.jsonl"
 
 
 #: The lab-level-nuisance source: several simulated labs (seeded), each its own nuisance draw shared by its discs.
@@ -566,11 +566,11 @@ def write_md(results: dict) -> None:
         lo = json.loads(lomo.read_text())["lomo"]
         lines += ["## Uncalibrated `lab`-style reading, for comparison (`forward_models_lomo.json`, the same sweeps, "
                   "each family left out)", "",
-                  "| data left out | objects | median error | 95 % coverage | median 95 % width |",
-                  "|---|---|---|---|---|"]
+                  "| data left out | objects | no estimate | median error | 95 % coverage | median 95 % width |",
+                  "|---|---|---|---|---|---|"]
         for src, v in lo.items():
-            lines.append(f"| {src} | {v['n']} | {v['median_error']['value']:.1%} | {v['coverage95']['value']:.2f} | "
-                         f"{v['width95']['value']:.0%} |")
+            lines.append(f"| {src} | {v['n']} | {v['no_estimate']['value']:.0%} | {v['median_error']['value']:.1%} | "
+                         f"{v['coverage95']['value']:.2f} | {v['width95']['value']:.0%} |")
         lines.append("")
     if "paper" in results:
         pp = results["paper"]

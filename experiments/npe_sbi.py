@@ -51,6 +51,8 @@ N_SAMPLES = 2000
 BATCH = 2500
 MAX_DRAWS = 200_000
 MIN_ACCEPTED = 100
+#: The results file's hand-written section (kept by a rerun, which rewrites everything above it).
+CONCLUSION = "## Conclusion"
 
 
 # --------------------------------------------------------------------------------------------------- simulation
@@ -385,7 +387,7 @@ def main() -> None:
     nn, nf = numbers["npe_nominal"], numbers["npe_family"]
     lines = [
         "# Neural posterior estimation (sbi) against the atlas posterior (issue 13)", "",
-        f"Command: `OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 nice -n 10 python experiments/npe_sbi.py --n {args.n}"
+        f"Command: `OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 python experiments/npe_sbi.py --n {args.n}"
         f"{'' if args.seed == 0 else f' --seed {args.seed}'}{'' if args.out == 'npe_sbi' else f' --out {args.out}'}` "
         f"(sbi 0.27.0, torch CPU, 1 thread, a shared 2-core machine).", "",
         f"Training: {args.n} sweeps per network (10-40 Hz, 1 Hz, A_p = 3 deg), theta = (log omega_n, alpha) from the "
@@ -417,7 +419,11 @@ def main() -> None:
     if args.limit:
         return
     RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / f"{args.out}.md").write_text("\n".join(lines) + "\n")
+    md = RESULTS / f"{args.out}.md"
+    # the hand-written conclusion (its own section, read from the tables) is kept: a rerun must re-read it
+    old = md.read_text() if md.exists() else ""
+    tail = old[old.index(CONCLUSION):] if CONCLUSION in old else ""
+    md.write_text("\n".join(lines) + "\n" + tail)
     (RESULTS / f"{args.out}.json").write_text(json.dumps(numbers, indent=1) + "\n")
 
 

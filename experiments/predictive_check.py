@@ -1,7 +1,7 @@
 """Calibrate the predictive check (issue 28, item 3): how many honest sweeps it rejects, and that data no object
 could make is rejected.
 
-    python experiments/predictive_check.py [--objects 120] [--executor pool]
+    python experiments/predictive_check.py --objects 120 --episodes 60 [--executor pool]   # the results file
 
 Honest sweeps: the within-model test set of experiments/forward_models.py (``TEST``: tilelink point-mass objects
 from the identification prior, seed 200, 10-40 Hz at 1 Hz, 3 and 12 deg; the resumable caches in
@@ -20,6 +20,7 @@ import argparse
 import dataclasses
 import json
 import math
+import shlex
 import sys
 from pathlib import Path
 
@@ -55,16 +56,19 @@ def main() -> None:
     sets = sets_by_amplitude(run_eval_set(es, lambda _: POINTMASS, args.executor), es)
     truth = [o.omega_n for o in es.objects()]
     fm = load_forward_model("tilelink/pointmass")
-    lines = ["# The predictive check on honest and impossible sweeps", "",
+    command = shlex.join(["python", "experiments/predictive_check.py", *sys.argv[1:]])
+    lines = ["# The predictive check on honest and impossible sweeps", "", f"Command: `{command}`.", "",
              f"Forward model `tilelink/pointmass`; honest sweeps: the first {es.n} objects of the within-model test "
              f"set (seed {es.seed}, 10-40 Hz at 1 Hz). A sweep is rejected when its predictive p-value is below "
              f"{CHECK_P_MIN:g} (`plate_env.inference.predictive_check`; the smallest p-value 4000 replicates can "
-             "give is 2.5e-4). Coverage: of the estimates made, against the truth, before (every sweep, check "
-             "ignored) and after (the sweeps the check and the alpha edge rule keep).", "",
-             "| sweeps | n | rejected by the check | flagged by the alpha edge | smallest p | 68 % coverage "
-             "before / after | 95 % coverage before / after | no estimate (by the check): zero | negative | x100 |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
-    numbers: dict = {"p_min": CHECK_P_MIN, "objects": es.n, "seed": es.seed, "sets": {}}
+             "give is 2.5e-4). Coverage against the truth, before (every sweep's posterior, check ignored) and "
+             "after (the sweeps given an estimate: not rejected by the check, not flagged by the alpha edge rule, "
+             "not answered with a bound at an omega_n edge; their number in the column 'estimates').", "",
+             "| sweeps | n | rejected by the check | flagged by the alpha edge | estimates | smallest p | 68 % "
+             "coverage before / after | 95 % coverage before / after | no estimate (by the check): zero | negative | "
+             "x100 |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    numbers: dict = {"command": command, "p_min": CHECK_P_MIN, "objects": es.n, "seed": es.seed, "sets": {}}
     for amps, tables in sets.items():
         ests = [identify_atlas(t, fm) for t in tables]
         p = np.array([e.check.p_value for e in ests])
@@ -82,11 +86,12 @@ def main() -> None:
                          float(np.mean([not e.check.passed for e in bad_ests])))
         numbers["sets"][amps] = {"n": len(tables), "rejected": float(rejected.mean()),
                                  "n_rejected": int(rejected.sum()), "alpha_edge": float(edge.mean()),
+                                 "n_estimates": len(kept),
                                  "p_values": p.tolist(), "coverage68": cov["68"], "coverage95": cov["95"],
                                  "bad_rejected": bad}
         lines.append(f"| A_p = {amps} deg | {len(tables)} | {rejected.mean():.3f} ({int(rejected.sum())}) | "
-                     f"{edge.mean():.3f} ({int(edge.sum())}) | {p.min():.2g} | {cov['68'][0]:.2f} / {cov['68'][1]:.2f} "
-                     f"| {cov['95'][0]:.2f} / {cov['95'][1]:.2f} | "
+                     f"{edge.mean():.3f} ({int(edge.sum())}) | {len(kept)} | {p.min():.2g} | "
+                     f"{cov['68'][0]:.2f} / {cov['68'][1]:.2f} | {cov['95'][0]:.2f} / {cov['95'][1]:.2f} | "
                      + " | ".join(f"{bad[k][0]:.2f} ({bad[k][1]:.2f})" for k in ("zero", "negative", "x100")) + " |")
     if args.episodes:
         from plate_env_agents.bayes import BayesAgent
