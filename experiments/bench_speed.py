@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -399,7 +400,7 @@ def _fit_outcome(r: dict) -> str:
         return "failed (" + r["error"].strip().splitlines()[-1][-80:] + ")"
     if r.get("omega_n") is None:
         return "no estimate" if r else "n/a"
-    return f"{r['omega_n'] / 3.141592653589793:.2f} pi"
+    return f"{r['omega_n'] / math.pi:.2f} pi"
 
 
 def markdown(doc: dict, source: str = "bench_speed.json") -> str:

@@ -12,8 +12,8 @@ file). Reported: the distinct crossings (caller function -> callee function) and
 
 The paths: ``gym.make("PlateRotation-v0", physics="atlas")`` (the backend's construction included),
 ``reset(seed=0)`` and steps drawn from the action space seeded with 0 (never the stop action) until the probe
-budget ends the episode and the env estimates; ``plate-env fit sweep.csv --amp 3`` (the atlas method, the ``lab``
-forward model) on a synthetic 10-40 Hz sweep written here. Writes experiments/results/layer_crossings.md.
+budget ends the episode and the env estimates; ``plate-env fit sweep.csv`` (the atlas method, the ``lab`` forward
+model) on experiments/bench_speed.py's tile-link sweep (SWEEP_CSV). Writes experiments/results/layer_crossings.md.
 """
 
 from __future__ import annotations
@@ -26,6 +26,9 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_speed import SWEEP_CSV  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
@@ -56,19 +59,6 @@ def layer_function():
         return None if i is None else (i, health.LAYERS[i][0])
 
     return layer
-
-
-#: The stable probes of a tile-link point-mass sweep of the README's object (omega_n 17 pi rad/s, alpha 45 deg, 3 deg,
-#: 10-26 Hz; experiments/bench_speed.py's SWEEP_CSV): every layout's ``fit`` gives an estimate from it (a made-up
-#: Lorentzian hump did until the predictive check, then the traced path was that of a refusal).
-SWEEP_ROWS = ((10, 12.0143, 0.0067), (12, 70.3582, 0.0252), (14, 87.0871, 0.3142), (16, 113.6140, 1.3952),
-              (18, 183.7253, 1.0915), (22, 417.7760, 2.2727), (24, 510.5472, 3.0620), (26, 555.6221, 3.4492))
-
-
-def write_sweep_csv(path: Path) -> None:
-    """The sweep ``fit`` reads (f_p, omega_B, its standard error; A_p given by ``--amp 3``)."""
-    rows = ["f_p_hz,omega_b_deg_s,stderr_deg_s"] + [f"{f},{w},{se}" for f, w, se in SWEEP_ROWS]
-    path.write_text("\n".join(rows) + "\n")
 
 
 def trace(which: str) -> dict:
@@ -126,9 +116,9 @@ def trace(which: str) -> dict:
 
         with tempfile.TemporaryDirectory() as tmp:
             csv = Path(tmp) / "sweep.csv"
-            write_sweep_csv(csv)
+            csv.write_text(SWEEP_CSV)  # a real tile-link sweep every layout's fit answers (bench_speed's)
             sys.setprofile(profile)
-            code = main(["fit", str(csv), "--amp", "3", "--json"])
+            code = main(["fit", str(csv), "--json"])
             sys.setprofile(None)
         what = f"exit code {code}"
     return {"path": which, "what": what, "calls": calls[0],

@@ -13,7 +13,6 @@ It names ae5c174 (rigid_probe split into inlined stages, fastmath): docs/convent
 from __future__ import annotations
 
 import sys
-from dataclasses import replace
 
 import plate_env as pe
 from plate_env.physics.tilelink import rigid
@@ -23,9 +22,7 @@ def main() -> None:
     obj = pe.ObjectSpec.from_paper(10.0, 36.9)
     probes = [pe.ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(f, 3.0, 3.0), settle_s=0.6, measure_s=1.0)
               for f in (18.0, 22.0, 25.0)]
-    base = rigid.RigidTileConfig()
-    cfg = replace(base, iterations=base.iterations)
-    res = pe.make_physics("tilelink", model="rigid", dt=2e-4, rigid_config=cfg).run(probes)
+    res = pe.make_physics("tilelink", model="rigid", dt=2e-4, rigid_config=rigid.RigidTileConfig()).run(probes)
     print(sys.argv[1] if len(sys.argv) > 1 else "", [repr(r.omega_b_deg_s) for r in res])
 
 

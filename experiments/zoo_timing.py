@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import subprocess
 import sys
@@ -27,13 +26,12 @@ import tempfile
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from ppo_timing import commit, load  # noqa: E402
+
 RESULTS = Path(__file__).parent / "results"
 COMMAND = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", "PlateRotation-v0", "--gym-packages",
            "plate_env", "--conf-file", "plate_env_agents.zoo", "--seed", "0"]
-
-
-def load() -> list[float]:
-    return [round(x, 2) for x in os.getloadavg()]
 
 
 def run(extra: list[str]) -> dict:
@@ -88,8 +86,7 @@ def main() -> None:
     for extra in (["--num-threads", "1"], []):
         runs.append(run(["-n", str(args.steps), "--eval-freq", "-1", *extra]))
         print(runs[-1], flush=True)
-    head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=Path(__file__).parent)
-    r = {"command": " ".join(["python experiments/zoo_timing.py", *sys.argv[1:]]), "commit": head.stdout.strip(),
+    r = {"command": " ".join(["python experiments/zoo_timing.py", *sys.argv[1:]]), "commit": commit(),
          "rl_zoo3": rl_zoo3.__version__, "torch": torch.__version__, "runs": runs}
     (RESULTS / "zoo_timing.json").write_text(json.dumps(r, indent=1) + "\n")
     write_md(r)
