@@ -140,6 +140,8 @@ def trials(work: Path, nodes: list[dict]) -> dict:
 
 
 def read_jsonl(path: Path) -> dict:
+    from plate_env.run.sweeps import canonical_key
+
     out = {}
     if path.exists():
         for line in path.read_text().splitlines():
@@ -147,7 +149,7 @@ def read_jsonl(path: Path) -> dict:
                 d = json.loads(line)
             except json.JSONDecodeError:
                 continue
-            out[d["key"]] = d
+            out[canonical_key(d["key"])] = d
     return out
 
 

@@ -35,7 +35,7 @@ import numpy as np
 import plate_env as pe
 from plate_env.build import eval_sets as bm
 from plate_env.run.executor import BackendSpec, add_executor_argument, make_executor
-from plate_env.run.sweeps import backend_tag, load_cache, run_cached, spec_key
+from plate_env.run.sweeps import backend_tag, canonical_key, load_cache, run_cached, spec_key
 
 ROOT = Path(__file__).resolve().parent
 OMEGAS_PI = (7.0, 10.0, 17.0, 23.0)
@@ -95,8 +95,8 @@ def rename_legacy_keys() -> None:
             except json.JSONDecodeError:
                 lines.append(line)
                 continue
-            if d.get("key") in rename:
-                d["key"] = rename[d["key"]]
+            if "key" in d and canonical_key(d["key"]) in rename:
+                d["key"] = rename[canonical_key(d["key"])]
                 line, changed = json.dumps(d), changed + 1
             lines.append(line)
         if changed:

@@ -3,6 +3,7 @@ its command, version and commit."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from importlib import resources
@@ -10,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cross_cpu import assert_close
 
 from plate_env.bench.suites import PINNED, content_hash, suite_dir, suite_names
 from plate_env.cli import main
@@ -93,13 +95,16 @@ def test_build_atlas_refuses_a_value_off_the_grid_before_any_probe(tmp_path, cap
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_build_forward_models_writes_the_shipped_registry_byte_for_byte(tmp_path):
+def test_build_forward_models_writes_the_shipped_registry(tmp_path):
+    """The same registry as the shipped file: every key, member, text and layout exactly; the fitted numbers within
+    the cross-CPU tolerance (they are recomputed from the results through fits whose last bits depend on the CPU)."""
     out = tmp_path / "fm.json"
     within, lomo = (ROOT / "experiments" / "results" / f"forward_models_{s}.json" for s in ("within", "lomo"))
     argv = ["forward-models", "--within", str(within), "--lomo", str(lomo), "--out", str(out)]
     assert main(["build", *argv]) == 0
-    shipped = resources.files("plate_env") / "data" / "forward_models.json"
-    assert out.read_bytes() == shipped.read_bytes()
+    shipped = (resources.files("plate_env") / "data" / "forward_models.json").read_text()
+    assert_close(json.loads(out.read_text()), json.loads(shipped))
+    assert out.read_text().count("\n") == shipped.count("\n")  # the writer's layout
     record = json.loads(Path(f"{out}.provenance.json").read_text())
     _record_ok(record, argv)
     assert record["inputs"] == {"within": str(within), "lomo": str(lomo)}
@@ -125,8 +130,8 @@ def test_every_shipped_grid_file_is_package_data():
 
 def test_build_calibration_paper_equals_the_shipped_file_but_for_the_commit_it_records(tmp_path):
     """The paper calibration from the paper's numbers through the public calibration function: every field equal to
-    the shipped file's but ``commit`` (the schema hashes the writer's commit into the body), and with the shipped
-    commit put back, the same bytes."""
+    the shipped file's but ``commit`` (the schema hashes the writer's commit into the body) within the cross-CPU
+    tolerance, and on the machine that made the shipped file, with the shipped commit put back, the same bytes."""
     from plate_env.identify import lab_calibration_file as lcf
 
     out = tmp_path / "calibration_paper.json"
@@ -134,11 +139,14 @@ def test_build_calibration_paper_equals_the_shipped_file_but_for_the_commit_it_r
     assert main(["build", *argv]) == 0
     shipped_bytes = (resources.files("plate_env") / "data" / lcf.PAPER_FILE).read_bytes()
     shipped, built = json.loads(shipped_bytes), json.loads(out.read_text())
-    assert {k for k in shipped.keys() | built.keys() if shipped.get(k) != built.get(k)} <= {"commit", "content_sha256"}
-    body = {k: v for k, v in built.items() if k != "content_sha256"}
-    body["commit"] = shipped["commit"]
-    assert (json.dumps({**body, "content_sha256": lcf.content_hash(body)}, indent=1) + "\n").encode() == shipped_bytes
-    assert lcf.load(out).posterior == lcf.load(lcf.PAPER).posterior  # the rebuilt file reads (its hash holds)
+    assert shipped.keys() == built.keys()
+    same = {k: built[k] for k in built if k not in ("commit", "content_sha256")}
+    if assert_close(same, {k: shipped[k] for k in same}) == 0.0:  # bit-equal numbers: then the bytes are too
+        body = {**same, "commit": shipped["commit"]}
+        text = json.dumps({**body, "content_sha256": lcf.content_hash(body)}, indent=1) + "\n"
+        assert text.encode() == shipped_bytes
+    rebuilt, paper = lcf.load(out).posterior, lcf.load(lcf.PAPER).posterior  # the rebuilt file reads (its hash holds)
+    assert_close(dataclasses.asdict(rebuilt), dataclasses.asdict(paper))
     record = json.loads(Path(f"{out}.provenance.json").read_text())
     _record_ok(record, argv)
     assert record["content_sha256"] == built["content_sha256"]

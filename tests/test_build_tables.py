@@ -8,6 +8,7 @@ from importlib import resources
 from pathlib import Path
 
 import pytest
+from cross_cpu import assert_close
 
 from plate_env.cli import main
 
@@ -115,7 +116,7 @@ def test_build_calibration_eq10_from_the_committed_sweeps_equals_the_recorded_re
     assert all((sweeps / n).read_bytes() == (CACHE / n).read_bytes() for n in SIMULATED)  # nothing simulated
     built = json.loads(out.read_text())
     study = json.loads((ROOT / "experiments" / "results" / "eq10_rebuild.json").read_text())
-    assert built == study["rebuilt"]
+    assert_close(built, study["rebuilt"])  # bit for bit on the machine that recorded it
     shipped = json.loads(_shipped("calibration.json"))
     assert built.keys() == shipped.keys() == {"lab/lab/3", "tilelink/pointmass/3", "tilelink/pointmass/12"}
     for key in built:
@@ -132,8 +133,8 @@ def test_build_calibration_eq10_from_the_committed_sweeps_equals_the_recorded_re
 
 def test_a_tilelink_calibration_sweep_simulated_again_equals_its_committed_records():
     """One of the 72 calibration sweeps (31 probes, under a second) simulated live equals the committed cache's
-    records bit for bit (on this machine: the last bits of a probe may depend on the CPU, experiments/results/
-    eq10_rebuild.md)."""
+    records: flags exactly, numbers within the cross-CPU tolerance (the last bits of a probe depend on the CPU,
+    experiments/results/cross_cpu.md)."""
     from plate_env.build.eq10 import TILELINK, tilelink_specs
     from plate_env.run.sweeps import backend_tag, load_cache, run_cached, spec_key
 
@@ -143,8 +144,8 @@ def test_a_tilelink_calibration_sweep_simulated_again_equals_its_committed_recor
     tag = backend_tag(TILELINK)
     for s, r in zip(specs, live, strict=True):
         rec = committed[spec_key(tag, s)]
-        assert (r.omega_b_deg_s, r.stderr_deg_s, r.unstable) == (rec["omega_b_deg_s"], rec["stderr_deg_s"],
-                                                                  rec["unstable"])
+        assert_close([r.omega_b_deg_s, r.stderr_deg_s, r.unstable],
+                     [rec["omega_b_deg_s"], rec["stderr_deg_s"], rec["unstable"]])
 
 
 def test_build_calibration_eq10_refuses_incomplete_lab_sweeps_before_any_probe(tmp_path, capsys):

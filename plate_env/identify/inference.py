@@ -536,19 +536,20 @@ def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
     if not check.passed:  # data no object of the model could make: no number and no bound, the check says why
         edge = "" if side is None else f" (its best fit piles at the {side} edge of the range it can identify)"
         return Estimate(ok=False, reason=check.reason() + edge, **fields)
+    alpha_side = post.alpha_edge()
+    if alpha_side is not None:  # before the omega_n bound: with alpha at its edge, no omega_n bound holds either
+        a_lo, a_hi = fm.alpha_range
+        also = "" if side is None else f"; omega_n piles at the {side} edge too, so no bound is given"
+        return Estimate(ok=False, reason=(
+            f"alpha is {alpha_side} the friction angles {fm.name!r} covers ({math.degrees(a_lo):.0f}-"
+            f"{math.degrees(a_hi):.0f} deg): the posterior piles at that edge, so its omega_n cannot be trusted"
+            + also), **fields)
     if side is not None:
         lo, hi = post.identifiable_range
         bound = ("above", om.ci95[0]) if side == "above" else ("below", om.ci95[1])
         return Estimate(ok=False, bound=bound, reason=(
             f"omega_n is {side} the range {fm.name!r} can identify ({lo / math.pi:.3g}-{hi / math.pi:.3g} pi rad/s): "
             f"omega_n {'>' if side == 'above' else '<'} {bound[1]:.4g} rad/s at 95 %"), **fields)
-    alpha_side = post.alpha_edge()
-    if alpha_side is not None:
-        a_lo, a_hi = fm.alpha_range
-        return Estimate(ok=False, reason=(
-            f"alpha is {alpha_side} the friction angles {fm.name!r} covers ({math.degrees(a_lo):.0f}-"
-            f"{math.degrees(a_hi):.0f} deg): the posterior piles at that edge, so its omega_n cannot be trusted"),
-            **fields)
     return Estimate(ok=True, **fields)
 
 

@@ -52,12 +52,36 @@ def backend_tag(physics: Physics | BackendSpec) -> str:
     return ",".join(parts)
 
 
+#: Significant digits of a probe's numbers in its key. A value drawn or derived with numpy's vectorised exp/log
+#: may differ in its last bit between CPUs (64.75698404964186 here, ...187 on an AVX-512 machine): 12 digits keep
+#: keys equal across machines (a 1-ulp change crosses a 12-digit rounding boundary about once in 10^4 numbers)
+#: while telling apart any two probes a grid or a prior draw makes.
+KEY_DIGITS = 12
+
+
+def _key_number(x: float) -> str:
+    return repr(float(f"{float(x):.{KEY_DIGITS}g}"))
+
+
 def spec_key(tag: str, s: ProbeSpec) -> str:
-    """A stable text key for a probe on a backend."""
+    """A stable text key for a probe on a backend: the backend's tag, then the probe's numbers (SI) at
+    :data:`KEY_DIGITS` significant digits, so the same probe has the same key on any CPU."""
     o, m = s.obj, s.motion
     nums = (o.omega_n, o.alpha, o.mass, o.diameter, o.beta, m.freq_hz, m.amp_rad, m.b_p, m.ramp_s, s.settle_s,
             s.measure_s, s.initial_yaw, *s.initial_offset)
-    return tag + "|" + ",".join(repr(float(x)) for x in nums)
+    return tag + "|" + ",".join(_key_number(x) for x in nums)
+
+
+def canonical_key(key: str) -> str:
+    """``key`` as :func:`spec_key` writes it today: caches written before keys were rounded (full ``repr`` of each
+    number) are read through this, so their records still match. A key that is not of that form is returned as is."""
+    tag, sep, rest = key.rpartition("|")
+    if not sep:
+        return key
+    try:
+        return tag + "|" + ",".join(_key_number(float(x)) for x in rest.split(","))
+    except ValueError:
+        return key
 
 
 def _to_line(key: str, r: ProbeResult) -> str:
@@ -142,7 +166,7 @@ def load_cache(path: Path) -> dict[str, dict]:
             warnings.warn(f"{path}: line {lineno}: {problem}; the record is skipped (its probe runs again)",
                           stacklevel=2)
             continue
-        out[d["key"]] = d
+        out[canonical_key(d["key"])] = d
     return out
 
 
