@@ -103,6 +103,7 @@ def test_item2_all_zero_rotation_at_12_deg_is_flagged_by_the_alpha_edge():
     zero = ProbeTable(t.f_p_hz, t.a_p_deg, 0 * t.omega_b_deg_s, t.stderr_deg_s, t.unstable)
     est = identify(zero, forward="tilelink/pointmass")
     assert not est.ok and ("friction angles" in est.reason or "can explain" in est.reason), est.reason
+    assert est.bound is None  # with alpha at its edge, no omega_n bound either (even when omega_n piles too)
 
 
 @pytest.mark.parametrize("bad", ["zero", "negative", "x100"])

@@ -103,3 +103,31 @@ def test_interrupted_sweep_resumes(tmp_path: Path):
     third = InterruptingPhysics(pe.make_physics("atlas"))
     run_cached(third, specs, cache, chunk=4, progress=False)
     assert third.simulated == []
+
+
+def test_a_probe_keeps_its_key_across_the_last_bit_a_cpu_changes_and_old_full_repr_keys_still_hit(tmp_path):
+    """A prior-drawn omega_n can differ in its last bit between CPUs (numpy's vectorised exp): the same probe must
+    keep its cache key; a cache written with the old full-``repr`` keys is still read (experiments/results/
+    cross_cpu.md); two probes that differ beyond the rounding keep different keys."""
+    import dataclasses
+    import json
+    import math
+
+    from plate_env.run.sweeps import canonical_key, spec_key
+
+    here = ProbeSpec(obj=pe.ObjectSpec.from_paper(20.612924744036566, 45.0),
+                     motion=pe.PlateMotion.from_paper(18.0, 3.0), initial_yaw=0.3, initial_offset=(1e-4, -2e-4))
+    other_cpu = dataclasses.replace(here, obj=dataclasses.replace(here.obj, omega_n=math.nextafter(here.obj.omega_n,
+                                                                                                   math.inf)))
+    assert spec_key("t", here) == spec_key("t", other_cpu)
+    apart = dataclasses.replace(here, obj=dataclasses.replace(here.obj, omega_n=here.obj.omega_n * (1 + 1e-9)))
+    assert spec_key("t", apart) != spec_key("t", here)
+    o, m = here.obj, here.motion
+    old = "t|" + ",".join(repr(float(x)) for x in (o.omega_n, o.alpha, o.mass, o.diameter, o.beta, m.freq_hz,
+                                                    m.amp_rad, m.b_p, m.ramp_s, here.settle_s, here.measure_s,
+                                                    here.initial_yaw, *here.initial_offset))
+    assert old != spec_key("t", here) and canonical_key(old) == spec_key("t", here)
+    cache = tmp_path / "c.jsonl"
+    cache.write_text(json.dumps({"key": old, "omega_b_deg_s": 1.0, "stderr_deg_s": 0.1, "unstable": False,
+                                 "reason": "", "sim_s": 1.0, "wall_s": 1.0, "periods_measured": 3}) + "\n")
+    assert spec_key("t", other_cpu) in load_cache(cache)
