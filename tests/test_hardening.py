@@ -858,3 +858,41 @@ def test_item13_a_bench_cache_line_with_a_bad_field_is_skipped_naming_file_and_l
     assert [e.omega_n_true for e in again.episodes] == [e.omega_n_true for e in good.episodes]
     assert ([[x.omega_n for x in e.prefix] for e in again.episodes]
             == [[x.omega_n for x in e.prefix] for e in good.episodes])  # the bad record's episode ran again
+
+
+class _InterruptedSubmit:
+    """A process pool whose second ``submit`` is hit by Ctrl-C (on a busy machine the driver spends seconds spawning
+    workers inside ``submit``, where a SIGINT lands as KeyboardInterrupt)."""
+
+    def __init__(self, pool) -> None:
+        self.pool, self.calls = pool, 0
+        self._processes = pool._processes
+
+    def submit(self, fn, item):
+        self.calls += 1
+        if self.calls == 2:
+            raise KeyboardInterrupt
+        fut = self.pool.submit(fn, item)
+        self._processes = self.pool._processes
+        return fut
+
+    def shutdown(self, **kw) -> None:
+        self.pool.shutdown(**kw)
+
+
+def test_item12_ctrl_c_during_submit_still_ends_the_running_workers():
+    """Before: a KeyboardInterrupt raised while chunks were being submitted left the started worker running its chunk
+    (60 s here) and ``close`` waited for it."""
+    import time
+
+    from plate_env.run.executor import make_executor
+
+    ex = make_executor("pool:1")
+    new_pool = ex._new_pool
+    ex._new_pool = lambda: _InterruptedSubmit(new_pool())
+    t0 = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        next(ex.map(_slow_item, [1, 2]))
+    assert ex.worker_pids() == []
+    ex.close()
+    assert time.perf_counter() - t0 < 30.0

@@ -222,9 +222,11 @@ class PoolExecutor:
         while pending:
             if self._pool is None:
                 self._pool = self._new_pool()
-            with _env(WORKER_ENV):  # workers spawn during submit and inherit this environment
-                futures = {self._pool.submit(fn, items[i]): i for i in pending}
+            futures: dict = {}
             try:
+                with _env(WORKER_ENV):  # workers spawn during submit and inherit this environment
+                    for i in pending:  # a Ctrl-C may land here too (spawning is slow on a busy machine)
+                        futures[self._pool.submit(fn, items[i])] = i
                 for fut in _completed(futures):
                     i = futures[fut]
                     res = fut.result()
