@@ -323,13 +323,14 @@ def _held_out(job, backend, atlas, grid, tag, n_held, executor) -> tuple[list[st
     pu = np.array([p for *_, p, _ in rows])
     unst = np.array([u for u, *_ in rows], float)
     brier = float(np.mean((pu - unst) ** 2))
+    agree = float(np.mean((pu > 0.5) == (unst > 0.5)))  # the atlas's stability call (p_unstable > 1/2) vs live
     err_med, err_p90 = median_p90(err)
     return [f"## Error against {len(live)} live probes at held-out points (off-grid f_p, omega_n, alpha)", "",
             "| stable probes | median abs error [deg/s] | 90th pct [deg/s] | median abs z (error / spread) | "
-            "instability Brier score (0.25 = coin) | observed unstable share |",
-            "|---|---|---|---|---|---|",
+            "instability Brier score (0.25 = coin) | stability calls agreeing | observed unstable share |",
+            "|---|---|---|---|---|---|---|",
             f"| {len(st)} | {err_med:.1f} | {err_p90:.1f} | {np.median(np.abs(z)):.2f} | "
-            f"{brier:.3f} | {unst.mean():.2f} |", "",
+            f"{brier:.3f} | {agree:.2f} | {unst.mean():.2f} |", "",
             f"Model error beyond the spread (maximum likelihood, Student-t, "
             f"`plate_env.identify.inference.fit_sigma_model`): sigma_model = {sigma_model:.2f} deg/s (stored in the "
             "atlas's provenance)."], sigma_model
