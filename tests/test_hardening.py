@@ -96,14 +96,50 @@ def test_item2_a_friction_angle_outside_the_atlas_is_flagged():
     assert Posterior(w, a, flat).alpha_edge() is None
 
 
-def test_item2_all_zero_rotation_at_12_deg_is_flagged_by_the_alpha_edge():
-    """At 12 deg most probes end unstable; the few stable ones all at 0 deg/s are "explained" only by a friction
-    angle beyond the atlas: no estimate, the edge named."""
+def test_item2_all_zero_rotation_at_12_deg_is_no_estimate_and_a_bound_only_because_every_alpha_says_so():
+    """At 12 deg most probes end unstable; the few stable ones all at 0 deg/s pile alpha at its top edge, but the
+    models explain them by a disc stiffer than they cover at every friction angle inside the range too: no
+    estimate, and the omega_n bound (the pile is the data's, not bought by the alpha edge)."""
     t = _honest_sweep(10 * math.pi, 45.0, 12.0, seed=3)
     zero = ProbeTable(t.f_p_hz, t.a_p_deg, 0 * t.omega_b_deg_s, t.stderr_deg_s, t.unstable)
     est = identify(zero, forward="tilelink/pointmass")
-    assert not est.ok and ("friction angles" in est.reason or "can explain" in est.reason), est.reason
-    assert est.bound is None  # with alpha at its edge, no omega_n bound either (even when omega_n piles too)
+    post = est.posterior
+    assert post.alpha_edge() == "above" and post.edge() == "above" and post.edge_at_inner_alpha() == "above"
+    assert not est.ok and est.bound is not None and est.bound[0] == "above", est.reason
+
+
+def test_item2_an_omega_pile_bought_by_the_alpha_edge_gives_no_bound():
+    """The rule itself: omega_n piled at its top only in the two alpha columns at an end (the data explained by
+    a friction angle the models do not reach) is no bound; piled at every alpha, it is."""
+    from plate_env.identify.inference import atlas_estimate
+
+    w, a = np.geomspace(10, 100, 9), np.linspace(0.5, 1.1, 31)
+    only_edge = np.full((9, 31), 1e-3)
+    only_edge[4, :] = 0.2  # inside the range the data put omega_n mid-range
+    only_edge[-1, -2:] = 1.0
+    every = np.full((9, 31), 1e-3)
+    every[-1, :] = 0.2
+    every[-1, -2:] = 1.0
+    for prob, inner in ((only_edge, None), (every, "above")):
+        post = Posterior(w, a, prob / prob.sum(), identifiable_range=(10.0, 100.0))
+        assert post.alpha_edge() == "above" and post.edge() == "above" and post.edge_at_inner_alpha() == inner
+    fm = load_forward_model("tilelink/pointmass")
+    t = _honest_sweep(10 * math.pi, 45.0, 3.0, seed=1)
+
+    def estimate(prob):
+        post = Posterior(w, a, prob / prob.sum(), identifiable_range=(10.0, 100.0))
+        return atlas_estimate(fm, t, [], lambda: post, response=lambda *args, **kw: None)
+
+    from unittest import mock
+
+    from plate_env.identify import inference
+    from plate_env.identify.estimate import PredictiveCheck
+
+    passed = PredictiveCheck(statistic=0.0, p_value=0.5, n_probes=len(t), member="m", worst=None)
+    with mock.patch.object(inference, "predictive_check", lambda *args, **kw: passed):
+        no_bound, bound = estimate(only_edge), estimate(every)
+    assert not no_bound.ok and no_bound.bound is None and "only with alpha at its edge" in no_bound.reason
+    assert not bound.ok and bound.bound is not None and bound.bound[0] == "above"
 
 
 @pytest.mark.parametrize("bad", ["zero", "negative", "x100"])

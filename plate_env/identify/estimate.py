@@ -106,7 +106,19 @@ class Posterior:
         """``"below"`` / ``"above"`` when more than :data:`EDGE_MASS` of the models' own posterior (before the
         discrepancy smoothing, which only widens it) lies beyond the identifiable range or within one grid step of
         its edge, else None: the models would explain the data better outside the range they cover."""
-        p = self.marginal_omega() if self.model_omega is None else self.model_omega
+        return self._omega_edge(self.marginal_omega() if self.model_omega is None else self.model_omega)
+
+    def edge_at_inner_alpha(self) -> str | None:
+        """The edge rule of :meth:`edge` read on the posterior with alpha held away from the ends of its range (the
+        two grid points at each end left out, as :meth:`alpha_edge` counts them): when alpha piles at an end too,
+        an omega_n bound holds only if omega_n piles at the same side for the friction angles inside the range, i.e.
+        the pile is not bought by the alpha edge. None when fewer than one inner alpha is left or it holds no mass."""
+        if self.alpha.size < 5:
+            return None
+        inner = self.prob[:, 2:-2].sum(1)
+        return None if inner.sum() <= 0 else self._omega_edge(inner / inner.sum())
+
+    def _omega_edge(self, p: np.ndarray) -> str | None:
         lw = np.log(self.omega_n)
         lo, hi = self.identifiable_range
         margin = float(lw[1] - lw[0]) if lw.size > 1 else 0.0

@@ -537,9 +537,12 @@ def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
         edge = "" if side is None else f" (its best fit piles at the {side} edge of the range it can identify)"
         return Estimate(ok=False, reason=check.reason() + edge, **fields)
     alpha_side = post.alpha_edge()
-    if alpha_side is not None:  # before the omega_n bound: with alpha at its edge, no omega_n bound holds either
+    if alpha_side is not None and (side is None or post.edge_at_inner_alpha() != side):
+        # alpha at its edge: no estimate, and no omega_n bound unless omega_n piles at that side for the friction
+        # angles inside the range too (then the pile is the data's, not bought by the alpha edge: the bound below)
         a_lo, a_hi = fm.alpha_range
-        also = "" if side is None else f"; omega_n piles at the {side} edge too, so no bound is given"
+        also = "" if side is None else (f"; omega_n piles at the {side} edge only with alpha at its edge, so no "
+                                        "bound is given")
         return Estimate(ok=False, reason=(
             f"alpha is {alpha_side} the friction angles {fm.name!r} covers ({math.degrees(a_lo):.0f}-"
             f"{math.degrees(a_hi):.0f} deg): the posterior piles at that edge, so its omega_n cannot be trusted"
