@@ -83,6 +83,38 @@ def test_build_atlas_rebuilds_nodes_of_the_shipped_atlas_bit_for_bit(tmp_path):
     assert np.array_equal(shipped.spread[ix][multi], built.spread.astype(np.float32).astype(float)[multi])
 
 
+def test_the_faithful_atlas_rebuilds_from_its_committed_cache_without_a_live_probe(tmp_path, monkeypatch):
+    """The shipped rigid-tile atlas (grid ``faithful``) is its committed probe cache reduced: rebuilt from a copy of
+    that cache by the command its report names, no probe is simulated (any would have to start an executor) and the
+    atlas equals the shipped one (numbers within CROSS_CPU_RTOL, the grid exactly)."""
+    import shutil
+
+    from plate_env.run import sweeps
+
+    cache = ROOT / "experiments" / "cache"
+    for name in ("atlas_faithful.jsonl", "atlas_heldout_faithful.jsonl"):
+        shutil.copy(cache / name, tmp_path / name)
+
+    def no_live_probe(*args, **kwargs):
+        raise AssertionError("a probe missing from the committed cache would be simulated")
+
+    monkeypatch.setattr(sweeps, "make_executor", no_live_probe)
+    out = tmp_path / "faithful.npz"
+    argv = ["atlas", "--physics", "tilelink", "--model", "rigid_fast", "--grid", "faithful", "--repeats", "2",
+            "--seed", "0", "--executor", "pool:2", "--name", "faithful", "--cache-dir", str(tmp_path),
+            "--out", str(out)]
+    assert main(["build", *argv]) == 0
+    shipped, built = load_atlas_file("atlas_tilelink_rigid_fast.npz"), Atlas.load(out)
+    _record_ok(built.provenance["built_by"], argv)
+    assert tuple(shipped.a_p_deg) == (3.0, 6.0) and np.array_equal(np.diff(shipped.f_hz), np.ones(30))
+    assert shipped.omega_n.size >= 16 and shipped.alpha.size >= 5 and shipped.provenance["repeats"] == 2
+    for key in ("f_hz", "a_p_deg", "omega_n", "alpha"):
+        assert np.array_equal(getattr(shipped, key), getattr(built, key)), key
+    for key in ("mean", "spread", "p_unstable"):
+        assert_close(getattr(shipped, key).tolist(), getattr(built, key).astype(np.float32).astype(float).tolist())
+    assert_close(shipped.provenance["sigma_model_deg_s"], built.provenance["sigma_model_deg_s"])
+
+
 def test_build_atlas_refuses_a_value_off_the_grid_before_any_probe(tmp_path, capsys):
     out = tmp_path / "a.npz"
     assert main(["build", "atlas", "--grid", "pointmass_m13.6", "--select", "omega_n_pi=1.5", "--out", str(out),
