@@ -42,7 +42,8 @@ def main_() -> None:
         tmp = Path(tmp)
         res = ROOT / "experiments" / "results"
         assert main(["build", "forward-models", "--within", str(res / "forward_models_within.json"),
-                     "--lomo", str(res / "forward_models_lomo.json"), "--out", str(tmp / "fm.json")]) == 0
+                     "--lomo", str(res / "forward_models_lomo.json"), "--faithful",
+                     str(res / "faithful_forward.json"), "--out", str(tmp / "fm.json")]) == 0
         shipped = json.loads((resources.files("plate_env") / "data" / "forward_models.json").read_text())
         rows.append(_row("forward-model registry", json.loads((tmp / "fm.json").read_text()), shipped))
 

@@ -524,7 +524,8 @@ def stage_ship(args) -> None:
     from plate_env.cli import main as cli_main
 
     sys.exit(cli_main(["build", "forward-models", "--within", str(RESULTS / "forward_models_within.json"),
-                       "--lomo", str(RESULTS / "forward_models_lomo.json"), "--out", str(REGISTRY)]))
+                       "--lomo", str(RESULTS / "forward_models_lomo.json"),
+                       "--faithful", str(RESULTS / "faithful_forward.json"), "--out", str(REGISTRY)]))
 
 
 def main() -> None:

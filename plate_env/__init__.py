@@ -59,10 +59,22 @@ class _MovedModuleFinder:
         module.__spec__ = self._spec  # the import system set the old name's spec on the new module: restore it
 
 
+#: The faithful ids (issue 33): the paper-faithful rigid tiles (``rigid_fast``) at the amplitudes its atlas
+#: answers; ``PlateRotation-v1`` runs them live (evaluation), ``PlateRotationAtlas-v1`` answers from their 1 Hz atlas
+#: (training, microseconds a probe). The same env contract as v0 (PlateRotationEnv's Version History).
+FAITHFUL_IDS = {
+    "PlateRotation-v1": {"physics": "tilelink", "physics_options": {"model": "rigid_fast"},
+                         "amplitudes_deg": (3.0, 6.0)},
+    "PlateRotationAtlas-v1": {"physics": "atlas", "physics_options": {"model": "rigid_fast"},
+                              "amplitudes_deg": (3.0, 6.0)},
+}
+
+
 def _register() -> None:
-    """Register PlateRotation-v0. The env ends every episode itself (terminated: the agent stops, ``max_probes``
-    probes have run or ``max_sim_s`` is spent; never truncated), so the spec's ``max_episode_steps`` is the largest
-    ``max_probes`` it accepts: a TimeLimit that bounds every episode and never cuts one short."""
+    """Register PlateRotation-v0 and the faithful ids (:data:`FAITHFUL_IDS`). The env ends every episode itself
+    (terminated: the agent stops, ``max_probes`` probes have run or ``max_sim_s`` is spent; never truncated), so the
+    spec's ``max_episode_steps`` is the largest ``max_probes`` it accepts: a TimeLimit that bounds every episode and
+    never cuts one short."""
     from gymnasium.envs.registration import register, registry
 
     for env_id in ("PlateRotation-v0", "plate_env/PlateRotation-v0"):
@@ -70,6 +82,12 @@ def _register() -> None:
             register(id=env_id, entry_point="plate_env.env:PlateRotationEnv",
                      vector_entry_point="plate_env.env.vector:PlateRotationVectorEnv",
                      max_episode_steps=MAX_PROBES_RANGE[1])
+    for name, kwargs in FAITHFUL_IDS.items():
+        for env_id in (name, f"plate_env/{name}"):
+            if env_id not in registry:
+                register(id=env_id, entry_point="plate_env.env:PlateRotationEnv",
+                         vector_entry_point="plate_env.env.vector:PlateRotationVectorEnv",
+                         max_episode_steps=MAX_PROBES_RANGE[1], kwargs=kwargs)
 
 
 class _RegisterWhenGymnasiumLoads:

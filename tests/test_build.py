@@ -132,26 +132,32 @@ def test_build_forward_models_writes_the_shipped_registry(tmp_path):
     the cross-CPU tolerance (they are recomputed from the results through fits whose last bits depend on the CPU)."""
     out = tmp_path / "fm.json"
     within, lomo = (ROOT / "experiments" / "results" / f"forward_models_{s}.json" for s in ("within", "lomo"))
-    argv = ["forward-models", "--within", str(within), "--lomo", str(lomo), "--out", str(out)]
+    faithful = ROOT / "experiments" / "results" / "faithful_forward.json"
+    argv = ["forward-models", "--within", str(within), "--lomo", str(lomo), "--faithful", str(faithful),
+            "--out", str(out)]
     assert main(["build", *argv]) == 0
     shipped = (resources.files("plate_env") / "data" / "forward_models.json").read_text()
     assert_close(json.loads(out.read_text()), json.loads(shipped))
     assert out.read_text().count("\n") == shipped.count("\n")  # the writer's layout
     record = json.loads(Path(f"{out}.provenance.json").read_text())
     _record_ok(record, argv)
-    assert record["inputs"] == {"within": str(within), "lomo": str(lomo)}
+    assert record["inputs"] == {"within": str(within), "lomo": str(lomo), "faithful": str(faithful)}
     # the fitted values come from the results: another within sigma_eps gives another registry
     changed = {**json.loads(within.read_text()), "sigma_eps": 0.5}
     (tmp_path / "w.json").write_text(json.dumps(changed))
     assert main(["build", "forward-models", "--within", str(tmp_path / "w.json"), "--lomo", str(lomo),
-                 "--out", str(out)]) == 0
+                 "--faithful", str(faithful), "--out", str(out)]) == 0
     assert json.loads(out.read_text())["tilelink/pointmass"]["sigma_eps"] == 0.5
+    (tmp_path / "f.json").write_text(json.dumps({**json.loads(faithful.read_text()), "sigma_eps": 0.25}))
+    assert main(["build", "forward-models", "--within", str(within), "--lomo", str(lomo),
+                 "--faithful", str(tmp_path / "f.json"), "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["tilelink/rigid_fast"]["sigma_eps"] == 0.25
 
 
 def test_build_forward_models_refuses_a_missing_result_and_writes_nothing(tmp_path, capsys):
     out = tmp_path / "fm.json"
     assert main(["build", "forward-models", "--within", str(tmp_path / "no.json"), "--lomo", "x.json",
-                 "--out", str(out)]) == 2
+                 "--faithful", "y.json", "--out", str(out)]) == 2
     assert "no.json" in capsys.readouterr().err and not out.exists()
 
 

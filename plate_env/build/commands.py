@@ -55,6 +55,8 @@ def add_build_parser(sub) -> None:
                    "forward_models_within.json)")
     f.add_argument("--lomo", required=True, help="the lomo stage's numbers (experiments/results/"
                    "forward_models_lomo.json)")
+    f.add_argument("--faithful", required=True, help="the faithful forward model's numbers (experiments/"
+                   "results/faithful_forward.json)")
     f.add_argument("--out", required=True, help="the registry to write; the build record goes to "
                    "OUT.provenance.json")
     c = kinds.add_parser("calibration", help="write a shipped calibration: paper (plate_env/data/"
@@ -184,7 +186,7 @@ def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
     if args.artifact == "forward-models":
         from plate_env.build.forward_models import build_forward_models
 
-        reg = build_forward_models(args.within, args.lomo, args.out, record)
+        reg = build_forward_models(args.within, args.lomo, args.faithful, args.out, record)
         print(f"wrote {args.out} ({', '.join(reg)}) and {args.out}.provenance.json")
         return 0
     if args.artifact == "calibration" and args.name == "eq10":

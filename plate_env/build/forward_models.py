@@ -1,7 +1,9 @@
-"""The forward-model registry's builder: ``plate-env build forward-models --within W.json --lomo L.json --out F``
-writes ``plate_env/data/forward_models.json`` from the measured numbers of ``experiments/forward_models.py``'s
-``within`` and ``lomo`` stages (``experiments/results/forward_models_{within,lomo}.json``): each model's members
-(shipped atlases) and its fitted discrepancy. The fitted values live in those result files, not here.
+"""The forward-model registry's builder: ``plate-env build forward-models --within W.json --lomo L.json
+--faithful F.json --out F`` writes ``plate_env/data/forward_models.json`` from the measured numbers of
+``experiments/forward_models.py``'s ``within`` and ``lomo`` stages (``experiments/results/forward_models_{within,
+lomo}.json``) and of ``experiments/faithful_forward.py`` (``experiments/results/faithful_forward.json``: the
+faithful rigid-tile atlas's discrepancy): each model's members (shipped atlases) and its fitted discrepancy. The
+fitted values live in those result files, not here.
 
 The registry is read as a mapping of model names, so the build record (command, version, commit) goes to a file
 beside it, ``F.provenance.json``, and the registry stays byte-identical to the shipped one.
@@ -29,6 +31,9 @@ FAMILIES = {
     "rigid": ["atlas_tilelink_rigid_limit_f2.npz"],
     "pybullet": ["atlas_pybullet_pybullet.npz"],
 }
+#: The faithful forward model's atlas: rigid_fast tiles at 1 Hz, 3 and 6 deg (experiments/results/
+#: atlas_tilelink_rigid_fast.md); its discrepancy is fitted by experiments/faithful_forward.py.
+FAITHFUL = "atlas_tilelink_rigid_fast.npz"
 #: The point-mass atlases along the mass axis (grids plate_env/data/grids/pointmass_m*.json): the nominal member of
 #: every point-mass forward model is conditioned on the lab's mass between them.
 MASS_ATLASES = ["atlas_tilelink_pointmass_m5.npz", "atlas_tilelink_pointmass_m8.2.npz", "atlas_tilelink_pointmass.npz",
@@ -46,9 +51,9 @@ def _entry(members: list[list[str]], sigma_eps: float, provenance: dict, nu: flo
     return out
 
 
-def registry(within: dict, lomo: dict) -> dict:
-    """The registry from the ``within`` and ``lomo`` stages' numbers (their JSON documents). Pure but for checking
-    that every member's atlas ships (ValueError naming one that does not)."""
+def registry(within: dict, lomo: dict, faithful: dict) -> dict:
+    """The registry from the ``within`` and ``lomo`` stages' numbers and ``faithful_forward``'s (JSON documents).
+    Pure but for checking that every member's atlas ships (ValueError naming one that does not)."""
     shipped = resources.files("plate_env") / "data"
     masses = [f for f in MASS_ATLASES if (shipped / f).is_file()]
 
@@ -78,6 +83,10 @@ def registry(within: dict, lomo: dict) -> dict:
                        "members": "point mass (nominal along the mass axis, 8 nuisance members), rigid tiles, "
                                   "PyBullet sheet"},
                       lomo["lab"]["eps_nu"], (lomo["lab"]["offset_sigma"], lomo["lab"]["offset_nu"])),
+        "tilelink/rigid_fast": _entry([[FAITHFUL]], faithful["sigma_eps"],
+                                      {"sigma_eps": "the converged rigid_limit's 20 sweeps through the faithful "
+                                                    "atlas, experiments/results/faithful_forward.md (python "
+                                                    "experiments/faithful_forward.py)"}, faithful["eps_nu"]),
     }
     for entry in out.values():
         for m in entry["members"]:
@@ -94,18 +103,21 @@ def _read(path: str | Path, stage: str) -> dict:
     try:
         return json.loads(Path(path).read_text())
     except (OSError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{stage} results {str(path)!r}: {exc} (written by python experiments/forward_models.py "
-                         f"{stage})") from None
+        script = "faithful_forward.py" if stage == "faithful" else f"forward_models.py {stage}"
+        raise ValueError(f"{stage} results {str(path)!r}: {exc} (written by python experiments/{script})") from None
 
 
-def build_forward_models(within: str | Path, lomo: str | Path, out: str | Path, record: dict) -> dict:
+def build_forward_models(within: str | Path, lomo: str | Path, faithful: str | Path, out: str | Path,
+                         record: dict) -> dict:
     """Write the registry from the stages' result files to ``out`` and the build record, with the inputs' paths, to
     ``out`` + ``.provenance.json``; returns the registry. Nothing is written when an input is missing or bad."""
-    reg = registry(_read(within, "within"), _read(lomo, "lomo"))
+    reg = registry(_read(within, "within"), _read(lomo, "lomo"), _read(faithful, "faithful"))
     Path(out).write_text(json.dumps(reg, indent=1) + "\n")
-    record = {**record, "artifact": "forward-models", "inputs": {"within": str(within), "lomo": str(lomo)}}
+    record = {**record, "artifact": "forward-models", "inputs": {"within": str(within), "lomo": str(lomo),
+                                                                 "faithful": str(faithful)}}
     Path(f"{out}.provenance.json").write_text(json.dumps(record, indent=1) + "\n")
     return reg
 
 
-__all__: Sequence[str] = ("FAMILIES", "MASS_ATLASES", "NUISANCE_MEMBERS", "build_forward_models", "registry")
+__all__: Sequence[str] = ("FAITHFUL", "FAMILIES", "MASS_ATLASES", "NUISANCE_MEMBERS", "build_forward_models",
+                          "registry")

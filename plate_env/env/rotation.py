@@ -167,6 +167,11 @@ class PlateRotationEnv(gym.Env):
       B_p, mass and diameter (issue 13), every argument and reset option checked (issue 16). From the first
       release on, a change that alters observations, rewards or episodes for the same arguments gets a new id
       (``PlateRotation-v1``), as the benchmark's suites do.
+    * v1 (``PlateRotation-v1`` live, ``PlateRotationAtlas-v1`` from the atlas; issue 33): the same contract with the
+      physics the project's own studies show reproduces the paper as default, the rigid tile-link disc
+      (``physics_options={"model": "rigid_fast"}``) instead of the point mass, at the amplitudes its atlas answers,
+      ``amplitudes_deg=(3.0, 6.0)`` (12 deg folds soft discs); the estimate reads the forward model
+      ``tilelink/rigid_fast``. v0 and its numbers are unchanged. Any argument overrides these defaults.
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
