@@ -34,6 +34,9 @@ def test_the_ids_name_the_faithful_physics_and_v0_is_unchanged():
     # an argument overrides the id's default
     assert gym.make("PlateRotationAtlas-v1", amplitudes_deg=(3.0,)).unwrapped.amplitudes_deg == (3.0,)
     check_env(atlas.unwrapped)
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    sb3_check_env(gym.make("PlateRotationAtlas-v1").unwrapped, warn=True)
     for e in (v0, v1, atlas):
         e.close()
 
@@ -53,9 +56,13 @@ def test_the_atlas_id_identifies_its_objects_through_the_faithful_forward_model(
     assert np.median(errors) < 0.05 and sum(inside) >= 6, (errors, inside)
 
 
-def test_the_live_id_runs_rigid_tiles():
-    """One live rigid-tile probe (about two seconds here)."""
+def test_the_live_id_runs_rigid_tiles_and_passes_both_checkers():
+    """Live rigid-tile probes (about two seconds each here) through Gymnasium's and Stable-Baselines3's checkers."""
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
     env = gym.make("PlateRotation-v1")
+    check_env(env.unwrapped)
+    sb3_check_env(gym.make("PlateRotation-v1").unwrapped, warn=True)
     obs, _ = env.reset(seed=0)
     obs, reward, term, _trunc, info = env.step(env.unwrapped.encode_action(25.0, 3.0, 1.0))
     assert np.all(np.isfinite(obs)) and not term and info["probes"] == 1
