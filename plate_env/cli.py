@@ -302,8 +302,8 @@ MASS_RANGE_G = tuple(round(x * 1e3, 9) for x in MASS_RANGE_KG)
 
 def _add_bench(sub) -> None:
     b = sub.add_parser("bench", help="score agents on a versioned suite: error against probing seconds, intervals")
-    b.add_argument("--suite", default="atlas-v0", help="suite name (atlas-v0, tilelink-v0, pybullet-v0) or a "
-                   "suite .json file")
+    b.add_argument("--suite", default="atlas-v0", help="suite name (atlas-v0, tilelink-v0, pybullet-v0, "
+                   "faithful-v0) or a suite .json file")
     b.add_argument("--agent", action="extend", nargs="+", required=True,
                    help="one or more agents: bayes, grid, coarse_to_fine, ppo (options: grid:n=30,method=atlas), "
                         "path/to/file.py:MyAgent, sb3:model.zip (sb3:a2c:model.zip)")

@@ -26,6 +26,7 @@ PINNED = {
     "atlas-v0": "acd39c7b32a3c4fc8340b60656b99dc8a1668f5ae64b9570e818608ea70586cc",
     "tilelink-v0": "71fd2838449a30527b2ada139ac8266d07567b45d2cf21968f70182ad44c96a8",
     "pybullet-v0": "b09609f8969e6227605b7f36796a2466f7b2e0b0d8a5b797c8fec7d6a6d38358",
+    "faithful-v0": "a47b2db6c85e2f9070722158409477407e759e6d8a66dce0f53bd3a5b56bebac",
 }
 #: A suite's name: a family and a version.
 NAME = re.compile(r"^(?P<family>[a-z][a-z0-9_]*)-v(?P<version>\d+)$")
@@ -161,7 +162,8 @@ def load_suite_file(path: str | Path, pinned: dict[str, str] | None = None) -> S
 
 
 def load_suite(name: str) -> Suite:
-    """A shipped suite by name (``atlas-v0``, ``tilelink-v0``, ``pybullet-v0``), or a suite file by path."""
+    """A shipped suite by name (``atlas-v0``, ``tilelink-v0``, ``pybullet-v0``, ``faithful-v0``), or a suite file by
+    path."""
     if name.endswith(".json"):
         return load_suite_file(name)
     path = suite_dir() / f"{name}.json"

@@ -20,7 +20,7 @@ def add_build_parser(sub) -> None:
                        "design-discrepancy, pybullet-table, policy) from the installed package")
     kinds = b.add_subparsers(dest="artifact", required=True)
     s = kinds.add_parser("suite", help="write an evaluation suite exactly as shipped (plate_env/data/suites)")
-    s.add_argument("name", help="the suite (atlas-v0, tilelink-v0, pybullet-v0)")
+    s.add_argument("name", help="the suite (atlas-v0, tilelink-v0, pybullet-v0, faithful-v0)")
     s.add_argument("--out", required=True, help="the suite file to write; the build record goes to "
                    "OUT.provenance.json")
     a = kinds.add_parser("atlas", help="probe a physics backend over a grid and write its response atlas (.npz)")

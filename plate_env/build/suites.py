@@ -55,6 +55,12 @@ def suites() -> list[dict]:
                         "cost_per_sim_s": 0.005},
          "budgets_s": [4.0, 8.0, 12.0], "cost_model": COST_MODEL,
          "objects": objects(6, seed=3014, seed_base=15_000, prior=ObjectPrior((6.0, 30.0), (30.0, 60.0)))},
+        {"name": "faithful-v0", "description": "The tilelink-v0 objects and seeds on the physics that reproduces the "
+         "paper: probes answered by the rigid tile-link disc's 1 Hz atlas (rigid_fast, 3 and 6 deg; "
+         "PlateRotationAtlas-v1), read through the forward model tilelink/rigid_fast.",
+         "env_kwargs": {"physics": "atlas", "physics_options": {"model": "rigid_fast"},
+                        **{**TILELINK_ENV, "amplitudes_deg": [3.0, 6.0]}},
+         "budgets_s": [10.0, 20.0, 40.0], "cost_model": COST_MODEL, "objects": live},
     ]
 
 
