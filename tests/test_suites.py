@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_shipped_suites_load_and_every_one_is_pinned():
-    assert suite_names() == sorted(PINNED) == ["atlas-v0", "pybullet-v0", "tilelink-v0"]
+    assert suite_names() == sorted(PINNED) == ["atlas-v0", "faithful-v0", "pybullet-v0", "tilelink-v0"]
     for name in suite_names():
         s = load_suite(name)
         assert s.sha256 == PINNED[name] and s.name == name
@@ -33,6 +33,10 @@ def test_shipped_suites_load_and_every_one_is_pinned():
     live = load_suite("tilelink-v0")
     assert live.physics == "tilelink" and len(live.objects) >= 100 and live.budgets_s == (10.0, 20.0, 40.0)
     assert load_suite("atlas-v0").objects == live.objects  # fast iteration on the same episodes
+    faithful = load_suite("faithful-v0")  # the same episodes on the rigid tiles' atlas (issue 33)
+    assert faithful.objects == live.objects and faithful.physics == "atlas"
+    assert faithful.env_kwargs["physics_options"] == {"model": "rigid_fast"}
+    assert tuple(faithful.env_kwargs["amplitudes_deg"]) == (3.0, 6.0)
     lo, hi = (min(o.omega_n for o in live.objects) / math.pi, max(o.omega_n for o in live.objects) / math.pi)
     assert 3.5 <= lo and hi <= 33.0
 
