@@ -20,35 +20,27 @@ import math
 from pathlib import Path
 
 import numpy as np
+from forward_models import HEAD, member, row
 
 from plate_env.bench.scoring import discrepancies, score
 from plate_env.build.eq10 import LAB_SETS, lab_backend_of
 from plate_env.build.eval_sets import EvalSet, run_eval_set
-from plate_env.identify.forward import ForwardModel, Member
+from plate_env.build.forward_models import FAITHFUL
+from plate_env.identify.forward import ForwardModel
 from plate_env.identify.inference import fit_discrepancy, identify_atlas
 from plate_env.run.executor import BackendSpec, add_executor_argument
-from plate_env.surrogate.atlas import load_atlas_file
 
-ATLAS = "atlas_tilelink_rigid_fast.npz"
 CALIBRATION = LAB_SETS["rigid"]
 TEST = EvalSet("tilelink_rigid_fast", 20, 700, (3.0,))
 RESULTS = Path("experiments/results")
 
 
 def forward(sigma_eps: float = 0.0, nu: float = math.inf) -> ForwardModel:
-    atlas = load_atlas_file(ATLAS)
-    return ForwardModel("tilelink/rigid_fast", (Member(atlas, float(atlas.provenance["sigma_model_deg_s"])),),
-                        sigma_eps=sigma_eps, eps_nu=nu)
+    return ForwardModel("tilelink/rigid_fast", (member(FAITHFUL),), sigma_eps=sigma_eps, eps_nu=nu)
 
 
 def sweeps(es: EvalSet, backend_of, executor) -> tuple[list[float], list]:
     return [o.omega_n for o in es.objects()], run_eval_set(es, backend_of, executor, progress=True)[es.a_p_deg[0]]
-
-
-def row(label: str, s) -> str:
-    return (f"| {label} | {s.n} | {s.median_error.value * 100:.1f} % | "
-            f"{s.coverage68.value:.2f} [{s.coverage68.lo:.2f}, {s.coverage68.hi:.2f}] | "
-            f"{s.coverage95.value:.2f} [{s.coverage95.lo:.2f}, {s.coverage95.hi:.2f}] |")
 
 
 def main() -> None:
@@ -68,14 +60,13 @@ def main() -> None:
               "test, sigma_eps 0": score(test_truth, [identify_atlas(t, bare) for t in test], rng),
               f"test, sigma_eps {sigma:.3f}": score(test_truth, [identify_atlas(t, fitted) for t in test], rng)}
     lines = ["# The faithful forward model: tilelink/rigid_fast", "",
-             f"Atlas `{ATLAS}` (grid `faithful`, its held-out model error sigma_model "
+             f"Atlas `{FAITHFUL}` (grid `faithful`, its held-out model error sigma_model "
              f"{bare.members[0].sigma_model:.2f} deg/s). Calibration: {CALIBRATION.n} `rigid_limit` objects (seed "
              f"{CALIBRATION.seed}), 3 deg, {len(CALIBRATION.f_hz)} probes each; test: {TEST.n} fresh `rigid_fast` "
              f"objects (seed {TEST.seed}). Command: `python experiments/faithful_forward.py`.", "",
              f"Discrepancy fitted on the calibration set (`fit_discrepancy`): sigma_eps = {sigma:.4f} (nu {nu:g}); "
              f"mean log(truth / estimate) {float(np.mean(eps)):+.4f}.", "",
-             "| set, forward model | objects | median error | 68 % coverage [95 % CI] | 95 % coverage [95 % CI] |",
-             "|---|---|---|---|---|", *(row(k, s) for k, s in scores.items()), "",
+             *HEAD, *(row(k, s) for k, s in scores.items()), "",
              "Coverage intervals: bootstrap over objects (`plate_env.bench.scoring.score`). No estimate "
              "counts as an infinite error; a bound counts as covered at 95 % when it holds (`score`)."]
     RESULTS.mkdir(parents=True, exist_ok=True)

@@ -77,12 +77,7 @@ def _register() -> None:
     never cuts one short."""
     from gymnasium.envs.registration import register, registry
 
-    for env_id in ("PlateRotation-v0", "plate_env/PlateRotation-v0"):
-        if env_id not in registry:
-            register(id=env_id, entry_point="plate_env.env:PlateRotationEnv",
-                     vector_entry_point="plate_env.env.vector:PlateRotationVectorEnv",
-                     max_episode_steps=MAX_PROBES_RANGE[1])
-    for name, kwargs in FAITHFUL_IDS.items():
+    for name, kwargs in {"PlateRotation-v0": {}, **FAITHFUL_IDS}.items():
         for env_id in (name, f"plate_env/{name}"):
             if env_id not in registry:
                 register(id=env_id, entry_point="plate_env.env:PlateRotationEnv",

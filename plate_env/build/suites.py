@@ -14,6 +14,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
+from plate_env import FAITHFUL_IDS
 from plate_env.bench.suites import content_hash
 from plate_env.core.objects import ObjectPrior
 from plate_env.core.setup import PAPER_SETUP
@@ -39,6 +40,7 @@ def objects(n: int, seed: int, seed_base: int, prior: ObjectPrior | None = None,
 def suites() -> list[dict]:
     """Every suite this package ships, as the content of its file."""
     live = objects(100, seed=2014, seed_base=14_000)
+    faithful = FAITHFUL_IDS["PlateRotationAtlas-v1"]
     return [
         {"name": "atlas-v0", "description": "Fast iteration: the tilelink-v0 objects and seeds with probes answered "
          "by the tile-link point-mass atlas (microseconds a probe).",
@@ -58,8 +60,8 @@ def suites() -> list[dict]:
         {"name": "faithful-v0", "description": "The tilelink-v0 objects and seeds on the physics that reproduces the "
          "paper: probes answered by the rigid tile-link disc's 1 Hz atlas (rigid_fast, 3 and 6 deg; "
          "PlateRotationAtlas-v1), read through the forward model tilelink/rigid_fast.",
-         "env_kwargs": {"physics": "atlas", "physics_options": {"model": "rigid_fast"},
-                        **{**TILELINK_ENV, "amplitudes_deg": [3.0, 6.0]}},
+         "env_kwargs": {"physics": faithful["physics"], "physics_options": faithful["physics_options"],
+                        **{**TILELINK_ENV, "amplitudes_deg": list(faithful["amplitudes_deg"])}},
          "budgets_s": [10.0, 20.0, 40.0], "cost_model": COST_MODEL, "objects": live},
     ]
 
