@@ -611,6 +611,8 @@ sys.path.insert(0, {tests!r})
 from test_hardening import _slow_item
 from plate_env.run.executor import make_executor
 
+# what a user's terminal gives the process: started in the background (CI, `cmd &`), it inherits SIGINT ignored
+signal.signal(signal.SIGINT, signal.default_int_handler)
 ex = make_executor("pool:1")
 it = ex.map(_slow_item, [1, 2])
 timer = threading.Timer(3.0, lambda: {send})
