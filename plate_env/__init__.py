@@ -10,7 +10,6 @@ edge.
 
 from __future__ import annotations
 
-import contextlib
 import importlib
 import importlib.util
 import sys
@@ -18,7 +17,7 @@ import warnings
 
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import PRESETS, ObjectSpec, preset
-from plate_env.core.setup import MAX_PROBES_RANGE
+from plate_env.env.ids import ENV_IDS, FAITHFUL_IDS, register
 from plate_env.physics import PHYSICS_NAMES, ProbeResult, ProbeSpec, make_physics
 
 __version__ = "0.1.0"
@@ -59,51 +58,30 @@ class _MovedModuleFinder:
         module.__spec__ = self._spec  # the import system set the old name's spec on the new module: restore it
 
 
-#: The faithful ids (issue 33): the paper-faithful rigid tiles (``rigid_fast``) at the amplitudes its atlas
-#: answers; ``PlateRotation-v1`` runs them live (evaluation), ``PlateRotationAtlas-v1`` answers from their 1 Hz atlas
-#: (training, microseconds a probe). The same env contract as v0 (PlateRotationEnv's Version History).
-FAITHFUL_IDS = {
-    "PlateRotation-v1": {"physics": "tilelink", "physics_options": {"model": "rigid_fast"},
-                         "amplitudes_deg": (3.0, 6.0)},
-    "PlateRotationAtlas-v1": {"physics": "atlas", "physics_options": {"model": "rigid_fast"},
-                              "amplitudes_deg": (3.0, 6.0)},
-}
-
-
-def _register() -> None:
-    """Register PlateRotation-v0 and the faithful ids (:data:`FAITHFUL_IDS`). The env ends every episode itself
-    (terminated: the agent stops, ``max_probes`` probes have run or ``max_sim_s`` is spent; never truncated), so the
-    spec's ``max_episode_steps`` is the largest ``max_probes`` it accepts: a TimeLimit that bounds every episode and
-    never cuts one short."""
-    from gymnasium.envs.registration import register, registry
-
-    for name, kwargs in {"PlateRotation-v0": {}, **FAITHFUL_IDS}.items():
-        for env_id in (name, f"plate_env/{name}"):
-            if env_id not in registry:
-                register(id=env_id, entry_point="plate_env.env:PlateRotationEnv",
-                         vector_entry_point="plate_env.env.vector:PlateRotationVectorEnv",
-                         max_episode_steps=MAX_PROBES_RANGE[1], kwargs=kwargs)
-
-
 class _RegisterWhenGymnasiumLoads:
-    """Registers the env ids (:func:`_register`) as soon as gymnasium is imported, so that ``import plate_env`` does
-    not import gymnasium (0.1-0.3 s the command line's fit, probe and sweep do not need) and ``gym.make`` still finds
-    them: a meta path finder that, for ``gymnasium`` only, returns the spec the other finders give with a loader
-    that runs gymnasium's own and then registers. Used only while gymnasium is not imported yet."""
+    """Registers the env ids (:func:`~plate_env.env.ids.register`) as soon as gymnasium is imported, so that
+    ``import plate_env`` does not import gymnasium (0.1-0.3 s the command line's fit, probe and sweep do not need)
+    and ``gym.make`` still finds them: a meta path finder that, for ``gymnasium`` only, returns the spec the other
+    finders give with a loader that runs gymnasium's own and then registers. It stays in place until gymnasium is
+    actually executed, so a library that only asks whether gymnasium exists (``importlib.util.find_spec``, as
+    torchrl does) before importing it does not use it up (issue 41)."""
 
     def find_spec(self, fullname, path=None, target=None):
         if fullname != "gymnasium":
             return None
-        with contextlib.suppress(ValueError):
-            sys.meta_path.remove(self)  # once: the spec below comes from the other finders
-        spec = importlib.util.find_spec(fullname)
-        if spec is not None and spec.loader is not None:
-            spec.loader = _RegisteringLoader(spec.loader)
-        return spec
+        for finder in list(sys.meta_path):
+            if finder is self or not hasattr(finder, "find_spec"):
+                continue
+            spec = finder.find_spec(fullname, path, target)
+            if spec is not None:
+                if spec.loader is not None:
+                    spec.loader = _RegisteringLoader(spec.loader)
+                return spec
+        return None
 
 
 class _RegisteringLoader:
-    """gymnasium's loader, then :func:`_register` (every other attribute is the wrapped loader's)."""
+    """gymnasium's loader, then :func:`~plate_env.env.ids.register` (every other attribute is the wrapped loader's)."""
 
     def __init__(self, loader) -> None:
         self._loader = loader
@@ -113,7 +91,9 @@ class _RegisteringLoader:
 
     def exec_module(self, module) -> None:
         self._loader.exec_module(module)
-        _register()
+        register()
+        for finder in [f for f in sys.meta_path if isinstance(f, _RegisterWhenGymnasiumLoads)]:
+            sys.meta_path.remove(finder)
 
     def __getattr__(self, name: str):
         return getattr(self._loader, name)
@@ -129,9 +109,9 @@ def __getattr__(name: str):
 if not any(isinstance(f, _MovedModuleFinder) for f in sys.meta_path):
     sys.meta_path.append(_MovedModuleFinder())
 if "gymnasium" in sys.modules:
-    _register()
+    register()
 elif not any(isinstance(f, _RegisterWhenGymnasiumLoads) for f in sys.meta_path):
     sys.meta_path.insert(0, _RegisterWhenGymnasiumLoads())
 
-__all__ = ["PHYSICS_NAMES", "PRESETS", "ObjectSpec", "PlateMotion", "ProbeResult", "ProbeSpec", "__version__",
-           "make_physics", "preset"]
+__all__ = ["ENV_IDS", "FAITHFUL_IDS", "PHYSICS_NAMES", "PRESETS", "ObjectSpec", "PlateMotion", "ProbeResult",
+           "ProbeSpec", "__version__", "make_physics", "preset"]

@@ -67,3 +67,27 @@ def test_the_live_id_runs_rigid_tiles_and_passes_both_checkers():
     obs, reward, term, _trunc, info = env.step(env.unwrapped.encode_action(25.0, 3.0, 1.0))
     assert np.all(np.isfinite(obs)) and not term and info["probes"] == 1
     env.close()
+
+
+def test_import_plate_env_registers_every_id_whatever_probes_gymnasium_first():
+    """Issue 41 item 1: a library that asks ``importlib.util.find_spec("gymnasium")`` before importing it (torchrl
+    does) used to consume the registering hook, and no id was ever registered."""
+    import subprocess
+    import sys
+
+    orders = {
+        "probe then import": "import plate_env, importlib.util as u; u.find_spec('gymnasium'); import gymnasium as g",
+        "import gymnasium first": "import gymnasium as g; import plate_env",
+        "plate_env first": "import plate_env; import gymnasium as g",
+    }
+    for name, prelude in orders.items():
+        code = (f"{prelude}; import sys; assert 'gymnasium' in sys.modules\n"
+                "ids = sorted(plate_env.ENV_IDS)\n"
+                "print(all(i in g.registry and 'plate_env/' + i in g.registry for i in ids), len(ids))")
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+        assert out.returncode == 0, (name, out.stderr)
+        assert out.stdout.split() == ["True", "3"], (name, out.stdout)
+    # without plate_env, the probe and import alone register nothing (the assertion above can fail)
+    out = subprocess.run([sys.executable, "-c", "import gymnasium as g; print('PlateRotation-v1' in g.registry)"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.stdout.strip() == "False"

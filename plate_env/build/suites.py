@@ -14,10 +14,10 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from plate_env import FAITHFUL_IDS
 from plate_env.bench.suites import content_hash
 from plate_env.core.objects import ObjectPrior
 from plate_env.core.setup import PAPER_SETUP
+from plate_env.env.ids import FAITHFUL_IDS
 
 #: Probe settings of the tile-link suites: the CLI's identify (and the shipped policy's training) settings.
 TILELINK_ENV = {"method": "atlas", "f_band_hz": [10.0, 40.0], "amplitudes_deg": [3.0, 12.0],
