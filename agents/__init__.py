@@ -31,7 +31,25 @@ def make_agent(name: str, **options) -> Agent:
         if options:
             raise ValueError(f"make_agent({name!r}, ...): a spec carries its own options (name:key=value,...)")
         return load_agent(name)
-    return AGENTS.load(name)(**options)
+    cls = AGENTS.load(name)
+    forward = options.pop("forward", None) if name != "bayes" else None  # bayes designs on it too: its argument
+    agent = cls(**options)
+    if forward is not None:
+        if agent.method != "atlas":
+            raise ValueError(f"forward = {forward!r}: agent {name!r} estimates by method {agent.method!r}, which reads "
+                             "no forward model (give method=atlas)")
+        agent.forward = check_forward_name(forward)
+    return agent
+
+
+def check_forward_name(name) -> str:
+    """``name`` if it names a shipped forward model, else ValueError listing them."""
+    from plate_env.surrogate.catalog import read_catalog
+
+    shipped = sorted(read_catalog())
+    if not isinstance(name, str) or name not in shipped:
+        raise ValueError(f"forward = {name!r}: no such forward model; shipped: {shipped}")
+    return name
 
 
 def _value(text: str):
@@ -84,7 +102,8 @@ def load_agent(spec: str):
     """An agent from a spec (what ``plate-env bench --agent`` takes):
 
     * ``bayes``, ``grid``, ``coarse_to_fine``, ``ppo``, with options ``name:key=value,...``
-      (``grid:n=30,method=atlas``);
+      (``grid:n=30,method=atlas``); every one takes ``forward=NAME``, the shipped forward model its estimate is made
+      through (bayes designs its probes on it too; default: the episode physics' own), e.g. ``ppo:forward=lab``;
     * ``path/to/file.py:MyAgent``: an instance of class ``MyAgent`` from that file, made without arguments;
     * ``sb3:model.zip`` or ``sb3:a2c:model.zip``: a Stable-Baselines3 policy trained on PlateRotation-v0
       (:class:`plate_env_agents.ppo.PPOAgent`; algorithm PPO unless named).

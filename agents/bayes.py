@@ -62,14 +62,17 @@ SE_1S = 2.0
 
 
 class BayesAgent(Agent):
-    """Adaptive probing by expected variance reduction of log omega_n per simulated second."""
+    """Adaptive probing by expected variance reduction of log omega_n per simulated second. ``forward``: the forward
+    model it designs on and estimates through, a :class:`~plate_env.identify.forward.ForwardModel` or a shipped
+    model's name (``"lab"``, ``"tilelink/pointmass"``: conditioned on each episode's known inputs); None: the
+    episode physics' own."""
 
     name = "bayes"
     method = "atlas"
 
     def __init__(self, target_rel: float = 0.03, windows_s: tuple[float, ...] = (1.0, 2.0),
                  f_step_hz: float = 0.5, n_samples: int = 12, n_omega: int = 81, n_alpha: int = 16,
-                 min_probes: int = 3, forward: ForwardModel | None = None, blur: float = DESIGN_BLUR,
+                 min_probes: int = 3, forward: ForwardModel | str | None = None, blur: float = DESIGN_BLUR,
                  design_discrepancy: tuple[float, float] | None = None) -> None:
         self.target_rel = checks.real("target_rel", target_rel, 0.0, 1.0, open_hi=True)
         self.blur = checks.real("blur", blur, 0.0, 1.0)
@@ -83,13 +86,17 @@ class BayesAgent(Agent):
         self.n_omega = n_omega
         self.n_alpha = n_alpha
         self.min_probes = min_probes
+        if isinstance(forward, str):
+            from plate_env_agents import check_forward_name
+
+            self.forward = check_forward_name(forward)  # named in the agent's fingerprint (benchmark records)
         self._forward = forward
 
     def reset(self, context, rng) -> None:
         super().reset(context, rng)
         fm = self._forward
-        if fm is None:
-            fm = load_forward_model(f"{context.physics}/{context.model}", context.known)
+        if fm is None or isinstance(fm, str):  # a name: the shipped model, conditioned on the episode's inputs
+            fm = load_forward_model(fm or f"{context.physics}/{context.model}", context.known)
         self.fm = fm
         self.omega, self.alpha = fm.grid(self.n_omega, self.n_alpha)
         self.log_w = np.log(self.omega)[:, None]

@@ -132,9 +132,10 @@ def _check(seed: int, timesteps: int | None, eval_freq: int, eval_episodes: int,
 
 
 def train_policy(out: str | Path, record: dict, *, algo: str = "ppo", hyperparams: str | Path | None = None,
-                 seed: int = 0, timesteps: int | None = None, eval_freq: int = 8192, eval_episodes: int = 100,
-                 eval_seed: int = 10_000, threads: int = 1) -> dict:
-    """Train ``algo`` (:data:`ALGOS`) on PlateRotation-v0 with the installed hyperparameters (or ``hyperparams``),
+                 env_id: str = ENV_ID, seed: int = 0, timesteps: int | None = None, eval_freq: int = 8192,
+                 eval_episodes: int = 100, eval_seed: int = 10_000, threads: int = 1) -> dict:
+    """Train ``algo`` (:data:`ALGOS`) with the installed hyperparameters' entry for ``env_id`` (or ``hyperparams``'s;
+    ``PlateRotation-v0`` by default, ``PlateRotationAtlas-v1`` for the faithful rigid tiles' atlas),
     write the model to ``out``, its numpy export (PPO/A2C) beside it and its metadata to ``out`` with ``.json``;
     returns the metadata. ``record`` is the build record (command, plate_env version, commit). Arguments are
     checked before any work (ValueError naming the value)."""
@@ -142,7 +143,7 @@ def train_policy(out: str | Path, record: dict, *, algo: str = "ppo", hyperparam
         raise ValueError(f"algo {algo!r}: one of {list(ALGOS)}")
     _check(seed, timesteps, eval_freq, eval_episodes, threads)
     hp_path = hyperparams_file(algo) if hyperparams is None else Path(hyperparams)
-    hp = load_hyperparams(hp_path, algo=algo)
+    hp = load_hyperparams(hp_path, env_id=env_id, algo=algo)
     out = Path(out)
     if not out.parent.is_dir():
         raise ValueError(f"--out {str(out)!r}: the folder {str(out.parent)!r} does not exist")
@@ -188,7 +189,7 @@ def train_policy(out: str | Path, record: dict, *, algo: str = "ppo", hyperparam
     curve = callback.curve if callback is not None else []
     best_i = max(range(len(curve)), key=lambda i: curve[i]["eval_reward"]) if curve else None
     meta = {
-        "algo": algo, "env_id": ENV_ID,
+        "algo": algo, "env_id": env_id,
         "env_kwargs": {k: list(v) if isinstance(v, tuple) else v for k, v in env_kwargs.items()},
         "build": record, "command": record.get("command"),
         "hyperparams_file": (f"plate_env_agents/hyperparams/{algo}.yml (installed)" if hyperparams is None

@@ -302,8 +302,9 @@ MASS_RANGE_G = tuple(round(x * 1e3, 9) for x in MASS_RANGE_KG)
 
 def _add_bench(sub) -> None:
     b = sub.add_parser("bench", help="score agents on a versioned suite: error against probing seconds, intervals")
-    b.add_argument("--suite", default="atlas-v0", help="suite name (atlas-v0, tilelink-v0, pybullet-v0, "
-                   "faithful-v0) or a suite .json file")
+    b.add_argument("--suite", nargs="+", default=["atlas-v0"], help="suite name (atlas-v0, tilelink-v0, "
+                   "pybullet-v0, faithful-v0, misspec_pointmass-v0, misspec_faithful-v0, misspec_pybullet-v0) or a "
+                   "suite .json file; several: every agent on every suite, and a table of agents against suites")
     b.add_argument("--agent", action="extend", nargs="+", required=True,
                    help="one or more agents: bayes, grid, coarse_to_fine, ppo (options: grid:n=30,method=atlas), "
                         "path/to/file.py:MyAgent, sb3:model.zip (sb3:a2c:model.zip)")
@@ -345,11 +346,11 @@ def strict_json(doc: dict) -> str:
     return json.dumps(out, allow_nan=False)
 
 
-def _bench_note(args: argparse.Namespace, suite: str) -> str:
+def _bench_note(args: argparse.Namespace, suites: Sequence[str]) -> str:
     """How to regenerate a leaderboard (the command, the cache it resumes from) and the machine's load."""
     import shlex
 
-    cmd = ["plate-env", "bench", "--suite", suite, "--agent", *args.agent]
+    cmd = ["plate-env", "bench", "--suite", *suites, "--agent", *args.agent]
     cmd += ["--limit", str(args.limit)] * (args.limit is not None) + ["--budgets", args.budgets] * bool(args.budgets)
     try:
         load = Path("/proc/loadavg").read_text().split()[0]
@@ -378,39 +379,66 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     # the seam: the CLI is the application layer, the only module of plate_env that imports the agents
     from plate_env_agents import load_agent
 
-    suite = load_suite(args.suite)
-    budgets = benchmark.check_budgets(suite, _parse_budgets(args.budgets))
+    if len(set(args.suite)) != len(args.suite):
+        raise CliError(f"--suite: each suite once, got {args.suite}")
+    suites = [load_suite(name) for name in args.suite]
+    several = len(suites) > 1
+    if several and args.cache:
+        raise CliError("--cache names one suite's file: with several suites each keeps its own default cache "
+                       f"({BENCH_CACHE_DIR}/<suite>.jsonl); drop --cache or run one suite")
+    if several and args.plot:
+        raise CliError("--plot draws one suite's error curves: run one suite with --plot")
+    budgets = {s.name: benchmark.check_budgets(s, _parse_budgets(args.budgets)) for s in suites}
     plot = plot_path(args.plot) if args.plot else None
     markdown = output_path(args.markdown, "--markdown") if args.markdown else None
     check_executor_name(args.executor)
     if len(set(args.agent)) != len(args.agent):
         raise CliError(f"--agent: each agent once, got {args.agent}")
     agents = {spec: load_agent(spec) for spec in args.agent}  # every spec checked before any episode runs
-    where = args.executor if args.executor not in (None, "local") else default_local(
-        BackendSpec.of(suite.physics, **dict(suite.env_kwargs.get("physics_options") or {})))
-    cache = None if args.no_cache else (args.cache or str(Path(BENCH_CACHE_DIR) / f"{suite.name}.jsonl"))
-    runs = []
-    for spec, agent in agents.items():
-        what = agent if where == "inprocess" else functools.partial(load_agent, spec)
-        try:
-            # what agents and libraries print while episodes run (Python's print, C code and child processes on
-            # fd 1, Ray's worker-death lines) goes to stderr: stdout keeps the one result document
-            with stdout_to_stderr():
-                runs.append(benchmark.evaluate(what, suite, label=spec, budgets_s=budgets, executor=args.executor,
-                                               cache=cache, limit=args.limit, chunk=args.chunk,
-                                               progress=not (args.json or args.no_progress)))
-        except benchmark.BenchInterrupted as exc:
-            kept = f"kept in {exc.cache}; rerun the same command to resume" if exc.cache else "not kept (--no-cache)"
-            print(f"plate-env bench: interrupted during {spec} after {exc.finished} episodes ({kept})",
-                  file=sys.stderr)
-            return 130
-    b = benchmark.board(runs, budgets)
-    text = benchmark.leaderboard_markdown(b["summaries"], b["paired"], b["leader"], note=_bench_note(args, suite.name))
-    if args.markdown:
-        text = f"# Leaderboard: {suite.name}\n\n{suite.description}\n\n{text}"
+    boards = {}
+    for suite in suites:
+        where = args.executor if args.executor not in (None, "local") else default_local(
+            BackendSpec.of(suite.physics, **dict(suite.env_kwargs.get("physics_options") or {})))
+        cache = None if args.no_cache else (args.cache or str(Path(BENCH_CACHE_DIR) / f"{suite.name}.jsonl"))
+        runs = []
+        for spec, agent in agents.items():
+            what = agent if where == "inprocess" else functools.partial(load_agent, spec)
+            try:
+                # what agents and libraries print while episodes run (Python's print, C code and child processes
+                # on fd 1, Ray's worker-death lines) goes to stderr: stdout keeps the one result document
+                with stdout_to_stderr():
+                    runs.append(benchmark.evaluate(what, suite, label=spec, budgets_s=budgets[suite.name],
+                                                   executor=args.executor, cache=cache, limit=args.limit,
+                                                   chunk=args.chunk, progress=not (args.json or args.no_progress)))
+            except benchmark.BenchInterrupted as exc:
+                kept = (f"kept in {exc.cache}; rerun the same command to resume" if exc.cache else
+                        "not kept (--no-cache)")
+                print(f"plate-env bench: interrupted during {spec} on {suite.name} after {exc.finished} episodes "
+                      f"({kept})", file=sys.stderr)
+                return 130
+        boards[suite.name] = benchmark.board(runs, budgets[suite.name])
+    note = _bench_note(args, args.suite)
+    if not several:
+        suite, b = suites[0], boards[suites[0].name]
+        text = benchmark.leaderboard_markdown(b["summaries"], b["paired"], b["leader"], note=note)
+        if args.markdown:
+            text = f"# Leaderboard: {suite.name}\n\n{suite.description}\n\n{text}"
+        document = {"suite": suite.name, "suite_sha256": suite.sha256, "budgets_s": list(budgets[suite.name]),
+                    **benchmark.board_to_dict(b)}
+    else:
+        top = min(max(v) for v in budgets.values())
+        text = benchmark.matrix_markdown({n: b["summaries"] for n, b in boards.items()}, top, note=note)
+        for suite in suites:
+            b = boards[suite.name]
+            text += (f"\n## {suite.name}\n\n{suite.description}\n\n"
+                     + benchmark.leaderboard_markdown(b["summaries"], b["paired"], b["leader"], detail=False))
+        if args.markdown:
+            text = "# Agents against suites: " + ", ".join(s.name for s in suites) + "\n\n" + text
+        document = {"matrix_budget_s": top, "suites": [
+            {"suite": s.name, "suite_sha256": s.sha256, "budgets_s": list(budgets[s.name]),
+             **benchmark.board_to_dict(boards[s.name])} for s in suites]}
     if args.json:
-        print(strict_json({"suite": suite.name, "suite_sha256": suite.sha256, "budgets_s": list(budgets),
-                           **benchmark.board_to_dict(b)}), flush=True)
+        print(strict_json(document), flush=True)
     else:
         print(text, flush=True)
     if markdown is not None:
@@ -418,7 +446,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if plot is not None:
         from plate_env.plotting import plot_curves
 
-        plot_curves(b["summaries"], str(plot))
+        plot_curves(boards[suites[0].name]["summaries"], str(plot))
         _say_plot(args, plot)
     return 0
 
@@ -853,9 +881,9 @@ def _cmd_build(args: argparse.Namespace) -> int:
     from plate_env.build.provenance import build_record
     from plate_env_agents.train import train_policy
 
-    meta = train_policy(args.out, build_record(args.argv[1:]), hyperparams=args.hyperparams, seed=args.seed,
-                        timesteps=args.timesteps, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
-                        eval_seed=args.eval_seed, threads=args.threads)
+    meta = train_policy(args.out, build_record(args.argv[1:]), hyperparams=args.hyperparams, env_id=args.env_id,
+                        seed=args.seed, timesteps=args.timesteps, eval_freq=args.eval_freq,
+                        eval_episodes=args.eval_episodes, eval_seed=args.eval_seed, threads=args.threads)
     out, ev = Path(args.out), meta["eval"]
     kept = (f"best eval reward {ev['best_reward']:.4f} at {ev['best_at_timesteps']} steps" if ev["curve"] else
             "no evaluation ran: the last model")

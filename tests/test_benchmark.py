@@ -211,3 +211,51 @@ def test_pybullet_suite_plays_an_episode():
     (ep,) = run.episodes
     assert 1 <= len(ep.probe_sim_s) <= 6 and sum(ep.probe_sim_s) > 0
     assert len(ep.prefix) == len(ep.probe_sim_s)
+
+
+def test_the_misspecification_track_is_one_bench_invocation_of_agents_against_suites(capsys):
+    """Issue 33: ``--suite`` takes several suites and ``NAME:forward=MODEL`` reads an agent's episodes through another
+    physics' forward model. On the point mass's episodes the point-mass reading is the own one (the same numbers);
+    on the rigid tiles' episodes it is refused (the predictive check: no estimate), while the own reading answers."""
+    argv = ["bench", "--suite", "misspec_pointmass-v0", "misspec_faithful-v0", "--agent", "grid:method=atlas",
+            "grid:method=atlas,forward=tilelink/pointmass", "--limit", "4", "--no-cache", "--json",
+            "--executor", "inprocess"]
+    assert main(argv) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert [s["suite"] for s in doc["suites"]] == ["misspec_pointmass-v0", "misspec_faithful-v0"]
+    cell = {(s["suite"], a["label"]): a["budgets"][-1] for s in doc["suites"] for a in s["agents"]}
+    own, pm = "grid:method=atlas", "grid:method=atlas,forward=tilelink/pointmass"
+    assert cell["misspec_pointmass-v0", pm]["median_error"] == cell["misspec_pointmass-v0", own]["median_error"]
+    assert cell["misspec_pointmass-v0", pm]["no_estimate"]["value"] == 0.0
+    assert cell["misspec_faithful-v0", own]["no_estimate"]["value"] == 0.0
+    assert cell["misspec_faithful-v0", own]["median_error"]["value"] < 0.05
+    assert cell["misspec_faithful-v0", pm]["no_estimate"]["value"] == 1.0
+    # the text form is the matrix, then each suite's leaderboard
+    assert main(argv[:-3] + ["--no-progress", "--executor", "inprocess"]) == 0
+    text = capsys.readouterr().out
+    assert "| agent | `misspec_pointmass-v0` | `misspec_faithful-v0` |" in text
+    assert text.count("## misspec_") == 2
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--suite", "atlas-v0", "atlas-v0", "--agent", "grid"], "each suite once"),
+    (["--suite", "atlas-v0", "faithful-v0", "--agent", "grid", "--cache", "x.jsonl"], "--cache names one suite"),
+    (["--suite", "atlas-v0", "faithful-v0", "--agent", "grid", "--plot", "x.png"], "--plot draws one suite"),
+    (["--agent", "grid:forward=lab"], "method 'lorentz', which reads no forward model"),
+    (["--agent", "bayes:forward=nope"], "no such forward model"),
+])
+def test_misspecification_options_that_cannot_work_are_refused_before_any_episode(argv, needle, capsys):
+    assert main(["bench", *argv, "--limit", "1", "--no-cache"]) == 2
+    assert needle in capsys.readouterr().err
+
+
+def test_an_agent_forward_option_names_the_model_its_estimate_uses_and_its_record():
+    from plate_env.bench.fingerprint import agent_fingerprint
+
+    plain, lab = load_agent("grid:method=atlas"), load_agent("grid:method=atlas,forward=lab")
+    assert agent_fingerprint(plain) != agent_fingerprint(lab)
+    assert agent_fingerprint(load_agent("bayes")) != agent_fingerprint(load_agent("bayes:forward=lab"))
+    env = load_suite("misspec_faithful-v0").make_env()
+    res = run_episode(env, lab, seed=16_000, options=None)
+    assert res.estimate.ok and res.estimate.omega_n > 0
+    assert lab.estimate_model().name == "lab" and plain.estimate_model() is None

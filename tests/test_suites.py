@@ -24,7 +24,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_shipped_suites_load_and_every_one_is_pinned():
-    assert suite_names() == sorted(PINNED) == ["atlas-v0", "faithful-v0", "pybullet-v0", "tilelink-v0"]
+    assert suite_names() == sorted(PINNED) == ["atlas-v0", "faithful-v0", "misspec_faithful-v0",
+                                               "misspec_pointmass-v0", "misspec_pybullet-v0", "pybullet-v0",
+                                               "tilelink-v0"]
     for name in suite_names():
         s = load_suite(name)
         assert s.sha256 == PINNED[name] and s.name == name
@@ -39,6 +41,24 @@ def test_shipped_suites_load_and_every_one_is_pinned():
     assert tuple(faithful.env_kwargs["amplitudes_deg"]) == (3.0, 6.0)
     lo, hi = (min(o.omega_n for o in live.objects) / math.pi, max(o.omega_n for o in live.objects) / math.pi)
     assert 3.5 <= lo and hi <= 33.0
+
+
+def test_the_misspecification_suites_hold_the_same_episodes_on_three_physics_every_forward_model_reads():
+    """Issue 33's track: one set of objects and seeds; the probes answered by the point mass's, the rigid tiles' and
+    the PyBullet sheet's atlas; 3 deg only (the amplitude every forward model reads), inside every atlas's range."""
+    from plate_env.identify.forward import load_forward_model
+
+    suites = [load_suite(f"misspec_{p}-v0") for p in ("pointmass", "faithful", "pybullet")]
+    assert suites[0].objects == suites[1].objects == suites[2].objects and len(suites[0].objects) == 50
+    assert [s.env_kwargs["physics_options"]["model"] for s in suites] == ["pointmass", "rigid_fast", "pybullet"]
+    for s in suites:
+        assert s.physics == "atlas" and tuple(s.env_kwargs["amplitudes_deg"]) == (3.0,)
+        env = s.make_env()  # the env refuses options its atlas cannot answer: every object is inside it
+        for o in s.objects:
+            assert 6.0 <= o.omega_n / math.pi <= 30.0
+        env.close()
+    for name in ("tilelink/pointmass", "tilelink/rigid_fast", "pybullet/pybullet", "lab"):
+        assert all(3.0 in m.atlas.a_p_deg for m in load_forward_model(name).members)
 
 
 def test_suite_envs_build_with_the_env_default_probe_budget():

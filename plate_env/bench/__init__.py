@@ -7,10 +7,10 @@ the leaderboard's markdown (:mod:`~plate_env.bench.report`) and report summaries
 DeprecationWarning)."""
 
 from plate_env.bench.fingerprint import code_fingerprint, outcome_modules
-from plate_env.bench.report import AgentSummary, leaderboard_markdown, rank
+from plate_env.bench.report import AgentSummary, leaderboard_markdown, matrix_markdown, rank
 from plate_env.bench.runner import BenchInterrupted, Episode, evaluate, play
 from plate_env.bench.summary import AgentRun, board, board_to_dict, check_budgets, compare, summarize
 
 __all__ = ["AgentRun", "AgentSummary", "BenchInterrupted", "Episode", "board", "board_to_dict", "check_budgets",
-           "code_fingerprint", "compare", "evaluate", "leaderboard_markdown", "outcome_modules", "play", "rank",
-           "summarize"]
+           "code_fingerprint", "compare", "evaluate", "leaderboard_markdown", "matrix_markdown", "outcome_modules",
+           "play", "rank", "summarize"]

@@ -118,4 +118,31 @@ def leaderboard_markdown(summaries: Sequence[AgentSummary], paired: dict, leader
     return "\n".join(lines) + "\n"
 
 
-__all__ = ["AgentSummary", "BudgetScores", "leaderboard_markdown", "rank"]
+def matrix_markdown(columns: dict[str, Sequence[AgentSummary]], budget_s: float, note: str = "") -> str:
+    """Agents (rows, in the order first given) against suites (columns, ``{suite name: its summaries}``): each cell
+    the median error with its bootstrap interval, then p90 error, 95 % coverage and no-estimate share at
+    ``budget_s``; "-" where an agent was not run on a suite. The misspecification track's table."""
+    agents = list(dict.fromkeys(s.label for summaries in columns.values() for s in summaries))
+    by = {(name, s.label): s for name, summaries in columns.items() for s in summaries}
+    lines = [f"Each cell: median error [95 % CI] · p90 · 95 % coverage · no estimate, in %, at {budget_s:g} simulated "
+             "s; intervals are bootstrap over objects; no estimate counts as an infinite error. " + note, "",
+             "| agent | " + " | ".join(f"`{name}`" for name in columns) + " |", "|---|" + "---|" * len(columns)]
+    for label in agents:
+        cells = []
+        for name in columns:
+            s = by.get((name, label))
+            if s is None:
+                cells.append("-")
+                continue
+            sc = s.at(budget_s).scores
+            cells.append(f"{_pct(sc.median_error)} · {_pct_value(sc.p90_error)} · {_pct_value(sc.coverage95, 0)} · "
+                         f"{_pct_value(sc.no_estimate, 0)}")
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _pct_value(s: Stat, digits: int = 1) -> str:
+    return f"{100 * s.value:.{digits}f}" if math.isfinite(s.value) else "none"
+
+
+__all__ = ["AgentSummary", "BudgetScores", "leaderboard_markdown", "matrix_markdown", "rank"]

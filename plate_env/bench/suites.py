@@ -27,6 +27,9 @@ PINNED = {
     "tilelink-v0": "71fd2838449a30527b2ada139ac8266d07567b45d2cf21968f70182ad44c96a8",
     "pybullet-v0": "b09609f8969e6227605b7f36796a2466f7b2e0b0d8a5b797c8fec7d6a6d38358",
     "faithful-v0": "a47b2db6c85e2f9070722158409477407e759e6d8a66dce0f53bd3a5b56bebac",
+    "misspec_pointmass-v0": "9307201c1ea16bf811be85225b7666f4ca45b157cf9c0a35d313394739f8a1b4",
+    "misspec_faithful-v0": "c2c05d4da4e01b2be9949c83052d054b46d3ae037736cfb7709236d208419651",
+    "misspec_pybullet-v0": "6491a7cc6827063808882b0be2ee63f2d1c77beb6e9b4902d2fe63d52cbc968d",
 }
 #: A suite's name: a family and a version.
 NAME = re.compile(r"^(?P<family>[a-z][a-z0-9_]*)-v(?P<version>\d+)$")

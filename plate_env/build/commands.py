@@ -95,6 +95,9 @@ def add_policy_parser(kinds) -> None:
     p.add_argument("--out", required=True, help="the model zip to write; its numpy export goes to OUT.npz and its "
                    "metadata (command, version, commit, seed, hyperparameters, evaluation curve) to OUT.json")
     p.add_argument("--seed", type=int, default=0, help="seed of the training envs, the policy and SB3")
+    p.add_argument("--env-id", default="PlateRotation-v0", help="the hyperparameter file's entry to train (its "
+                   "env_kwargs): PlateRotation-v0 (the point-mass atlas, the shipped policy) or PlateRotationAtlas-v1 "
+                   "(the faithful rigid tiles' atlas)")
     p.add_argument("--timesteps", type=int, default=None, help="steps to train (default: the file's n_timesteps; "
                    "SB3 finishes the rollout it is in, so a multiple of n_steps * n_envs runs)")
     p.add_argument("--hyperparams", default=None, help="an rl-zoo3 hyperparameter file (default: the installed "

@@ -63,7 +63,36 @@ def suites() -> list[dict]:
          "env_kwargs": {"physics": faithful["physics"], "physics_options": faithful["physics_options"],
                         **{**TILELINK_ENV, "amplitudes_deg": list(faithful["amplitudes_deg"])}},
          "budgets_s": [10.0, 20.0, 40.0], "cost_model": COST_MODEL, "objects": live},
+        *misspec_suites(),
     ]
+
+
+#: The misspecification track's episode physics: suite family -> (what answers the probes, the band it covers).
+MISSPEC_PHYSICS = {
+    "misspec_pointmass": ({"source": "tilelink", "model": "pointmass"}, [10.0, 40.0], "the tile-link point mass"),
+    "misspec_faithful": ({"source": "tilelink", "model": "rigid_fast"}, [10.0, 40.0],
+                         "the rigid tiles (rigid_fast, the physics that reproduces the paper)"),
+    "misspec_pybullet": ({"source": "pybullet", "model": "pybullet"}, [10.0, 26.0],
+                         "the PyBullet soft-body sheet (its atlas covers 10-26 Hz)"),
+}
+
+
+def misspec_suites() -> list[dict]:
+    """The misspecification track (issue 33): the same 50 objects (omega_n log-uniform 6-30 pi rad/s, inside every
+    shipped atlas; alpha 30-60 deg) and seeds on each episode physics of :data:`MISSPEC_PHYSICS`, at the one
+    amplitude every forward model reads (3 deg), so that an agent whose estimate goes through another physics'
+    forward model (``--agent NAME:forward=MODEL``) is scored on physics it was not built on."""
+    prior = ObjectPrior((6.0, 30.0), (30.0, 60.0))
+    shared = objects(50, seed=5014, seed_base=16_000, prior=prior)
+    return [{"name": f"{family}-v0", "description": f"Misspecification track: 50 objects (6-30 pi rad/s) whose "
+             f"probes are answered by {what}'s atlas, 3 deg, {band[0]:g}-{band[1]:g} Hz; the same objects and "
+             "seeds as the track's other suites.",
+             "env_kwargs": {"physics": "atlas", "physics_options": options,
+                            **{**TILELINK_ENV, "amplitudes_deg": [3.0], "f_band_hz": band},
+                            "omega_n_range_pi": list(prior.omega_n_range_pi), "alpha_range_deg": list(
+                                prior.alpha_range_deg)},
+             "budgets_s": [10.0, 20.0, 40.0], "cost_model": COST_MODEL, "objects": shared}
+            for family, (options, band, what) in MISSPEC_PHYSICS.items()]
 
 
 def suite_names() -> list[str]:
@@ -92,4 +121,5 @@ def build_suite(name: str, out: str | Path, record: dict) -> dict:
     return record
 
 
-__all__: Sequence[str] = ("build_suite", "objects", "suite_names", "suite_text", "suites")
+__all__: Sequence[str] = ("MISSPEC_PHYSICS", "build_suite", "misspec_suites", "objects", "suite_names", "suite_text",
+                          "suites")

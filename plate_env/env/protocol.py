@@ -78,6 +78,11 @@ class Agent(ABC):
 
     name: str = "agent"
     method: str = "atlas"
+    #: The shipped forward model (``"tilelink/pointmass"``, ``"lab"``, ...: :func:`plate_env.identify.forward.
+    #: load_forward_model`'s names) the episode's estimate is made through, conditioned on the episode's known
+    #: inputs; None: the episode physics' own. Set it to read episodes through another physics than theirs (the
+    #: misspecification track: ``plate-env bench --agent grid:method=atlas,forward=lab``).
+    forward: str | None = None
 
     def reset(self, context: ProbeContext, rng: np.random.Generator) -> None:
         """Start a new episode (no probes yet)."""
@@ -90,8 +95,13 @@ class Agent(ABC):
 
     def estimate_model(self):
         """The forward model (:class:`~plate_env.identify.forward.ForwardModel`) the episode's estimate must use, or
-        None for the shipped one of the episode's physics: an agent that chose its probes on a model says so here."""
-        return None
+        None for the shipped one of the episode's physics: an agent that chose its probes on a model says so here.
+        The base class answers :attr:`forward`'s model (None when it is None)."""
+        if self.forward is None:
+            return None
+        from plate_env.identify.forward import load_forward_model
+
+        return load_forward_model(self.forward, self.context.known)
 
 
 def check_agent(agent: object, where: str = "agent") -> object:
