@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_shipped_suites_load_and_every_one_is_pinned():
     assert suite_names() == sorted(PINNED) == ["atlas-v0", "faithful-v0", "misspec_faithful-v0",
                                                "misspec_pointmass-v0", "misspec_pybullet-v0", "pybullet-v0",
-                                               "tilelink-v0"]
+                                               "rigid-v0", "tilelink-v0"]
     for name in suite_names():
         s = load_suite(name)
         assert s.sha256 == PINNED[name] and s.name == name
@@ -39,6 +39,11 @@ def test_shipped_suites_load_and_every_one_is_pinned():
     assert faithful.objects == live.objects and faithful.physics == "atlas"
     assert faithful.env_kwargs["physics_options"] == {"model": "rigid_fast"}
     assert tuple(faithful.env_kwargs["amplitudes_deg"]) == (3.0, 6.0)
+    rigid = load_suite("rigid-v0")  # the first 24 of them on the rigid tiles, live
+    assert rigid.objects == live.objects[:24] and rigid.physics == "tilelink"
+    assert rigid.env_kwargs["physics_options"] == {"model": "rigid_fast"}
+    assert {k: v for k, v in rigid.env_kwargs.items() if k not in ("physics", "physics_options")} == {
+        k: v for k, v in faithful.env_kwargs.items() if k not in ("physics", "physics_options")}
     lo, hi = (min(o.omega_n for o in live.objects) / math.pi, max(o.omega_n for o in live.objects) / math.pi)
     assert 3.5 <= lo and hi <= 33.0
 

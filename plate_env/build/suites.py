@@ -63,6 +63,13 @@ def suites() -> list[dict]:
          "env_kwargs": {"physics": faithful["physics"], "physics_options": faithful["physics_options"],
                         **{**TILELINK_ENV, "amplitudes_deg": list(faithful["amplitudes_deg"])}},
          "budgets_s": [10.0, 20.0, 40.0], "cost_model": COST_MODEL, "objects": live},
+        {"name": "rigid-v0", "description": "The first 24 tilelink-v0 (and faithful-v0) objects and seeds on the "
+         "physics that reproduces the paper, live: the rigid tile-link disc (rigid_fast, 3 and 6 deg; "
+         "PlateRotation-v1), about 1-2x real time a probe.",
+         "env_kwargs": {"physics": FAITHFUL_IDS["PlateRotation-v1"]["physics"],
+                        "physics_options": FAITHFUL_IDS["PlateRotation-v1"]["physics_options"],
+                        **{**TILELINK_ENV, "amplitudes_deg": list(FAITHFUL_IDS["PlateRotation-v1"]["amplitudes_deg"])}},
+         "budgets_s": [10.0, 20.0, 40.0], "cost_model": COST_MODEL, "objects": live[:24]},
         *misspec_suites(),
     ]
 
