@@ -54,6 +54,21 @@ def offset_intervals(x: float, se: float, scale: float, nu: float) -> tuple[tupl
     return (max(x - q68, 0.0), x + q68), (max(x - q95, 0.0), x + q95), q68
 
 
+def extrapolated_peak(fit: LorentzFit, f_hz: np.ndarray) -> str | None:
+    """Why a Lorentzian fit's peak is not read (None when it is): its f0 lies outside the frequencies of the probes
+    the fit used, so the hump's top was never probed and f0 is an extrapolation of a rise (or a fall) alone. On the
+    point mass such rises cut by instability look alike from 0.5 pi to 50 pi rad/s (issue 37 item 2), so the
+    Eq. (10) line would turn noise into a confident omega_n."""
+    f_used = np.asarray(f_hz, dtype=float)[fit.used]
+    lo, hi = float(f_used.min()), float(f_used.max())
+    if lo <= fit.f0 <= hi:
+        return None
+    side, edge = ("above", hi) if fit.f0 > hi else ("below", lo)
+    return (f"the fitted hump's top, f0 = {fit.f0:.1f} Hz, lies {side} the probes the fit used ({lo:g}-{hi:g} Hz): "
+            f"an extrapolation, not a measured peak; probe around {fit.f0:.0f} Hz (past {edge:g} Hz) or use the "
+            "atlas method")
+
+
 def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = "pointmass",
                      calibrations: dict[float, Calibration] | None = None) -> Estimate:
     """Fit Eq. (9) per plate amplitude, map each f0 through that amplitude's Eq. (10), combine by inverse variance."""
@@ -76,6 +91,9 @@ def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = 
         fits[amp] = fit
         if not fit.ok:
             reasons.append(f"A_p={amp:g} deg: {fit.reason}")
+            continue
+        if (why := extrapolated_peak(fit, sub.f_p_hz)) is not None:
+            reasons.append(f"A_p={amp:g} deg: {why}")
             continue
         cal = cals[amp]
         w = cal.omega_n(fit.f0)
