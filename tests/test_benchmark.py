@@ -259,3 +259,14 @@ def test_an_agent_forward_option_names_the_model_its_estimate_uses_and_its_recor
     res = run_episode(env, lab, seed=16_000, options=None)
     assert res.estimate.ok and res.estimate.omega_n > 0
     assert lab.estimate_model().name == "lab" and plain.estimate_model() is None
+
+
+def test_the_regenerate_line_names_a_suite_file_as_it_was_given(tmp_path, capsys):
+    """Issue 38 item 7: a suite given as a file was printed by its name, a command that then failed (unknown suite)."""
+    from plate_env.bench.suites import suite_dir
+
+    path = tmp_path / "atlas-v0.json"
+    path.write_text((suite_dir() / "atlas-v0.json").read_text())
+    assert main(["bench", "--suite", str(path), "--agent", "grid:method=atlas", "--limit", "1", "--no-cache",
+                 "--no-progress", "--executor", "inprocess"]) == 0
+    assert f"--suite {path} --agent" in capsys.readouterr().out
