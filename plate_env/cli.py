@@ -32,6 +32,7 @@ from plate_env.core.setup import (
     MASS_RANGE_KG,
     MAX_PROBES_RANGE,
     PAPER_SETUP,
+    SEED_RANGE,
 )
 from plate_env.core.streams import stdout_to_stderr
 from plate_env.core.units import format_omega_pi, parse_omega_n
@@ -42,8 +43,6 @@ from plate_env.run.executor import BackendSpec, add_executor_argument, make_exec
 
 #: Most probes one sweep may ask for.
 MAX_SWEEP_PROBES = 2000
-#: Seeds the env and agents accept (numpy's SeedSequence: non-negative integers).
-SEED_RANGE = (0, 2 ** 63 - 1)
 
 
 class CliError(Exception):

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from plate_env.core.files import read_text
 from plate_env.core.probe import ProbeResult
 
 
@@ -125,12 +126,16 @@ def check_amp_option(a_p_deg: float | None) -> None:
 def read_csv_rows(path: str | Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
     """The header (stripped) and the data rows of a CSV, each with its line number as the messages count lines
     (blank and ``#`` comment lines left out). CsvError for an unreadable or empty file."""
-    path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CsvError(f"{path}: cannot read: {exc}") from None
-    rows = list(csv.reader(line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")))
+        text = read_text(path, "CSV", encoding="utf-8-sig")
+    except ValueError as exc:
+        raise CsvError(str(exc)) from None
+    try:
+        rows = list(csv.reader(line for line in text.splitlines()
+                               if line.strip() and not line.lstrip().startswith("#")))
+    except csv.Error as exc:  # e.g. a cell past the csv module's field limit: no lab sweep has one
+        raise CsvError(f"{path}: not readable as CSV: {exc} (a cell holds at most {csv.field_size_limit()} "
+                       "characters)") from None
     if not rows:
         raise CsvError(f"{path}: empty file; expected a header with columns {', '.join(REQUIRED)}")
     return [h.strip() for h in rows[0]], list(enumerate(rows[1:], start=2))

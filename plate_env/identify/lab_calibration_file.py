@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from plate_env.core import checks
+from plate_env.core.files import read_json
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify.estimate import Estimate
 from plate_env.identify.forward import ForwardModel, Member, _conditioned
@@ -110,10 +112,11 @@ class LabCalibration:
             raise CalibrationError(f"{where}: content hash does not match (the file was edited by hand or damaged): "
                                    "run plate-env calibrate again")
         k, p = d["known"], d["posterior"]
+        a_p_deg = checks.real("known.a_p_deg", k["a_p_deg"], 0.0, 45.0, open_lo=True, unit="deg")
         post = LabPosterior(tuple("+".join(m) for m in d["members"]), float(p["pivot"]), tuple(p["member"]),
                             tuple(p["a"]), tuple(p["b"]), tuple(p["sigma"]), tuple(p["weight"]), int(p["n_refs"]),
                             tuple(p["ref_range"]))
-        return cls(forward=d["forward"], members=tuple(tuple(m) for m in d["members"]), a_p_deg=float(k["a_p_deg"]),
+        return cls(forward=d["forward"], members=tuple(tuple(m) for m in d["members"]), a_p_deg=a_p_deg,
                    known=KnownInputs(b_p=k["b_p_mm"] * 1e-3, mass=k["mass_g"] * 1e-3,
                                      diameter=k["diameter_mm"] * 1e-3),
                    references=tuple((r["object"], float(r["omega_n_rad_s"]), int(r["n_probes"]))
@@ -254,12 +257,14 @@ def load(path: str | Path) -> LabCalibration:
 
         path = Path(str(resources.files("plate_env") / "data" / PAPER_FILE))
     try:
-        d = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise CalibrationError(f"{path}: cannot read a calibration: {exc}") from None
+        d = read_json(path, "calibration")
+    except ValueError as exc:
+        raise CalibrationError(str(exc)) from None
     try:
         return LabCalibration.from_json(d, str(path))
-    except (KeyError, TypeError) as exc:
+    except CalibrationError:
+        raise
+    except (KeyError, TypeError, ValueError) as exc:  # a field missing, of the wrong type or outside its range
         raise CalibrationError(f"{path}: malformed calibration ({exc})") from None
 
 
