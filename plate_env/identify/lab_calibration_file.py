@@ -186,6 +186,19 @@ def check_references(objects: Sequence[str], omega_n: Sequence[float]) -> None:
                                    f"{lo:.1f}-{hi:.1f} rad/s ({REF_RANGE_PI[0]:g}pi-{REF_RANGE_PI[1]:g}pi)")
 
 
+def check_distinct(objects: Sequence[str], omega_n: Sequence[float], tables: Sequence[ProbeTable]) -> None:
+    """CalibrationError when two references are one disc under two names: the same known omega_n and the same
+    probes (the same rows in any order). Counted twice, one disc would pass for K = 2 independent references and
+    narrow the intervals by what it does not know."""
+    seen: dict = {}
+    for o, w, t in zip(objects, omega_n, tables, strict=True):
+        key = (float(w), tuple(sorted(tuple(sorted(r.items())) for r in t.to_rows())))
+        if key in seen:
+            raise CalibrationError(f"references {seen[key]!r} and {o!r} are the same disc (omega_n_rad_s {w:g} and "
+                                   f"identical rows): list each reference disc once")
+        seen[key] = o
+
+
 def calibrate(tables: Sequence[ProbeTable], omega_n: Sequence[float], objects: Sequence[str], a_p_deg: float,
               known: KnownInputs, forward: str = "lab", prior: ScatterPrior = SCATTER_PRIOR) -> LabCalibration:
     """Fit a lab calibration from reference sweeps of discs of known omega_n (rad/s), all at amplitude
@@ -193,6 +206,7 @@ def calibrate(tables: Sequence[ProbeTable], omega_n: Sequence[float], objects: S
     check_references(objects, omega_n)
     if len(set(objects)) != len(objects):
         raise CalibrationError(f"reference names repeat: {sorted(objects)}; one sweep table per disc")
+    check_distinct(objects, omega_n, tables)
     for o, t in zip(objects, tables, strict=True):
         amps = sorted({round(float(a), 6) for a in t.a_p_deg})
         if amps != [round(float(a_p_deg), 6)]:
@@ -271,18 +285,19 @@ def load(path: str | Path) -> LabCalibration:
 REF_COLUMNS = ("object", "omega_n_rad_s", "mass_g")
 
 
-def read_reference_csv(path: str | Path, a_p_deg: float | None = None) -> tuple[list[str], list[float], list,
-                                                                                 list[float | None]]:
+def read_reference_csv(path: str | Path, a_p_deg: float | None = None, max_rows: int | None = None
+                       ) -> tuple[list[str], list[float], list, list[float | None]]:
     """A references file: the ``fit`` columns plus ``object`` (a reference disc's name) and ``omega_n_rad_s`` (its
     known omega_n), optionally ``mass_g`` per object. Returns (objects, omega_n, tables, masses in g or None), in
     the order the discs first appear. CalibrationError naming the line for a missing column or an omega_n that
     differs between one disc's rows; the sweep columns are checked by
-    :func:`plate_env.core.probe_table.sweep_table` with the file's own line numbers."""
+    :func:`plate_env.core.probe_table.sweep_table` with the file's own line numbers. ``max_rows``: the file (all
+    discs together) is refused past that many rows, before any is parsed."""
     from plate_env.core.probe_table import CsvError, check_amp_option, read_csv_rows, sweep_table
 
     try:
         check_amp_option(a_p_deg)
-        header, rows = read_csv_rows(path)
+        header, rows = read_csv_rows(path, max_rows)
     except CsvError as exc:
         raise CalibrationError(str(exc)) from None
     for col in ("object", "omega_n_rad_s"):
@@ -304,6 +319,9 @@ def read_reference_csv(path: str | Path, a_p_deg: float | None = None) -> tuple[
             m = float(cells["mass_g"]) if cells.get("mass_g") else None
         except ValueError:
             raise CalibrationError(f"{path}: line {lineno}: omega_n_rad_s / mass_g must be numbers") from None
+        if not (math.isfinite(w) and (m is None or math.isfinite(m))):  # NaN != NaN: refused here, by name
+            raise CalibrationError(f"{path}: line {lineno}: omega_n_rad_s = {cells['omega_n_rad_s']!r}, mass_g = "
+                                   f"{cells.get('mass_g')!r}: both must be finite numbers")
         if name in omega and (omega[name] != w or mass[name] != m):
             raise CalibrationError(f"{path}: line {lineno}: {name!r} has another omega_n_rad_s or mass_g than on its "
                                    "first row")
