@@ -13,6 +13,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
+from plate_env.core.files import check_regular
 from plate_env.core.registry import Registry
 from plate_env.env.protocol import Agent, Probe, ProbeContext, check_agent
 
@@ -71,9 +72,7 @@ def _options(text: str, spec: str) -> dict:
 
 def load_file_agent(path: str | Path, class_name: str):
     """An instance (no arguments) of class ``class_name`` defined in the Python file ``path``."""
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"agent file {str(path)!r} does not exist")
+    path = check_regular(path, "agent file")
     module_name = f"plate_env_user_agent_{hashlib.sha256(str(path.resolve()).encode()).hexdigest()[:12]}"
     module = sys.modules.get(module_name)
     if module is None:

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from plate_env.core import checks
 from plate_env.core.probe_table import ProbeTable
-from plate_env.env.protocol import Agent, Probe
+from plate_env.core.setup import FREQ_RANGE_HZ, MAX_PROBES_RANGE
+from plate_env.env.protocol import Agent, Probe, probe_options
 from plate_env.identify.fitting import first_hump_mask
 
 
@@ -17,11 +19,10 @@ class CoarseToFineAgent(Agent):
 
     def __init__(self, n_coarse: int = 6, n_fine: int = 6, width_hz: float = 4.0, a_p_deg: float = 3.0,
                  measure_s: float = 1.0, method: str = "atlas") -> None:
-        self.n_coarse = n_coarse
-        self.n_fine = n_fine
-        self.width_hz = width_hz
-        self.a_p_deg = a_p_deg
-        self.measure_s = measure_s
+        self.n_coarse = checks.integer("n_coarse", n_coarse, *MAX_PROBES_RANGE)
+        self.n_fine = checks.integer("n_fine", n_fine, 0, MAX_PROBES_RANGE[1])
+        self.width_hz = checks.real("width_hz", width_hz, 0.0, FREQ_RANGE_HZ[1], open_lo=True, unit="Hz")
+        self.a_p_deg, self.measure_s = probe_options(a_p_deg, measure_s)
         self.method = method
 
     def next_probe(self, history: ProbeTable, obs=None) -> Probe | None:

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from plate_env.core import checks
 from plate_env.core.probe_table import ProbeTable
-from plate_env.env.protocol import Agent, Probe
+from plate_env.core.setup import MAX_PROBES_RANGE
+from plate_env.env.protocol import Agent, Probe, probe_options
 
 
 class GridAgent(Agent):
@@ -14,11 +16,8 @@ class GridAgent(Agent):
     name = "grid"
 
     def __init__(self, n: int = 16, a_p_deg: float = 3.0, measure_s: float = 1.0, method: str = "lorentz") -> None:
-        if n < 1:
-            raise ValueError(f"grid needs at least 1 probe, got n={n}")
-        self.n = n
-        self.a_p_deg = a_p_deg
-        self.measure_s = measure_s
+        self.n = checks.integer("n", n, *MAX_PROBES_RANGE)  # more points than any episode's probes: never swept
+        self.a_p_deg, self.measure_s = probe_options(a_p_deg, measure_s)
         self.method = method
 
     def next_probe(self, history: ProbeTable, obs=None) -> Probe | None:

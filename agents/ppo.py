@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from plate_env.core.files import check_regular, read_json
 from plate_env.core.probe_table import ProbeTable
 from plate_env.env.codec import N_FEATURES, Codec, phys
 from plate_env.env.protocol import Agent, ProbeContext
@@ -76,7 +77,7 @@ class NumpyPolicy:
     """The deterministic action of an exported MlpPolicy (:func:`export_policy`), in numpy (no torch)."""
 
     def __init__(self, path: Path) -> None:
-        with np.load(path) as d:
+        with np.load(check_regular(path, "sb3 model export")) as d:
             n = int(d["n_hidden"])
             self.layers = [(d[f"w{i}"], d[f"b{i}"]) for i in range(n)]
             self.out = (d["w_out"], d["b_out"])
@@ -118,6 +119,7 @@ def safe_custom_objects(path: str | Path, algo: str) -> dict:
     import stable_baselines3 as sb3
 
     where = f"sb3 model {str(path)!r}"
+    check_regular(path, "sb3 model")
     try:
         with zipfile.ZipFile(path) as z:
             data = json.loads(z.read("data"))
@@ -169,6 +171,7 @@ class PPOAgent(Agent):
         if not self.path.exists():
             raise FileNotFoundError(f"no PPO model at {self.path}; train one with plate-env build policy --out "
                                     "MODEL.zip")
+        check_regular(self.path, "sb3 model")
         self.algo = algo
         self.deterministic = deterministic
         self.device = device
@@ -184,7 +187,7 @@ class PPOAgent(Agent):
             self._sb3.observation_space.shape[0])
         self.n_slots = Codec.slots_of(self.obs_dim)
         meta = self.path.with_suffix(".json")
-        self.provenance = json.loads(meta.read_text()) if meta.exists() else {}
+        self.provenance = read_json(meta, "sb3 model provenance") if meta.exists() else {}
         env_kwargs = self.provenance.get("env_kwargs", {})
         self.method = env_kwargs.get("method", "atlas")
         self.trained_band = tuple(env_kwargs.get("f_band_hz", (10.0, 40.0)))
@@ -196,10 +199,17 @@ class PPOAgent(Agent):
         self._windows: list[float] = []
 
     def _load_sb3(self):
+        import pickle
+
         import stable_baselines3 as sb3
 
-        return getattr(sb3, self.algo.upper()).load(self.path, device=self.device,
-                                                     custom_objects=safe_custom_objects(self.path, self.algo))
+        custom = safe_custom_objects(self.path, self.algo)
+        try:
+            return getattr(sb3, self.algo.upper()).load(self.path, device=self.device, custom_objects=custom)
+        except pickle.UnpicklingError:  # torch's weights-only loader met something besides tensors
+            raise ValueError(f"sb3 model {str(self.path)!r}: its weights (policy.pth and the other .pth files) hold "
+                             "pickled objects besides tensors; loading them could run code from the file: "
+                             "refused") from None
 
     @property
     def model(self):

@@ -32,6 +32,8 @@ from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 
+from plate_env.core.files import read_text
+
 ENV_ID = "PlateRotation-v0"
 ALGOS = ("ppo", "a2c", "sac")
 #: rl-zoo3's run keys honoured here (the rest of an entry goes to the algorithm's constructor).
@@ -56,10 +58,14 @@ def load_hyperparams(path=None, env_id: str = ENV_ID, algo: str = "ppo") -> dict
     """The entry for ``env_id`` of a hyperparameter file (default: the installed one of ``algo``)."""
     import yaml
 
-    path = hyperparams_file(algo) if path is None else Path(path)
+    if path is None:  # the installed file (a package resource)
+        path = hyperparams_file(algo)
+        text = path.read_text()
+    else:  # a user's, refused unless a regular file (plate_env.core.files)
+        path, text = Path(path), read_text(path, "hyperparameters")
     try:
-        table = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
+        table = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
         raise ValueError(f"hyperparameters {str(path)!r}: {exc}") from None
     if not isinstance(table, dict) or env_id not in table:
         raise ValueError(f"hyperparameters {str(path)!r} have no entry for {env_id!r}")

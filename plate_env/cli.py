@@ -32,6 +32,7 @@ from plate_env.core.setup import (
     MASS_RANGE_KG,
     MAX_PROBES_RANGE,
     PAPER_SETUP,
+    SEED_RANGE,
 )
 from plate_env.core.streams import stdout_to_stderr
 from plate_env.core.units import format_omega_pi, parse_omega_n
@@ -42,8 +43,6 @@ from plate_env.run.executor import BackendSpec, add_executor_argument, make_exec
 
 #: Most probes one sweep may ask for.
 MAX_SWEEP_PROBES = 2000
-#: Seeds the env and agents accept (numpy's SeedSequence: non-negative integers).
-SEED_RANGE = (0, 2 ** 63 - 1)
 
 
 class CliError(Exception):
@@ -202,7 +201,9 @@ def _add_common(p: argparse.ArgumentParser) -> None:
                    default=3.0, help="plate linear amplitude B_p, mm")
     window = _arg(checks.real, *WINDOW_RANGE_S, unit="s")
     p.add_argument("--settle", type=window, default=ProbeSpec.settle_s, help="settling time after the ramp, s")
-    p.add_argument("--measure", type=window, default=ProbeSpec.measure_s, help="measurement window, s")
+    p.add_argument("--measure", type=_arg(checks.real, *WINDOW_RANGE_S, open_lo=True, unit="s"),
+                   default=ProbeSpec.measure_s, help="measurement window, s (rounded to whole plate periods, at "
+                   "least 2)")
     _add_dt(p)
     p.add_argument("--json", action="store_true", help="print one JSON document")
 
@@ -558,7 +559,8 @@ def _fit_report(est, table) -> list[str]:
     return out
 
 
-#: Most rows ``fit`` reads (what one sweep may make; the posterior's cost grows with the rows).
+#: Most rows ``fit`` reads, and ``calibrate`` over all its reference discs (what one sweep may make; the
+#: posterior's cost grows with the rows).
 MAX_FIT_ROWS = MAX_SWEEP_PROBES
 #: From this many rows ``fit`` says on stderr what it computes and how long it took.
 FIT_PROGRESS_ROWS = 200
@@ -580,15 +582,16 @@ def _fit_options(args: argparse.Namespace) -> None:
     for name, value in FIT_KNOWN.items():
         if getattr(args, name) is None:
             setattr(args, name, value)
-    args.forward = args.forward or "lab"
-    args.physics = args.physics or "lab"
+    # None is "not given"; an empty --forward '' or --physics '' is a value, refused below, not the default
+    args.forward = "lab" if args.forward is None else args.forward
+    args.physics = "lab" if args.physics is None else args.physics
     if args.method == "lorentz" and args.physics != "paper":
         from plate_env.identify.calibration import load_calibrations
 
         sources = sorted({k.rsplit("/", 1)[0] for k in load_calibrations()})
         model = args.model or ("lab" if args.physics == "lab" else "pointmass")
         if f"{args.physics}/{model}" not in sources:
-            raise CliError(f"--physics {args.physics} --model {model}: no Eq. (10) calibration; calibrated: "
+            raise CliError(f"--physics {args.physics!r} --model {model!r}: no Eq. (10) calibration; calibrated: "
                            f"{', '.join(sources + ['paper'])}")
 
 
@@ -620,7 +623,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
     if args.forward not in forward_model_names():
         raise CliError(f"--forward {args.forward!r}: choose one of {forward_model_names()}")
-    objects, omega_n, tables, masses = lcf.read_reference_csv(args.refs, a_p_deg=args.amp)
+    output_path(args.out, "--out")  # refused before the references are read, not after the calibration
+    objects, omega_n, tables, masses = lcf.read_reference_csv(args.refs, a_p_deg=args.amp, max_rows=MAX_FIT_ROWS)
     lcf.check_references(objects, omega_n)
     given = {m for m in masses if m is not None}
     if len(given) > 1:
@@ -663,15 +667,10 @@ def _known_inputs(args: argparse.Namespace, mass_g: float | None = None):
 
 
 def _read_fit_table(args: argparse.Namespace):
-    """``fit``'s CSV, refused past :data:`MAX_FIT_ROWS` rows."""
+    """``fit``'s CSV, refused past :data:`MAX_FIT_ROWS` rows (before any is parsed)."""
     from plate_env.core.probe_table import read_lab_csv
 
-    table = read_lab_csv(args.csv, a_p_deg=args.amp)
-    if len(table) > MAX_FIT_ROWS:
-        raise CliError(f"{args.csv}: {len(table)} rows; fit takes at most {MAX_FIT_ROWS} (the most a sweep makes: the "
-                       "predictive check replicates every row 4000 times, and the posterior's time grows with the "
-                       "distinct rows); average repeated frequencies or split the file")
-    return table
+    return read_lab_csv(args.csv, a_p_deg=args.amp, max_rows=MAX_FIT_ROWS)
 
 
 def _cmd_fit_calibrated(args: argparse.Namespace) -> int:

@@ -224,7 +224,7 @@ def run_cli(argv, capsys) -> tuple[int, str, str]:
     (["identify", "--physics", "atlas", "--agent", "grid", "--target", "0.1"], ("--target", "bayes")),
     (["identify", "--physics", "atlas", "--omega-n", "-10pi"], ("--omega-n", "positive")),
     (["probe", "--physics", "atlas", "--freq", "25", "--alpha", "-5"], ("--alpha", "(0, 90)")),
-    (["probe", "--physics", "atlas", "--freq", "25", "--measure", "-inf"], ("--measure", "[0, 600]")),
+    (["probe", "--physics", "atlas", "--freq", "25", "--measure", "-inf"], ("--measure", "(0, 600]")),
     (["probe", "--freq", "25", "--dt", "1e-9"], ("dt = 1e-09 s", "time steps")),  # defect 5: refused, not hours
     (["sweep", "--freqs", "10:40:1", "--dt", "1e-9"], ("dt = 1e-09 s", "time steps")),
     (["identify", "--agent", "grid", "--dt", "1e-9"], ("dt", "time steps")),

@@ -10,9 +10,13 @@ on one episode of ``atlas-v0``. Inputs main 284a76f answered wrongly are explici
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import os
 import tempfile
+import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -173,3 +177,96 @@ def test_fuzz_fit_csv_contents(text, method, amp, as_json, capsys, monkeypatch):
     if code == 0 and as_json:
         d = json.loads(out)
         assert d["ok"] is True and math.isfinite(d["omega_n_rad_s"])
+
+
+# ------------------------------------------------------------------- special files, malformed suites, deep JSON
+#: Every reader of a file the user names (issue 37 item 5): the file goes where ``{}`` is.
+READERS = [["fit", "{}", "--amp", "3"], ["fit", "{disc}", "--amp", "3", "--calibration", "{}"],
+           ["calibrate", "{}", "--amp", "3", "--out", "{out}"],
+           ["bench", "--suite", "{}", "--agent", "grid", "--limit", "1", "--no-cache", "--no-progress"],
+           ["bench", "--suite", "atlas-v0", "--agent", "sb3:{}", "--limit", "1", "--no-cache", "--no-progress"],
+           ["build", "design-discrepancy", "--within", "{}", "--out", "{out}"]]
+#: What is put there: special files (/dev/zero reads forever, a FIFO blocks; /dev/null is a device that ends),
+#: JSON nested 100,000 deep, a 1 MB CSV cell, Latin-1 bytes, NaN in JSON, nothing.
+SPECIAL = ["/dev/zero", "/dev/null", "fifo", "dir", "deep", "cell", "latin1", "nan", "missing"]
+
+
+@contextlib.contextmanager
+def _special(kind: str, folder: Path):
+    """The path of a ``kind`` input in ``folder`` (named ``x-v0.json``: a suite file's name must be its name).
+    A FIFO gets a watchdog that opens it for writing after 20 s and closes it, so a reader that blocks on it fails
+    the test instead of hanging it."""
+    path = folder / "x-v0.json"
+    if kind.startswith("/dev/"):
+        path.symlink_to(kind)
+    elif kind == "dir":
+        path.mkdir()
+    elif kind != "missing" and kind != "fifo":
+        text = {"deep": "[" * 100_000 + "]" * 100_000, "cell": "f_p_hz,omega_b_deg_s\n" + "1" * 1_000_000 + ",2\n",
+                "nan": '{"name": NaN}'}.get(kind)
+        path.write_bytes(text.encode() if text else "{\"caf\xe9\": 1}".encode("latin-1"))
+    done = threading.Event()
+    if kind == "fifo":
+        os.mkfifo(path)
+
+        def unblock():
+            if not done.wait(20):
+                with contextlib.suppress(OSError):
+                    os.close(os.open(path, os.O_WRONLY | os.O_NONBLOCK))
+
+        threading.Thread(target=unblock, daemon=True).start()
+    try:
+        yield path
+    finally:
+        done.set()
+
+
+@FUZZ
+@given(reader=st.sampled_from(READERS), kind=st.sampled_from(SPECIAL), as_json=st.booleans())
+def test_fuzz_special_and_malformed_input_files(reader, kind, as_json, capsys, monkeypatch):
+    monkeypatch.delenv("PLATE_ENV_TRACEBACK", raising=False)
+    with tempfile.TemporaryDirectory() as tmp, _special(kind, Path(tmp)) as path:
+        (Path(tmp) / "disc.csv").write_text("f_p_hz,omega_b_deg_s\n20,300\n")
+        argv = [a.format(str(path), disc=str(Path(tmp) / "disc.csv"), out=str(Path(tmp) / "out.json"))
+                for a in reader] + (["--json"] if as_json and reader[0] in ("fit", "bench") else [])
+        t0 = time.monotonic()
+        code, out, err = _run(argv, capsys)
+    _check(argv, code, out, err)
+    assert code == 2 and time.monotonic() - t0 < 15, (argv, code, err)  # refused, and at once (no read, no hang)
+
+
+def _suite_paths(doc, prefix=()):
+    """Every key path of a suite document (dicts and lists, leaves included)."""
+    yield prefix
+    items = doc.items() if isinstance(doc, dict) else enumerate(doc) if isinstance(doc, list) else ()
+    for k, v in items:
+        yield from _suite_paths(v, (*prefix, k))
+
+
+SUITE = json.loads((Path(__file__).resolve().parents[1] / "plate_env" / "data" / "suites" / "atlas-v0.json")
+                   .read_text())
+SUITE.update(name="fuzz-v0", objects=SUITE["objects"][:1])
+BAD_VALUES = [None, -1, 0, 1.7, "x", "10", [1, 2], {"a": 1}, True, 1e308, 2 ** 70, math.nan, [[[[[[[[]]]]]]]]]
+
+
+@settings(FUZZ, max_examples=30)
+@given(where=st.sampled_from(list(_suite_paths(SUITE))[1:]), value=st.sampled_from(BAD_VALUES),
+       new_key=st.booleans())
+def test_fuzz_malformed_suite_values(where, value, new_key, capsys, monkeypatch):
+    """A suite with one value replaced (or one key added beside it) by a value of the wrong kind or range: bench
+    answers in {0, 1, 2}, never exit 3 (issue 37 items 6, 11, 12)."""
+    monkeypatch.delenv("PLATE_ENV_TRACEBACK", raising=False)
+    doc = json.loads(json.dumps(SUITE))
+    node = doc
+    for k in where[:-1]:
+        node = node[k]
+    if new_key and isinstance(node, dict):
+        node["extra_" + str(where[-1])] = value
+    else:
+        node[where[-1]] = value
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "fuzz-v0.json"  # a suite of one's own (unpinned): one that stays valid runs
+        path.write_text(json.dumps(doc))
+        argv = ["bench", "--suite", str(path), "--agent", "grid", "--limit", "1", "--no-cache", "--no-progress"]
+        code, out, err = _run(argv, capsys)
+    _check(argv, code, out, err)

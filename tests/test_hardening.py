@@ -528,7 +528,7 @@ def test_item11_fit_refuses_more_rows_than_its_documented_limit_before_any_work(
     csv.write_text("f_p_hz,omega_b_deg_s\n" + "".join(f"{10 + 30 * i / n:.4f},100\n" for i in range(n)))
     assert main(["fit", str(csv), "--amp", "3"]) == 2
     err = capsys.readouterr().err
-    assert f"{n} rows; fit takes at most {MAX_FIT_ROWS}" in err
+    assert f"{n} rows; at most {MAX_FIT_ROWS} are read" in err
 
 
 def test_item19_make_agent_takes_the_specs_bench_takes():

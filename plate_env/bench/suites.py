@@ -21,6 +21,11 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from plate_env.core import checks
+from plate_env.core.files import read_json
+from plate_env.core.objects import ObjectSpec
+from plate_env.core.setup import SEED_RANGE
+
 #: The content hash of every shipped suite version. A new version is added here; an entry is never edited.
 PINNED = {
     "atlas-v0": "acd39c7b32a3c4fc8340b60656b99dc8a1668f5ae64b9570e818608ea70586cc",
@@ -108,20 +113,50 @@ def parse_suite(content: dict, where: str = "suite") -> Suite:
                                                                  for b in budgets)
             or sorted(set(budgets)) != budgets):
         raise ValueError(f"{where}: budgets_s {budgets!r} must be increasing positive simulated seconds")
-    env_kwargs = content["env_kwargs"]
-    if not isinstance(env_kwargs, dict) or "physics" not in env_kwargs or "max_sim_s" in env_kwargs:
-        raise ValueError(f"{where}: env_kwargs must name the physics and leave max_sim_s to budgets_s")
-    objects = []
-    for i, o in enumerate(content["objects"]):
-        if not isinstance(o, dict) or sorted(o) != sorted(OBJECT_KEYS):
-            raise ValueError(f"{where}: objects[{i}] must have exactly the keys {sorted(OBJECT_KEYS)}")
-        objects.append(SuiteObject(omega_n=math.pi * float(o["omega_n_pi"]), alpha=math.radians(float(o["alpha_deg"])),
-                                   mass=float(o["mass_g"]) * 1e-3, seed=int(o["seed"])))
-    if not objects:
-        raise ValueError(f"{where}: a suite needs at least one object")
-    return Suite(name=name, description=str(content["description"]), env_kwargs=_tuple_values(env_kwargs),
+    env_kwargs = _env_kwargs(content["env_kwargs"], where)
+    objects = content["objects"]
+    if not isinstance(objects, list) or not objects:
+        raise ValueError(f"{where}: objects must be a list of at least one object, got {type(objects).__name__} "
+                         f"{str(objects)[:40]!r}")
+    if not isinstance(content["description"], str) or not isinstance(content["cost_model"], dict):
+        raise ValueError(f"{where}: description must be a string and cost_model a dict, got "
+                         f"{type(content['description']).__name__} and {type(content['cost_model']).__name__}")
+    return Suite(name=name, description=content["description"], env_kwargs=_tuple_values(env_kwargs),
                  budgets_s=tuple(float(b) for b in budgets), cost_model=dict(content["cost_model"]),
-                 objects=tuple(objects), sha256=content_hash(content))
+                 objects=tuple(_object(o, f"{where}: objects[{i}]") for i, o in enumerate(objects)),
+                 sha256=content_hash(content))
+
+
+def _env_kwargs(kw: object, where: str) -> dict:
+    """A suite's ``env_kwargs``: a dict naming the physics, with PlateRotation-v0's constructor arguments only
+    (their values are the env's to check) and without ``max_sim_s`` (the budgets' job); ``physics_options`` a dict."""
+    import inspect
+
+    from plate_env.env.rotation import PlateRotationEnv
+
+    if not isinstance(kw, dict) or "physics" not in kw or "max_sim_s" in kw:
+        raise ValueError(f"{where}: env_kwargs must name the physics and leave max_sim_s to budgets_s")
+    allowed = [k for k in inspect.signature(PlateRotationEnv).parameters if k != "max_sim_s"]
+    unknown = sorted(k for k in kw if k not in allowed)
+    if unknown:
+        raise ValueError(f"{where}: env_kwargs {unknown} are not PlateRotation-v0 arguments; allowed: {allowed}")
+    if kw.get("physics_options") is not None and not isinstance(kw["physics_options"], dict):
+        raise ValueError(f"{where}: env_kwargs physics_options = {kw['physics_options']!r} must be a dict")
+    return kw
+
+
+def _object(o: object, where: str) -> SuiteObject:
+    """One object of a suite, its values checked: finite numbers inside :class:`ObjectSpec`'s ranges, a seed an
+    integer in :data:`SEED_RANGE` (1.7 or "7" is refused, not rounded or converted)."""
+    if not isinstance(o, dict) or sorted(o) != sorted(OBJECT_KEYS):
+        raise ValueError(f"{where} must have exactly the keys {sorted(OBJECT_KEYS)}")
+    try:
+        omega_pi, alpha_deg, mass_g = (checks.real(k, o[k]) for k in OBJECT_KEYS[:3])
+        seed = checks.integer("seed", o["seed"], *SEED_RANGE)
+        obj = ObjectSpec(omega_n=math.pi * omega_pi, alpha=math.radians(alpha_deg), mass=mass_g * 1e-3)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+    return SuiteObject(omega_n=obj.omega_n, alpha=obj.alpha, mass=obj.mass, seed=seed)
 
 
 def check_pinned(suite: Suite, pinned: dict[str, str] | None = None) -> Suite:
@@ -152,10 +187,7 @@ def load_suite_file(path: str | Path, pinned: dict[str, str] | None = None) -> S
     """A suite from a JSON file (its stem must be its name), checked against its pin: a shipped suite's name always
     has one; a suite of your own under a new name loads unpinned (its hash is in every result)."""
     path = Path(path)
-    try:
-        content = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ValueError(f"suite file {str(path)!r}: {exc}") from None
+    content = read_json(path, "suite file", strict=True)
     suite = parse_suite(content, where=f"suite file {path.name}")
     if path.stem != suite.name:
         raise ValueError(f"suite file {path.name}: its name is {suite.name!r}; the file must be {suite.name}.json")

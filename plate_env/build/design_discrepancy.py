@@ -21,6 +21,8 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
+from plate_env.core.files import read_json
+
 #: The forward model the within stage's episodes were estimated with (its point-mass model).
 FORWARD = "tilelink/pointmass"
 #: Decimals the shipped scale keeps (0.009925 -> 0.0099).
@@ -57,10 +59,9 @@ def build_design_discrepancy(within: str | Path, out: str | Path, record: dict) 
     """Write the design discrepancy from the within stage's result file to ``out`` and the build record to ``out``
     + ``.provenance.json``; returns the content. Nothing is written when the input is missing or bad."""
     try:
-        numbers = json.loads(Path(within).read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ValueError(f"within results {str(within)!r}: {exc} (written by python experiments/forward_models.py "
-                         "within --episodes 100)") from None
+        numbers = read_json(within, "within results")
+    except ValueError as exc:
+        raise ValueError(f"{exc} (written by python experiments/forward_models.py within --episodes 100)") from None
     content = design_discrepancy(numbers)
     Path(out).write_text(json.dumps(content, indent=1) + "\n")
     record = {**record, "artifact": "design-discrepancy", "inputs": {"within": str(within)}}

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 
+from plate_env.core.files import read_json
 from plate_env.identify.inference import fit_discrepancy
 from plate_env.surrogate.atlas import load_atlas_file
 
@@ -102,10 +103,10 @@ def registry(within: dict, lomo: dict, faithful: dict) -> dict:
 
 def _read(path: str | Path, stage: str) -> dict:
     try:
-        return json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as exc:
+        return read_json(path, f"{stage} results")
+    except ValueError as exc:
         script = "faithful_forward.py" if stage == "faithful" else f"forward_models.py {stage}"
-        raise ValueError(f"{stage} results {str(path)!r}: {exc} (written by python experiments/{script})") from None
+        raise ValueError(f"{exc} (written by python experiments/{script})") from None
 
 
 def build_forward_models(within: str | Path, lomo: str | Path, faithful: str | Path, out: str | Path,

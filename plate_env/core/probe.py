@@ -61,7 +61,7 @@ MAX_PROBE_S = 1200.0
 #: Most time steps one probe may take (a larger dt or shorter windows beyond): ~20 s of wall time a point-mass
 #: probe, minutes a rigid one; dt = 1e-9 s would ask 1.7e9 steps of the default probe and run for hours.
 MAX_PROBE_STEPS = 10_000_000
-#: Allowed settle and measurement windows of a probe, s.
+#: Allowed settle and measurement windows of a probe, s (the measurement window open at 0).
 WINDOW_RANGE_S = (0.0, 600.0)
 #: Default placement error (std per axis) of a repeated probe, m.
 PLACEMENT_STD_M = 2e-4
@@ -90,8 +90,11 @@ class ProbeSpec:
     def __post_init__(self) -> None:
         lo, hi = WINDOW_RANGE_S
         for label, value in (("settle_s", self.settle_s), ("measure_s", self.measure_s)):
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
-                raise ValueError(f"ProbeSpec {label} = {value!r} is outside the allowed range [{lo:g}, {hi:g}] s")
+            opened = label == "measure_s"  # a window of 0 s measures nothing (it was measured as 2 periods)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and (lo < value if opened else
+                                                                                   lo <= value) and value <= hi):
+                raise ValueError(f"ProbeSpec {label} = {value!r} is outside the allowed range "
+                                 f"{'(' if opened else '['}{lo:g}, {hi:g}] s")
         if not (self.motion.freq_hz >= MIN_PROBE_FREQ_HZ):
             raise ValueError(f"a probe needs a plate frequency f_p >= {MIN_PROBE_FREQ_HZ} Hz (whole periods are "
                              f"measured), got {self.motion.freq_hz!r}")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from plate_env.core.files import read_text
 from plate_env.core.probe import ProbeResult
 
 
@@ -101,16 +102,17 @@ def write_lab_csv(table: ProbeTable, path: str | Path) -> None:
                         int(bool(un))))
 
 
-def read_lab_csv(path: str | Path, a_p_deg: float | None = None) -> ProbeTable:
+def read_lab_csv(path: str | Path, a_p_deg: float | None = None, max_rows: int | None = None) -> ProbeTable:
     """Read a lab sweep: columns ``f_p_hz``, ``omega_b_deg_s``, optional ``stderr_deg_s``, ``a_p_deg``, ``unstable``.
 
-    ``a_p_deg`` (the ``--amp`` option) applies to rows without their own amplitude column. Amplitudes are
+    ``a_p_deg`` (the ``--amp`` option) applies to rows without their own amplitude column; with the column, both
+    must agree on every row (a row the column says is at another amplitude is refused). Amplitudes are
     magnitudes, 0 < A_p <= 45 deg (``omega_b_deg_s`` sign-normalised: positive when the disc turns the way
     sign(A_p B_p) says). UTF-8 with or without a byte-order mark (Excel's "CSV UTF-8"). Raises CsvError naming the
-    line and column of the first bad value.
+    line and column of the first bad value; ``max_rows``: refused past that many rows, before any is parsed.
     """
     check_amp_option(a_p_deg)
-    header, rows = read_csv_rows(path)
+    header, rows = read_csv_rows(path, max_rows)
     return sweep_table(path, header, rows, a_p_deg)
 
 
@@ -122,15 +124,24 @@ def check_amp_option(a_p_deg: float | None) -> None:
                        f"of A_p)")
 
 
-def read_csv_rows(path: str | Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
+def read_csv_rows(path: str | Path, max_rows: int | None = None) -> tuple[list[str], list[tuple[int, list[str]]]]:
     """The header (stripped) and the data rows of a CSV, each with its line number as the messages count lines
-    (blank and ``#`` comment lines left out). CsvError for an unreadable or empty file."""
-    path = Path(path)
+    (blank and ``#`` comment lines left out). CsvError for an unreadable or empty file, or one of more than
+    ``max_rows`` data rows (refused before a cell is parsed)."""
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CsvError(f"{path}: cannot read: {exc}") from None
-    rows = list(csv.reader(line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")))
+        text = read_text(path, "CSV", encoding="utf-8-sig")
+    except ValueError as exc:
+        raise CsvError(str(exc)) from None
+    lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
+    if max_rows is not None and len(lines) - 1 > max_rows:
+        raise CsvError(f"{path}: {len(lines) - 1} rows; at most {max_rows} are read (the most a sweep makes: the "
+                       "predictive check replicates every row 4000 times, and the posterior's time grows with the "
+                       "distinct rows); average repeated frequencies or split the file")
+    try:
+        rows = list(csv.reader(lines))
+    except csv.Error as exc:  # e.g. a cell past the csv module's field limit: no lab sweep has one
+        raise CsvError(f"{path}: not readable as CSV: {exc} (a cell holds at most {csv.field_size_limit()} "
+                       "characters)") from None
     if not rows:
         raise CsvError(f"{path}: empty file; expected a header with columns {', '.join(REQUIRED)}")
     return [h.strip() for h in rows[0]], list(enumerate(rows[1:], start=2))
@@ -175,6 +186,9 @@ def sweep_table(path: str | Path, header: list[str], rows: Sequence[tuple[int, l
             if not (math.isfinite(value) and limits[0] <= value <= limits[1]) or (open_lo and value == 0):
                 raise CsvError(f"{path}: line {lineno}, column {h}: {cell!r} is outside the allowed range "
                                f"{'(' if open_lo else '['}{limits[0]:g}, {limits[1]:g}]")
+            if h == "a_p_deg" and a_p_deg is not None and value != a_p_deg:  # neither silently wins
+                raise CsvError(f"{path}: line {lineno}, column a_p_deg: {cell!r} deg, but --amp {a_p_deg:g} deg was "
+                               "given: the column holds each row's amplitude; drop --amp or correct the file")
             cols[h].append(value)
     n = len(rows)
     if n == 0:

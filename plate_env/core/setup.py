@@ -36,6 +36,9 @@ KNOWN_B_P_RANGE_M = (1e-4, B_P_RANGE_M[1])
 #: Allowed probe budget of an episode (PlateRotation-v0's ``max_probes``, ``identify --max-probes``; closed). Its upper
 #: end is the registered env spec's ``max_episode_steps``: a bound the env never reaches before it terminates itself.
 MAX_PROBES_RANGE = (1, 500)
+#: Seeds of an episode (the env, the agents, a suite's objects, ``identify --seed``): numpy's SeedSequence takes
+#: non-negative integers; closed.
+SEED_RANGE = (0, 2 ** 63 - 1)
 
 
 @dataclass(frozen=True)
@@ -75,4 +78,4 @@ def in_range(value: object, lo: float, hi: float) -> bool:
 
 
 __all__ = ["AMP_RANGE_RAD", "B_P_RANGE_M", "DIAMETER_RANGE_M", "FREQ_RANGE_HZ", "KNOWN_B_P_RANGE_M", "MASS_RANGE_KG",
-           "PAPER_SETUP", "PaperSetup", "in_range"]
+           "MAX_PROBES_RANGE", "PAPER_SETUP", "SEED_RANGE", "PaperSetup", "in_range"]

@@ -20,17 +20,29 @@ Subclassing :class:`Agent` is optional (:func:`check_agent` checks the duck type
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
 
+from plate_env.core import checks
+from plate_env.core.probe import WINDOW_RANGE_S
 from plate_env.core.probe_table import ProbeTable
+from plate_env.core.setup import AMP_RANGE_RAD
 from plate_env.identify.api import METHODS
 from plate_env.surrogate.conditioning import KnownInputs
 
 #: The estimators an agent may name as its ``method``.
 AGENT_METHODS = METHODS
+
+
+def probe_options(a_p_deg: object, measure_s: object) -> tuple[float, float]:
+    """An agent's fixed probe amplitude (deg, within +-45) and window (s, in (0, 600]) checked in its constructor:
+    ValueError naming the option and its range (a string or NaN from ``name:key=value`` never reaches a probe)."""
+    amp = math.degrees(AMP_RANGE_RAD[1])
+    return (checks.real("a_p_deg", a_p_deg, -amp, amp, unit="deg"),
+            checks.real("measure_s", measure_s, *WINDOW_RANGE_S, open_lo=True, unit="s"))
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from plate_env.core.files import read_json
+
 PAPER_COEFFICIENTS_PI = {3.0: (5.30, -121.62), 12.0: (5.65, -64.51)}
 DATA_FILE = "calibration.json"
 
@@ -198,7 +200,7 @@ def load_calibrations(path: str | Path | None = None) -> dict[str, Calibration]:
             return {}
         text = ref.read_text()
     else:
-        text = Path(path).read_text()
+        return {k: Calibration.from_json(v) for k, v in read_json(path, "Eq. (10) calibrations").items()}
     return {k: Calibration.from_json(v) for k, v in json.loads(text).items()}
 
 

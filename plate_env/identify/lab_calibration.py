@@ -37,6 +37,7 @@ import numpy as np
 from scipy.signal import fftconvolve
 
 from plate_env.core.probe_table import ProbeTable
+from plate_env.core.setup import in_range
 from plate_env.identify.forward import ForwardModel
 
 #: The offset grid (log omega_n): a map may move a member's reading by up to a factor e^2.5 either way.
@@ -49,6 +50,11 @@ SLOPE_GRID = np.round(np.geomspace(0.25, 4.0, 13), 6)
 SLOPE_MIN_REFS = 3
 #: The scatter grid (sd of log omega_n).
 SIGMA_GRID = np.round(np.geomspace(0.02, 1.0, 16), 6)
+#: The ranges a posterior's values lie in (the grids' ends; log omega_n of 0.01-1e4 rad/s, ObjectSpec's top).
+OFFSET_RANGE = (float(OFFSET_GRID[0]), float(OFFSET_GRID[-1]))
+SLOPE_RANGE = (float(SLOPE_GRID[0]), float(SLOPE_GRID[-1]))
+SIGMA_RANGE = (float(SIGMA_GRID[0]), float(SIGMA_GRID[-1]))
+LOG_OMEGA_RANGE = (math.log(0.01), math.log(1e4))
 #: Smallest usable reading weight: a member that describes none of a sweep's probes has no reading.
 _TINY = 1e-300
 
@@ -177,9 +183,28 @@ class LabPosterior:
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False, hash=False)
 
     def __post_init__(self) -> None:
+        """Every value checked against what :func:`fit_lab` can produce (a hand-edited file's 999th member or
+        negative scatter is refused here, naming the field and the allowed range, before any array is sized)."""
         n = len(self.weight)
         if not n or any(len(x) != n for x in (self.member, self.a, self.b, self.sigma)):
             raise ValueError("LabPosterior: member, a, b, sigma and weight must have the same non-zero length")
+        n_m = len(self.members)
+        bad = [m for m in self.member if isinstance(m, bool) or not isinstance(m, int) or not 0 <= m < n_m]
+        if bad:
+            raise ValueError(f"LabPosterior member index {bad[0]!r} is outside the allowed range [0, {n_m - 1}] (one "
+                             f"of the {n_m} members)")
+        for name, values, (lo, hi) in (("a", self.a, OFFSET_RANGE), ("b", self.b, SLOPE_RANGE),
+                                       ("sigma", self.sigma, SIGMA_RANGE), ("weight", self.weight, (0.0, 1.0)),
+                                       ("pivot", (self.pivot,), LOG_OMEGA_RANGE),
+                                       ("ref_range", self.ref_range, LOG_OMEGA_RANGE)):
+            bad = [v for v in values if not in_range(v, lo, hi)]
+            if bad:
+                raise ValueError(f"LabPosterior {name} = {bad[0]!r} is outside the allowed range [{lo:g}, {hi:g}]")
+        if len(self.ref_range) != 2 or not self.ref_range[0] <= self.pivot <= self.ref_range[1]:
+            raise ValueError(f"LabPosterior ref_range {self.ref_range!r} must be a pair (lo, hi) holding the pivot "
+                             f"{self.pivot!r} (the references' mean log omega_n)")
+        if isinstance(self.n_refs, bool) or not isinstance(self.n_refs, int) or self.n_refs < 1:
+            raise ValueError(f"LabPosterior n_refs = {self.n_refs!r} must be an integer >= 1")
         if not math.isclose(sum(self.weight), 1.0, rel_tol=1e-6):
             raise ValueError(f"LabPosterior weights sum to {sum(self.weight)!r}, not 1")
 

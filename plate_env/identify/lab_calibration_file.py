@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from plate_env.core import checks
+from plate_env.core.files import read_json
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify.estimate import Estimate
 from plate_env.identify.forward import ForwardModel, Member, _conditioned
@@ -110,10 +112,11 @@ class LabCalibration:
             raise CalibrationError(f"{where}: content hash does not match (the file was edited by hand or damaged): "
                                    "run plate-env calibrate again")
         k, p = d["known"], d["posterior"]
+        a_p_deg = checks.real("known.a_p_deg", k["a_p_deg"], 0.0, 45.0, open_lo=True, unit="deg")
         post = LabPosterior(tuple("+".join(m) for m in d["members"]), float(p["pivot"]), tuple(p["member"]),
                             tuple(p["a"]), tuple(p["b"]), tuple(p["sigma"]), tuple(p["weight"]), int(p["n_refs"]),
                             tuple(p["ref_range"]))
-        return cls(forward=d["forward"], members=tuple(tuple(m) for m in d["members"]), a_p_deg=float(k["a_p_deg"]),
+        return cls(forward=d["forward"], members=tuple(tuple(m) for m in d["members"]), a_p_deg=a_p_deg,
                    known=KnownInputs(b_p=k["b_p_mm"] * 1e-3, mass=k["mass_g"] * 1e-3,
                                      diameter=k["diameter_mm"] * 1e-3),
                    references=tuple((r["object"], float(r["omega_n_rad_s"]), int(r["n_probes"]))
@@ -183,6 +186,19 @@ def check_references(objects: Sequence[str], omega_n: Sequence[float]) -> None:
                                    f"{lo:.1f}-{hi:.1f} rad/s ({REF_RANGE_PI[0]:g}pi-{REF_RANGE_PI[1]:g}pi)")
 
 
+def check_distinct(objects: Sequence[str], omega_n: Sequence[float], tables: Sequence[ProbeTable]) -> None:
+    """CalibrationError when two references are one disc under two names: the same known omega_n and the same
+    probes (the same rows in any order). Counted twice, one disc would pass for K = 2 independent references and
+    narrow the intervals by what it does not know."""
+    seen: dict = {}
+    for o, w, t in zip(objects, omega_n, tables, strict=True):
+        key = (float(w), tuple(sorted(tuple(sorted(r.items())) for r in t.to_rows())))
+        if key in seen:
+            raise CalibrationError(f"references {seen[key]!r} and {o!r} are the same disc (omega_n_rad_s {w:g} and "
+                                   f"identical rows): list each reference disc once")
+        seen[key] = o
+
+
 def calibrate(tables: Sequence[ProbeTable], omega_n: Sequence[float], objects: Sequence[str], a_p_deg: float,
               known: KnownInputs, forward: str = "lab", prior: ScatterPrior = SCATTER_PRIOR) -> LabCalibration:
     """Fit a lab calibration from reference sweeps of discs of known omega_n (rad/s), all at amplitude
@@ -190,6 +206,7 @@ def calibrate(tables: Sequence[ProbeTable], omega_n: Sequence[float], objects: S
     check_references(objects, omega_n)
     if len(set(objects)) != len(objects):
         raise CalibrationError(f"reference names repeat: {sorted(objects)}; one sweep table per disc")
+    check_distinct(objects, omega_n, tables)
     for o, t in zip(objects, tables, strict=True):
         amps = sorted({round(float(a), 6) for a in t.a_p_deg})
         if amps != [round(float(a_p_deg), 6)]:
@@ -254,30 +271,33 @@ def load(path: str | Path) -> LabCalibration:
 
         path = Path(str(resources.files("plate_env") / "data" / PAPER_FILE))
     try:
-        d = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise CalibrationError(f"{path}: cannot read a calibration: {exc}") from None
+        d = read_json(path, "calibration")
+    except ValueError as exc:
+        raise CalibrationError(str(exc)) from None
     try:
         return LabCalibration.from_json(d, str(path))
-    except (KeyError, TypeError) as exc:
+    except CalibrationError:
+        raise
+    except (KeyError, TypeError, ValueError) as exc:  # a field missing, of the wrong type or outside its range
         raise CalibrationError(f"{path}: malformed calibration ({exc})") from None
 
 
 REF_COLUMNS = ("object", "omega_n_rad_s", "mass_g")
 
 
-def read_reference_csv(path: str | Path, a_p_deg: float | None = None) -> tuple[list[str], list[float], list,
-                                                                                 list[float | None]]:
+def read_reference_csv(path: str | Path, a_p_deg: float | None = None, max_rows: int | None = None
+                       ) -> tuple[list[str], list[float], list, list[float | None]]:
     """A references file: the ``fit`` columns plus ``object`` (a reference disc's name) and ``omega_n_rad_s`` (its
     known omega_n), optionally ``mass_g`` per object. Returns (objects, omega_n, tables, masses in g or None), in
     the order the discs first appear. CalibrationError naming the line for a missing column or an omega_n that
     differs between one disc's rows; the sweep columns are checked by
-    :func:`plate_env.core.probe_table.sweep_table` with the file's own line numbers."""
+    :func:`plate_env.core.probe_table.sweep_table` with the file's own line numbers. ``max_rows``: the file (all
+    discs together) is refused past that many rows, before any is parsed."""
     from plate_env.core.probe_table import CsvError, check_amp_option, read_csv_rows, sweep_table
 
     try:
         check_amp_option(a_p_deg)
-        header, rows = read_csv_rows(path)
+        header, rows = read_csv_rows(path, max_rows)
     except CsvError as exc:
         raise CalibrationError(str(exc)) from None
     for col in ("object", "omega_n_rad_s"):
@@ -299,6 +319,9 @@ def read_reference_csv(path: str | Path, a_p_deg: float | None = None) -> tuple[
             m = float(cells["mass_g"]) if cells.get("mass_g") else None
         except ValueError:
             raise CalibrationError(f"{path}: line {lineno}: omega_n_rad_s / mass_g must be numbers") from None
+        if not (math.isfinite(w) and (m is None or math.isfinite(m))):  # NaN != NaN: refused here, by name
+            raise CalibrationError(f"{path}: line {lineno}: omega_n_rad_s = {cells['omega_n_rad_s']!r}, mass_g = "
+                                   f"{cells.get('mass_g')!r}: both must be finite numbers")
         if name in omega and (omega[name] != w or mass[name] != m):
             raise CalibrationError(f"{path}: line {lineno}: {name!r} has another omega_n_rad_s or mass_g than on its "
                                    "first row")

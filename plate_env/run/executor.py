@@ -348,8 +348,9 @@ def default_local(backend: BackendSpec) -> str:
 
 
 def check_executor_name(name: str | None) -> None:
-    """Refuse an executor name :func:`make_executor` would not accept (ValueError naming it), starting nothing."""
-    name = name or "local"
+    """Refuse an executor name :func:`make_executor` would not accept (ValueError naming it), starting nothing.
+    None is the default (``local``); an empty name is refused, not read as the default."""
+    name = "local" if name is None else name
     if name in EXECUTOR_NAMES or name.startswith("ray://"):
         return
     if name.startswith("pool:"):
@@ -380,7 +381,7 @@ def make_executor(name: str | None = "local", backend: BackendSpec | None = None
     """An executor by name: ``local`` (default, by backend), ``inprocess``, ``pool[:N]``, ``ray`` or
     ``ray://HOST:PORT``; ``kw`` go to its constructor. Refuses an unknown name before any work starts."""
     check_executor_name(name)
-    name = name or "local"
+    name = "local" if name is None else name
     if name == "local":
         name = default_local(backend) if backend is not None else "inprocess"
     if name == "inprocess":

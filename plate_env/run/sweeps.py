@@ -13,6 +13,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
+from plate_env.core.files import check_regular
 from plate_env.core.probe import SLIP_LIMIT_M, ProbeResult, ProbeSpec
 from plate_env.physics.interface import Physics
 from plate_env.run.executor import (
@@ -99,11 +100,7 @@ def _from_record(spec: ProbeSpec, d: dict) -> ProbeResult:
 def check_cache_file(path: Path, option: str = "--cache") -> Path:
     """``path`` if it is a regular file or does not exist yet, else ValueError naming it: a device (``/dev/zero``
     reads forever), a FIFO (blocks) or a directory is never a cache."""
-    path = Path(path)
-    if path.exists() and not path.is_file():
-        raise ValueError(f"{option} {str(path)!r} is not a regular file (a directory, device or FIFO); give the path "
-                         "of a JSON-lines file (created if missing)")
-    return path
+    return check_regular(path, option, missing_ok=True)
 
 
 def numbered_records(path: Path):
