@@ -61,7 +61,7 @@ def test_example_agent_through_the_command_line(capsys):
 
 
 @pytest.mark.parametrize("spec, message", [
-    ("examples/nope.py:A", "does not exist"),
+    ("examples/nope.py:A", "no such file"),
     (f"{EXAMPLE}:Missing", "no class 'Missing'.*SweepAgent"),
     (f"{EXAMPLE}", "file.py:ClassName"),
     ("grid:n", "key=value"),
