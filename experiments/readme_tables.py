@@ -223,6 +223,34 @@ def _paired(suite: str) -> str:
     return _table([f"agent - `{d['leader']}` (points)", *(f"@ {b:g} s" for b in budgets)], rows)
 
 
+def misspec_matrix() -> str:
+    """The misspecification track (issue 33): each agent and the forward model its estimate went through (rows)
+    against the physics that answered the probes (columns), at the largest budget: median error [95 % CI], p90,
+    95 % coverage, no-estimate share (experiments/results/misspec-v0.json, one `plate-env bench` run)."""
+    d = _load("misspec-v0.json")
+    physics = {"misspec_pointmass-v0": "point mass", "misspec_faithful-v0": "rigid tiles (faithful)",
+               "misspec_pybullet-v0": "PyBullet sheet"}
+    suites = [s["suite"] for s in d["suites"]]
+    cell = {(s["suite"], a["label"]): a for s in d["suites"] for a in s["agents"]}
+    labels = list(dict.fromkeys(a["label"] for s in d["suites"] for a in s["agents"]))
+    order = {lab: i for i, lab in enumerate(labels)}
+    labels.sort(key=lambda lab: (lab.split(":")[0].split("path=")[0], order[lab]))
+    rows = []
+    for label in labels:
+        cells = [f"`{label}`"]
+        for suite in suites:
+            a = cell.get((suite, label))
+            if a is None:
+                cells.append("-")
+                continue
+            b = max(a["budgets"], key=lambda x: x["budget_s"])
+            cells.append(f"{_stat(b['median_error'], 100, 1)} · {_stat(b['p90_error'], 100, 0, interval=False)} · "
+                         f"{_stat(b['coverage95'], 100, 0, interval=False)} · "
+                         f"{_stat(b['no_estimate'], 100, 0, interval=False)}")
+        rows.append(cells)
+    return _table(["agent (estimate through)", *(f"{physics.get(s, s)} (`{s}`)" for s in suites)], rows)
+
+
 #: The routes of experiments/results/rigid_fast.json shown in docs/rigid_fast.md, with the model each one is.
 RIGID_ROUTES = {"small_steps_690d019": "`rigid_fast` (shipped)",
                 "small_steps": "`rigid_fast` on the faster kernel (15a37a8, not merged)",
@@ -299,6 +327,11 @@ TABLES: dict[str, tuple[str, Callable[[], str]]] = {
     "leaderboard_tilelink-v0_full": ("leaderboard_tilelink-v0.json", lambda: _leaderboard("tilelink-v0", True)),
     "leaderboard_tilelink-v0_paired": ("leaderboard_tilelink-v0.json", lambda: _paired("tilelink-v0")),
     "leaderboard_atlas-v0": ("leaderboard_atlas-v0.json", lambda: _leaderboard("atlas-v0", False)),
+    "leaderboard_faithful-v0": ("leaderboard_faithful-v0.json", lambda: _leaderboard("faithful-v0", False)),
+    "leaderboard_faithful-v0_paired": ("leaderboard_faithful-v0.json", lambda: _paired("faithful-v0")),
+    "leaderboard_rigid-v0": ("leaderboard_rigid-v0.json", lambda: _leaderboard("rigid-v0", True)),
+    "leaderboard_rigid-v0_paired": ("leaderboard_rigid-v0.json", lambda: _paired("rigid-v0")),
+    "misspec_matrix": ("misspec-v0.json", misspec_matrix),
     "rigid_fast_routes": ("rigid_fast.json", rigid_fast_routes),
     "validate_paper_counts": ("validate_paper.json", validate_paper_counts),
     "bench_models": ("bench_models.json", bench_models),
