@@ -86,7 +86,7 @@ def test_import_plate_env_registers_every_id_whatever_probes_gymnasium_first():
                 "print(all(i in g.registry and 'plate_env/' + i in g.registry for i in ids), len(ids))")
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
         assert out.returncode == 0, (name, out.stderr)
-        assert out.stdout.split() == ["True", "3"], (name, out.stdout)
+        assert out.stdout.split() == ["True", "4"], (name, out.stdout)
     # without plate_env, the probe and import alone register nothing (the assertion above can fail)
     out = subprocess.run([sys.executable, "-c", "import gymnasium as g; print('PlateRotation-v1' in g.registry)"],
                          capture_output=True, text=True, timeout=120)

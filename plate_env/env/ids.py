@@ -17,8 +17,10 @@ FAITHFUL_IDS = {
                               "amplitudes_deg": (3.0, 6.0)},
 }
 
-#: Every registered id -> its ``gym.make`` keyword arguments (each also under the ``plate_env/`` namespace).
-ENV_IDS = {"PlateRotation-v0": {}, **FAITHFUL_IDS}
+#: Every registered id -> its ``gym.make`` keyword arguments (each also under the ``plate_env/`` namespace):
+#: ``PlateRotationAtlas-v0`` is v0's training twin, the point mass's atlas (issue 41: an id alone must not train on
+#: the live physics).
+ENV_IDS = {"PlateRotation-v0": {}, "PlateRotationAtlas-v0": {"physics": "atlas"}, **FAITHFUL_IDS}
 
 
 def register() -> None:

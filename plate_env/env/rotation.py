@@ -172,6 +172,14 @@ class PlateRotationEnv(gym.Env):
       (``physics_options={"model": "rigid_fast"}``) instead of the point mass, at the amplitudes its atlas answers,
       ``amplitudes_deg=(3.0, 6.0)`` (12 deg folds soft discs); the estimate reads the forward model
       ``tilelink/rigid_fast``. v0 and its numbers are unchanged. Any argument overrides these defaults.
+
+    ## Ids: training and evaluation
+
+    ``PlateRotation-v0`` and ``PlateRotation-v1`` run live physics (evaluation: milliseconds to seconds a probe);
+    train on their atlas twins, ``PlateRotationAtlas-v0`` (the point mass's atlas, ``physics="atlas"``) and
+    ``PlateRotationAtlas-v1`` (the rigid tiles' atlas), which answer the same probes in microseconds. A client that
+    takes only an id (CleanRL's ``--env-id``, rl-zoo3 without a conf file, torchrl) should be given an atlas id for
+    training (``experiments/results/env_ids_speed.md``: steps per second of each).
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
