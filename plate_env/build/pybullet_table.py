@@ -15,6 +15,8 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 
+from plate_env.core.files import write_atomic
+
 
 def build_pybullet_table(out: str | Path, record: dict) -> dict:
     """Measure the table for the default sheet and the paper's cheese, write it to ``out`` and the build record
@@ -30,7 +32,7 @@ def build_pybullet_table(out: str | Path, record: dict) -> dict:
     if out.is_dir():
         raise ValueError(f"--out {str(out)!r} is a directory: give the file to write")
     table = measure_table(SheetConfig())
-    out.write_text(table_text(table))
+    write_atomic(out, table_text(table), "--out")
     record = {**record, "artifact": "pybullet-table",
               "inputs": "measure_table(SheetConfig()) for ObjectSpec() (13.6 g, 80 mm), "
                         "plate_env.physics.pybullet_sheet.calibrate",

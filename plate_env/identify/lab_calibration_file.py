@@ -254,7 +254,9 @@ def identify_calibrated(table: ProbeTable, cal: LabCalibration, known: KnownInpu
 
 
 def save(cal: LabCalibration, path: str | Path) -> None:
-    Path(path).write_text(json.dumps(cal.to_json(), indent=1) + "\n")
+    from plate_env.core.files import write_atomic
+
+    write_atomic(path, json.dumps(cal.to_json(), indent=1) + "\n", "the calibration")  # the old one kept on failure
 
 
 #: ``--calibration paper``: the paper's published numbers as the reference set (package data, written by
