@@ -150,11 +150,9 @@ def train_policy(out: str | Path, record: dict, *, algo: str = "ppo", hyperparam
     _check(seed, timesteps, eval_freq, eval_episodes, threads)
     hp_path = hyperparams_file(algo) if hyperparams is None else Path(hyperparams)
     hp = load_hyperparams(hp_path, env_id=env_id, algo=algo)
-    from plate_env.core.files import check_writable_file
-
     out = Path(out)
-    for target in (out, out.with_suffix(".npz"), out.with_suffix(".json")):  # before an hour of training (issue 37)
-        check_writable_file(target, "--out")
+    if not out.parent.is_dir():
+        raise ValueError(f"--out {str(out)!r}: the folder {str(out.parent)!r} does not exist")
     import gymnasium as gym
     import stable_baselines3 as sb3
     import torch

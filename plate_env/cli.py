@@ -19,7 +19,6 @@ import numpy as np
 
 from plate_env.build.commands import add_build_parser, run_build
 from plate_env.core import checks
-from plate_env.core.files import write_atomic
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import ObjectSpec, preset
 from plate_env.core.probe import MIN_PROBE_FREQ_HZ, WINDOW_RANGE_S
@@ -444,7 +443,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     else:
         print(text, flush=True)
     if markdown is not None:
-        write_atomic(markdown, text, "--markdown")
+        markdown.write_text(text)
     if plot is not None:
         from plate_env.plotting import plot_curves
 

@@ -148,12 +148,6 @@ def atlas_job(args: argparse.Namespace, record: dict):
                for k, v in _pairs(args.backend_option, "--backend-option").items()}
     select = {k: tuple(_number(x, f"--select {k}") for x in v.split(","))
               for k, v in _pairs(args.select, "--select").items()}
-    from plate_env.core.files import check_writable_dir, check_writable_file
-
-    check_writable_dir(args.cache_dir, "--cache-dir")  # the resumable cache, before any probe (issue 37 item 9)
-    for opt, value in (("--out", args.out), ("--report", args.report)):
-        if value:
-            check_writable_file(value, opt)
     job = AtlasJob(physics=args.physics, model=args.model, grid_name=args.grid, repeats=args.repeats, seed=args.seed,
                    held_out=args.held_out, nuisance=nuisance, options=options, executor=args.executor,
                    chunk=args.chunk, name=args.name, out=args.out, cache_dir=args.cache_dir, report=args.report,

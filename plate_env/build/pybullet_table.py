@@ -15,8 +15,6 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 
-from plate_env.core.files import write_atomic
-
 
 def build_pybullet_table(out: str | Path, record: dict) -> dict:
     """Measure the table for the default sheet and the paper's cheese, write it to ``out`` and the build record
@@ -32,7 +30,7 @@ def build_pybullet_table(out: str | Path, record: dict) -> dict:
     if out.is_dir():
         raise ValueError(f"--out {str(out)!r} is a directory: give the file to write")
     table = measure_table(SheetConfig())
-    write_atomic(out, table_text(table), "--out")
+    out.write_text(table_text(table))
     record = {**record, "artifact": "pybullet-table",
               "inputs": "measure_table(SheetConfig()) for ObjectSpec() (13.6 g, 80 mm), "
                         "plate_env.physics.pybullet_sheet.calibrate",

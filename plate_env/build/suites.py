@@ -15,7 +15,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from plate_env.bench.suites import content_hash
-from plate_env.core.files import write_atomic
 from plate_env.core.objects import ObjectPrior
 from plate_env.core.setup import PAPER_SETUP
 from plate_env.env.ids import FAITHFUL_IDS
@@ -123,7 +122,7 @@ def build_suite(name: str, out: str | Path, record: dict) -> dict:
     name."""
     text = suite_text(name)
     out = Path(out)
-    write_atomic(out, text, "--out")
+    out.write_text(text)
     record = {**record, "artifact": "suite", "name": name, "sha256": content_hash(json.loads(text))}
     Path(f"{out}.provenance.json").write_text(json.dumps(record, indent=1) + "\n")
     return record

@@ -9,7 +9,6 @@ RecursionError). Every refusal is a ``ValueError`` naming the file and what it s
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import stat
@@ -93,64 +92,3 @@ def parse_json(text: str, where: str, strict: bool = False):
 def read_json(path: str | Path, what: str, strict: bool = False):
     """The JSON document of a regular file (:func:`read_text`, :func:`parse_json`)."""
     return parse_json(read_text(path, what), f"{what} {str(path)!r}", strict)
-
-
-def write_atomic(path: str | Path, data: str | bytes, what: str = "output") -> Path:
-    """Write ``data`` to ``path`` through a temporary file in the same folder, then rename it over ``path``
-    (:func:`os.replace`, atomic on one file system): a failed write (a full disk, Ctrl-C) leaves the old file as it
-    was and no partial one. ValueError naming ``what`` and the path when it cannot be written; nothing is left
-    behind."""
-    import tempfile
-
-    path = Path(path)
-    raw = data.encode() if isinstance(data, str) else data
-    fd, tmp = None, None
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent or ".")
-        with os.fdopen(fd, "wb") as fh:
-            fd = None
-            fh.write(raw)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        tmp = None
-    except OSError as exc:
-        raise ValueError(f"{what} {str(path)!r}: cannot be written ({exc.strerror or exc}); "
-                         f"{'the old file is unchanged' if path.exists() else 'nothing was written'}") from None
-    finally:
-        if fd is not None:
-            os.close(fd)
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-    return path
-
-
-def check_writable_file(path: str | Path, what: str) -> Path:
-    """``path`` if a file can be written there (an existing regular file or nothing yet, in a folder that exists and
-    is writable), else ValueError naming ``what`` and the path: checked before long work starts (issue 37 item 9)."""
-    path = Path(path)
-    kind = special_kind(path)
-    if kind is not None:
-        raise ValueError(f"{what} {str(path)!r} is {kind}: give a file to write")
-    parent = path.parent if str(path.parent) else Path(".")
-    if not parent.is_dir():
-        raise ValueError(f"{what} {str(path)!r}: the folder {str(parent)!r} does not exist")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"{what} {str(path)!r}: the folder {str(parent)!r} is not writable")
-    return path
-
-
-def check_writable_dir(path: str | Path, what: str) -> Path:
-    """``path`` if it is (or can be made as) a writable folder, else ValueError naming ``what`` and the path."""
-    path = Path(path)
-    kind = special_kind(path)
-    if kind is not None and kind != "a directory":
-        raise ValueError(f"{what} {str(path)!r} is {kind}, not a folder")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ValueError(f"{what} {str(path)!r}: cannot be made a folder ({exc.strerror or exc})") from None
-    if not os.access(path, os.W_OK | os.X_OK):
-        raise ValueError(f"{what} {str(path)!r}: the folder is not writable")
-    return path

@@ -254,9 +254,7 @@ def identify_calibrated(table: ProbeTable, cal: LabCalibration, known: KnownInpu
 
 
 def save(cal: LabCalibration, path: str | Path) -> None:
-    from plate_env.core.files import write_atomic
-
-    write_atomic(path, json.dumps(cal.to_json(), indent=1) + "\n", "the calibration")  # the old one kept on failure
+    Path(path).write_text(json.dumps(cal.to_json(), indent=1) + "\n")
 
 
 #: ``--calibration paper``: the paper's published numbers as the reference set (package data, written by
