@@ -340,7 +340,7 @@ def test_item14_a_pool_size_in_other_digits_is_refused_by_name():
 
 
 @pytest.mark.parametrize("argv, needle", [
-    (["--method", "lorentz", "--physics", "garbage"], "--physics garbage"),
+    (["--method", "lorentz", "--physics", "garbage"], "--physics 'garbage'"),
     (["--method", "lorentz", "--mass-g", "5"], "--mass-g applies to --method atlas only"),
     (["--method", "lorentz", "--forward", "lab"], "--forward applies to --method atlas only"),
     (["--method", "lorentz", "--bp", "2", "--diameter-mm", "60"], "--bp, --diameter-mm apply to --method atlas"),
