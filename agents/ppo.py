@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from plate_env.core.files import check_regular, read_json
+from plate_env.core.files import check_regular, read_json, write_atomic
 from plate_env.core.probe_table import ProbeTable
 from plate_env.env.codec import N_FEATURES, Codec, phys
 from plate_env.env.protocol import Agent, ProbeContext
@@ -67,9 +67,10 @@ def export_policy(model, zip_path: str | Path) -> Path:
         out[f"b{i}"] = sd[f"mlp_extractor.policy_net.{j}.bias"]
     n = len(layers)
     path = Path(zip_path).with_suffix(".npz")
-    np.savez(path, **out, n_hidden=np.array(n), w_out=sd["action_net.weight"], b_out=sd["action_net.bias"],
-             activation=np.array(type(policy.activation_fn()).__name__), zip_sha256=np.array(_sha256(zip_path)),
-             obs_dim=np.array(int(model.observation_space.shape[0])))
+    write_atomic(path, lambda tmp: np.savez(
+        tmp, **out, n_hidden=np.array(n), w_out=sd["action_net.weight"], b_out=sd["action_net.bias"],
+        activation=np.array(type(policy.activation_fn()).__name__), zip_sha256=np.array(_sha256(zip_path)),
+        obs_dim=np.array(int(model.observation_space.shape[0]))), "policy export")
     return path
 
 

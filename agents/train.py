@@ -32,7 +32,7 @@ from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 
-from plate_env.core.files import read_text
+from plate_env.core.files import read_text, write_atomic, write_text_atomic
 
 ENV_ID = "PlateRotation-v0"
 ALGOS = ("ppo", "a2c", "sac")
@@ -185,7 +185,7 @@ def train_policy(out: str | Path, record: dict, *, algo: str = "ppo", hyperparam
             best = Path(tmp) / "best_model.zip"
             if not best.exists():  # no evaluation (eval_freq 0, or too few steps): the last model
                 model.save(best)
-            shutil.copyfile(best, out)
+            write_atomic(out, lambda tmp: shutil.copyfile(best, tmp), "--out")
     finally:
         venv.close()
         if eval_env is not None:
@@ -210,7 +210,7 @@ def train_policy(out: str | Path, record: dict, *, algo: str = "ppo", hyperparam
                      "torch": torch.__version__, "gymnasium": gym.__version__},
         "model_bytes": out.stat().st_size,
     }
-    out.with_suffix(".json").write_text(json.dumps(meta, indent=2) + "\n")
+    write_text_atomic(out.with_suffix(".json"), json.dumps(meta, indent=2) + "\n", "--out")
     return meta
 
 

@@ -443,7 +443,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     else:
         print(text, flush=True)
     if markdown is not None:
-        markdown.write_text(text)
+        from plate_env.core.files import write_text_atomic
+
+        write_text_atomic(markdown, text, "--markdown")
     if plot is not None:
         from plate_env.plotting import plot_curves
 
@@ -878,8 +880,11 @@ def _cmd_build(args: argparse.Namespace) -> int:
     if args.artifact != "policy":
         return run_build(args, args.argv[1:])
     from plate_env.build.provenance import build_record
+    from plate_env.core.files import check_output
     from plate_env_agents.train import train_policy
 
+    for path in (Path(args.out), Path(args.out).with_suffix(".npz"), Path(args.out).with_suffix(".json")):
+        check_output(path, "--out")  # before the training (an hour at the default steps), not at its save
     meta = train_policy(args.out, build_record(args.argv[1:]), hyperparams=args.hyperparams, env_id=args.env_id,
                         seed=args.seed, timesteps=args.timesteps, eval_freq=args.eval_freq,
                         eval_episodes=args.eval_episodes, eval_seed=args.eval_seed, threads=args.threads)

@@ -29,9 +29,12 @@ def new_figure(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float] |
 
 
 def save_figure(fig: Figure, path: str | Path, dpi: int = 100) -> Path:
-    """Lay the figure out tightly and write it to ``path`` (format from the suffix); returns the path."""
+    """Lay the figure out tightly and write it to ``path`` (format from the suffix) all at once
+    (:func:`~plate_env.core.files.write_atomic`); returns the path."""
+    from plate_env.core.files import write_atomic
+
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
+    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi), "plot")
     return Path(path)
 
 

@@ -31,6 +31,7 @@ from plate_env.bench.reporting import median_p90
 from plate_env.build import eval_sets as bm
 from plate_env.build.atlas_grid import AtlasGrid, result_arrays, run_grid
 from plate_env.build.provenance import machine
+from plate_env.core.files import check_output, check_output_dir, write_text_atomic
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import ObjectSpec
 from plate_env.core.probe import PLACEMENT_STD_M, ProbeSpec
@@ -121,6 +122,10 @@ class AtlasJob:
     def grid_label(self) -> str:
         return self.grid_name or ("pybullet" if self.physics == "pybullet" else "tilelink")
 
+    def out_path(self, model: str) -> str:
+        """The atlas file this job writes (``model``: the name its atlas is filed under, :func:`make_backend`)."""
+        return self.out or (atlas_file(self.physics, model) if not self.name else f"atlas_{self.name}.npz")
+
     def n_held(self) -> int:
         return self.held_out if self.held_out is not None else (0 if self.physics == "pybullet" else 120)
 
@@ -145,6 +150,10 @@ def build_atlas(job: AtlasJob) -> tuple[Atlas, str, list[str]]:
         picks = None
     backend, model = make_backend(job.physics, job.model, job.nuisance, **job.options)
     tag = job.name or f"{job.physics}_{model}"
+    check_output_dir(job.cache_dir, "--cache-dir")  # before any probe: a build that cannot resume is refused
+    check_output(job.out_path(model), "--out")
+    if job.report:
+        check_output(job.report, "--report")
     physics = backend.build()  # read-only here: its settings for the provenance (the executor runs its own)
     executor = make_executor(job.executor, backend)
     t0 = time.perf_counter()
@@ -211,7 +220,7 @@ def _finish(job, grid, backend, physics, model, tag, res, executor, t0) -> tuple
         held_lines, sigma_model = _held_out(job, backend, atlas, grid, tag, n_held, executor)
         atlas = dataclasses.replace(atlas, provenance={**provenance, "sigma_model_deg_s": sigma_model,
                                                        "sigma_model_from": f"{n_held} live probes at held-out points"})
-    out = job.out or (atlas_file(job.physics, model) if not job.name else f"atlas_{job.name}.npz")
+    out = job.out_path(model)
     atlas.save(out)
     lines = [f"# Response atlas: {job.physics} / {model}", "",
              f"Grid `{job.grid_label()}`: {len(f)} frequencies ({_f_range(f)} Hz) x A_p {amps} deg x {len(ws)} "
@@ -229,7 +238,7 @@ def _finish(job, grid, backend, physics, model, tag, res, executor, t0) -> tuple
         lines += ["Held-out error: not scored in this build (for the PyBullet atlas: on the identification sweeps "
                   "of held-out objects, `experiments/evaluate_pybullet.py`)."]
     if job.report:
-        Path(job.report).write_text("\n".join(lines) + "\n")
+        write_text_atomic(job.report, "\n".join(lines) + "\n", "--report")
     return atlas, str(out), lines
 
 

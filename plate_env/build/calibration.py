@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from plate_env.core.files import write_text_atomic
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify.fitting import lorentzian
 
@@ -80,7 +81,7 @@ def build_calibration(name: str, out: str | Path, record: dict) -> dict:
     body = json.loads(Path(out).read_text())
     record = {**record, "artifact": f"calibration {name}", "content_sha256": body.get("content_sha256"),
               "inputs": "the paper's Eq. (10), Table 1 and half-widths at 3 deg (plate_env.build.calibration)"}
-    Path(f"{out}.provenance.json").write_text(json.dumps(record, indent=1) + "\n")
+    write_text_atomic(f"{out}.provenance.json", json.dumps(record, indent=1) + "\n", "build record")
     return body
 
 

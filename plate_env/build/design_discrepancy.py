@@ -21,7 +21,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from plate_env.core.files import read_json
+from plate_env.core.files import read_json, write_text_atomic
 
 #: The forward model the within stage's episodes were estimated with (its point-mass model).
 FORWARD = "tilelink/pointmass"
@@ -63,9 +63,9 @@ def build_design_discrepancy(within: str | Path, out: str | Path, record: dict) 
     except ValueError as exc:
         raise ValueError(f"{exc} (written by python experiments/forward_models.py within --episodes 100)") from None
     content = design_discrepancy(numbers)
-    Path(out).write_text(json.dumps(content, indent=1) + "\n")
+    write_text_atomic(out, json.dumps(content, indent=1) + "\n", "--out")
     record = {**record, "artifact": "design-discrepancy", "inputs": {"within": str(within)}}
-    Path(f"{out}.provenance.json").write_text(json.dumps(record, indent=1) + "\n")
+    write_text_atomic(f"{out}.provenance.json", json.dumps(record, indent=1) + "\n", "build record")
     return content
 
 

@@ -31,6 +31,7 @@ import numpy as np
 
 from plate_env.build import eval_sets as es_mod
 from plate_env.build.eval_sets import EvalSet
+from plate_env.core.files import write_text_atomic
 from plate_env.identify.calibration import Calibration, fit_calibration, save_calibrations
 from plate_env.run.executor import BackendSpec
 
@@ -189,7 +190,7 @@ def build_eq10(out: str | Path, record: dict, sweeps_dir: str | Path, lab_sweeps
                                   if f not in LAB_SIMULATED}},
               "lines": {f"{c.physics}/{c.model}/{c.a_p_deg:g}": {"n": c.n, "p1_pi": c.p1 / math.pi,
                                                                   "q1_pi": c.q1 / math.pi} for c in cals}}
-    Path(f"{out}.provenance.json").write_text(json.dumps(record, indent=1) + "\n")
+    write_text_atomic(f"{out}.provenance.json", json.dumps(record, indent=1) + "\n", "build record")
     return cals
 
 

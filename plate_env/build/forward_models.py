@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 
-from plate_env.core.files import read_json
+from plate_env.core.files import read_json, write_text_atomic
 from plate_env.identify.inference import fit_discrepancy
 from plate_env.surrogate.atlas import load_atlas_file
 
@@ -114,10 +114,10 @@ def build_forward_models(within: str | Path, lomo: str | Path, faithful: str | P
     """Write the registry from the stages' result files to ``out`` and the build record, with the inputs' paths, to
     ``out`` + ``.provenance.json``; returns the registry. Nothing is written when an input is missing or bad."""
     reg = registry(_read(within, "within"), _read(lomo, "lomo"), _read(faithful, "faithful"))
-    Path(out).write_text(json.dumps(reg, indent=1) + "\n")
+    write_text_atomic(out, json.dumps(reg, indent=1) + "\n", "--out")
     record = {**record, "artifact": "forward-models", "inputs": {"within": str(within), "lomo": str(lomo),
                                                                  "faithful": str(faithful)}}
-    Path(f"{out}.provenance.json").write_text(json.dumps(record, indent=1) + "\n")
+    write_text_atomic(f"{out}.provenance.json", json.dumps(record, indent=1) + "\n", "build record")
     return reg
 
 

@@ -15,6 +15,8 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 
+from plate_env.core.files import write_text_atomic
+
 
 def build_pybullet_table(out: str | Path, record: dict) -> dict:
     """Measure the table for the default sheet and the paper's cheese, write it to ``out`` and the build record
@@ -30,12 +32,12 @@ def build_pybullet_table(out: str | Path, record: dict) -> dict:
     if out.is_dir():
         raise ValueError(f"--out {str(out)!r} is a directory: give the file to write")
     table = measure_table(SheetConfig())
-    out.write_text(table_text(table))
+    write_text_atomic(out, table_text(table), "--out")
     record = {**record, "artifact": "pybullet-table",
               "inputs": "measure_table(SheetConfig()) for ObjectSpec() (13.6 g, 80 mm), "
                         "plate_env.physics.pybullet_sheet.calibrate",
               "machine": {**machine(), "pybullet_api": getattr(pybullet, "getAPIVersion", lambda: None)()}}
-    Path(f"{out}.provenance.json").write_text(json.dumps(record, indent=1) + "\n")
+    write_text_atomic(f"{out}.provenance.json", json.dumps(record, indent=1) + "\n", "build record")
     return table
 
 

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from plate_env.bench.suites import content_hash
+from plate_env.core.files import write_text_atomic
 from plate_env.core.objects import ObjectPrior
 from plate_env.core.setup import PAPER_SETUP
 from plate_env.env.ids import FAITHFUL_IDS
@@ -122,9 +123,9 @@ def build_suite(name: str, out: str | Path, record: dict) -> dict:
     name."""
     text = suite_text(name)
     out = Path(out)
-    out.write_text(text)
+    write_text_atomic(out, text, "--out")
     record = {**record, "artifact": "suite", "name": name, "sha256": content_hash(json.loads(text))}
-    Path(f"{out}.provenance.json").write_text(json.dumps(record, indent=1) + "\n")
+    write_text_atomic(f"{out}.provenance.json", json.dumps(record, indent=1) + "\n", "build record")
     return record
 
 

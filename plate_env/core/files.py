@@ -92,3 +92,139 @@ def parse_json(text: str, where: str, strict: bool = False):
 def read_json(path: str | Path, what: str, strict: bool = False):
     """The JSON document of a regular file (:func:`read_text`, :func:`parse_json`)."""
     return parse_json(read_text(path, what), f"{what} {str(path)!r}", strict)
+
+
+# ----------------------------------------------------------------------------------------------- writing
+class OutputError(OSError):
+    """A file that could not be written (or will not be writable): one line naming it; the file it would have
+    replaced is unchanged."""
+
+    def __init__(self, message: str, errno_: int | None = None) -> None:
+        super().__init__(message)
+        self.errno = errno_
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+def _named(what: str, path: Path) -> str:
+    return f"{what} {str(path)!r}" if what else repr(str(path))
+
+
+def _probe_dir(directory: Path) -> str | None:
+    """Why no file can be created in ``directory`` (None if one can: a file is created there and removed; unlike
+    ``os.access``, this sees a read-only file system and holds for root)."""
+    import tempfile
+
+    try:
+        fd, name = tempfile.mkstemp(prefix=".plate_env-probe-", dir=directory)
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    os.close(fd)
+    os.unlink(name)
+    return None
+
+
+def check_output(path: str | Path, what: str = "") -> Path:
+    """``path`` as a Path if a file can be written there, checked before any work: not empty, not a directory or
+    another special file, its directory exists and a file can be created in it, an existing file is writable.
+    ValueError naming ``what`` (e.g. ``"--out"``) and the path otherwise. Nothing is written."""
+    text = str(path)
+    path = Path(path)
+    if not text or path.is_dir():
+        raise ValueError(f"{_named(what, path)} is a directory or empty; give a file name")
+    kind = special_kind(path)
+    if kind is not None:
+        raise ValueError(f"{_named(what, path)} is {kind}, not a regular file; give a file name")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise ValueError(f"{_named(what, path)}: directory {str(parent)!r} does not exist")
+    why = _probe_dir(parent)
+    if why is not None:
+        raise ValueError(f"{_named(what, path)}: directory {str(parent)!r} is not writable ({why})")
+    if path.exists() and not os.access(path, os.W_OK):
+        raise ValueError(f"{_named(what, path)}: the file exists and is not writable")
+    return path
+
+
+def check_output_dir(path: str | Path, what: str = "") -> Path:
+    """``path`` as a Path to a directory files can be written in, created (with its parents) if missing, checked
+    before any work; ValueError naming ``what`` and the path otherwise (a file, a device, a read-only place)."""
+    text = str(path)
+    path = Path(path)
+    if not text:
+        raise ValueError(f"{_named(what, path)} is empty; give a directory")
+    kind = special_kind(path)
+    if kind is not None and kind != "a directory":
+        raise ValueError(f"{_named(what, path)} is {kind}, not a directory")
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{_named(what, path)} is a file, not a directory")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"{_named(what, path)}: cannot create the directory ({exc.strerror or exc})") from None
+    why = _probe_dir(path)
+    if why is not None:
+        raise ValueError(f"{_named(what, path)}: the directory is not writable ({why})")
+    return path
+
+
+def _new_file_mode(target: Path) -> int:
+    """The permission bits the written file gets: the replaced file's, else what ``open(..., "w")`` would give."""
+    try:
+        return stat.S_IMODE(os.stat(target).st_mode)
+    except OSError:
+        mask = os.umask(0o022)
+        os.umask(mask)
+        return 0o666 & ~mask
+
+
+def write_atomic(path: str | Path, write, what: str = "") -> Path:
+    """Write ``path`` all at once: ``write(tmp)`` writes a temporary file in the same directory (its name ends with
+    ``path``'s suffix, which numpy and matplotlib read), which is then flushed to disk and renamed over ``path``
+    (``os.replace``). A failure midway (a full disk, an interrupt) leaves ``path`` as it was and no temporary file;
+    an OSError is raised again as an :class:`OutputError` naming ``what`` and the file. A symlink is followed (its
+    target is replaced); a special file (a device, a FIFO) is refused, never replaced. Returns ``path``."""
+    import tempfile
+
+    path = Path(path)
+    target = Path(os.path.realpath(path)) if path.is_symlink() else path
+    kind = special_kind(target)
+    if kind is not None:
+        raise OutputError(f"{_named(what, path)} is {kind}, not a regular file; nothing was written")
+    existed = target.exists()
+    parent = target.parent if str(target.parent) else Path(".")
+    tmp = None
+    try:
+        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{target.suffix}", dir=parent)
+        os.close(fd)
+        tmp = Path(name)
+        write(tmp)
+        os.chmod(tmp, _new_file_mode(target))
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)  # a full disk shows here at the latest, before the old file is replaced
+        finally:
+            os.close(fd)
+        os.replace(tmp, target)
+        tmp = None
+    except OSError as exc:
+        kept = f"{str(path)!r} is unchanged" if existed else "no file was written"
+        raise OutputError(f"{_named(what, path)}: cannot write: {exc.strerror or exc} ({kept})", exc.errno) from None
+    finally:
+        if tmp is not None:
+            try:
+                tmp.unlink()
+            except OSError:
+                pass
+    return path
+
+
+def write_text_atomic(path: str | Path, text: str, what: str = "", encoding: str = "utf-8") -> Path:
+    """:func:`write_atomic` of a text (``encoding``, newlines as given)."""
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", encoding=encoding, newline="") as fh:
+            fh.write(text)
+
+    return write_atomic(path, write, what)

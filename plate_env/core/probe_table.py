@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from plate_env.core.files import read_text
+from plate_env.core.files import read_text, write_atomic
 from plate_env.core.probe import ProbeResult
 
 
@@ -92,14 +92,18 @@ OPTIONAL = ("stderr_deg_s", "a_p_deg", "unstable")
 
 def write_lab_csv(table: ProbeTable, path: str | Path) -> None:
     """Write probes as the lab CSV :func:`read_lab_csv` reads (every column; an unstable probe's omega_B and stderr
-    as 0, as the env records them: it has no steady rotation)."""
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(("f_p_hz", "a_p_deg", "omega_b_deg_s", "stderr_deg_s", "unstable"))
-        for f, a, om, se, un in zip(table.f_p_hz, table.a_p_deg, table.omega_b_deg_s, table.stderr_deg_s,
-                                    table.unstable, strict=True):
-            w.writerow((repr(float(f)), repr(float(a)), repr(0.0 if un else float(om)), repr(0.0 if un else float(se)),
-                        int(bool(un))))
+    as 0, as the env records them: it has no steady rotation). Written all at once (:func:`write_atomic`): a
+    failure midway leaves an existing file as it was, and the error names the file."""
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(("f_p_hz", "a_p_deg", "omega_b_deg_s", "stderr_deg_s", "unstable"))
+            for f, a, om, se, un in zip(table.f_p_hz, table.a_p_deg, table.omega_b_deg_s, table.stderr_deg_s,
+                                        table.unstable, strict=True):
+                w.writerow((repr(float(f)), repr(float(a)), repr(0.0 if un else float(om)),
+                            repr(0.0 if un else float(se)), int(bool(un))))
+
+    write_atomic(path, write, "CSV")
 
 
 def read_lab_csv(path: str | Path, a_p_deg: float | None = None, max_rows: int | None = None) -> ProbeTable:

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from plate_env.core.files import read_json
+from plate_env.core.files import read_json, write_text_atomic
 
 PAPER_COEFFICIENTS_PI = {3.0: (5.30, -121.62), 12.0: (5.65, -64.51)}
 DATA_FILE = "calibration.json"
@@ -189,7 +189,7 @@ def _key(physics: str, model: str, a_p_deg: float) -> str:
 def save_calibrations(cals: list[Calibration], path: str | Path) -> None:
     """Write calibrations to JSON (keyed physics/model/amplitude)."""
     data = {_key(c.physics, c.model, c.a_p_deg): c.to_json() for c in cals}
-    Path(path).write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+    write_text_atomic(path, json.dumps(data, indent=1, sort_keys=True) + "\n", "calibration")
 
 
 def load_calibrations(path: str | Path | None = None) -> dict[str, Calibration]:

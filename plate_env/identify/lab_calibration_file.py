@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from plate_env.core import checks
-from plate_env.core.files import read_json
+from plate_env.core.files import read_json, write_text_atomic
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify.estimate import Estimate
 from plate_env.identify.forward import ForwardModel, Member, _conditioned
@@ -254,7 +254,8 @@ def identify_calibrated(table: ProbeTable, cal: LabCalibration, known: KnownInpu
 
 
 def save(cal: LabCalibration, path: str | Path) -> None:
-    Path(path).write_text(json.dumps(cal.to_json(), indent=1) + "\n")
+    """Write ``cal`` to ``path`` all at once (a failure leaves an existing file as it was; the error names it)."""
+    write_text_atomic(path, json.dumps(cal.to_json(), indent=1) + "\n", "calibration")
 
 
 #: ``--calibration paper``: the paper's published numbers as the reference set (package data, written by

@@ -191,11 +191,17 @@ class Atlas:
 
     # -------------------------------------------------------------- files
     def save(self, path: str | Path) -> None:
-        np.savez_compressed(path, f_hz=self.f_hz, a_p_deg=self.a_p_deg, omega_n=self.omega_n, alpha=self.alpha,
-                            mean=self.mean.astype(np.float32), spread=self.spread.astype(np.float32),
-                            p_unstable=self.p_unstable.astype(np.float32),
-                            meta=np.array(json.dumps({"physics": self.physics, "model": self.model,
-                                                      "n_repeats": self.n_repeats, "provenance": self.provenance})))
+        """Write the atlas to ``path`` (``.npz`` added when missing, as numpy adds it) all at once
+        (:func:`~plate_env.core.files.write_atomic`: a failure leaves an existing file as it was)."""
+        from plate_env.core.files import write_atomic
+
+        path = str(path) if str(path).endswith(".npz") else f"{path}.npz"
+        write_atomic(path, lambda tmp: np.savez_compressed(
+            tmp, f_hz=self.f_hz, a_p_deg=self.a_p_deg, omega_n=self.omega_n, alpha=self.alpha,
+            mean=self.mean.astype(np.float32), spread=self.spread.astype(np.float32),
+            p_unstable=self.p_unstable.astype(np.float32),
+            meta=np.array(json.dumps({"physics": self.physics, "model": self.model, "n_repeats": self.n_repeats,
+                                      "provenance": self.provenance}))), "atlas")
 
     @classmethod
     def load(cls, path: str | Path) -> Atlas:
