@@ -192,7 +192,8 @@ def _add_dt(p: argparse.ArgumentParser) -> None:
 
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
-    p.add_argument("--model", default=None, help="tilelink model (pointmass, rigid, rigid_limit); atlas: whose atlas")
+    p.add_argument("--model", default=None, help=f"tilelink model ({TILELINK_MODELS_HELP}); atlas: whose atlas "
+                   "(default: the physics' own, pointmass)")
     _add_object(p)
     amp_deg = math.degrees(AMP_RANGE_RAD[1])
     p.add_argument("--amp", type=_arg(checks.real, -amp_deg, amp_deg, unit="deg"), default=3.0,
@@ -227,9 +228,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="probes per chunk (a unit of work and of persistence)")
     add_executor_argument(s)
     i = sub.add_parser("identify", help="identify a hidden object with a probing agent (the main job)")
-    i.add_argument("--agent", default="bayes", choices=_agent_names())
+    i.add_argument("--agent", default="bayes", choices=_agent_names(), help="the probing agent")
     i.add_argument("--physics", default="tilelink", choices=PHYSICS_NAMES, help="physics backend")
-    i.add_argument("--model", default=None, help="tilelink model (pointmass, rigid, rigid_limit)")
+    i.add_argument("--model", default=None, help=f"tilelink model ({TILELINK_MODELS_HELP}; default: pointmass)")
     _add_object(i, true="true ")
     i.add_argument("--seed", type=_arg(checks.integer, *SEED_RANGE), default=0,
                    help="seed of the episode (placement, camera noise)")
@@ -263,9 +264,21 @@ def build_parser() -> argparse.ArgumentParser:
     _add_calibrate(sub)
     _add_cache(sub)
     add_build_parser(sub)
-    for p in sub.choices.values():  # --help shows every default
-        p.formatter_class = _DefaultsFormatter
+    _set_formatter(parser)  # --help shows every default, in every subcommand (build's too)
     return parser
+
+
+def _set_formatter(parser: argparse.ArgumentParser) -> None:
+    parser.formatter_class = _DefaultsFormatter
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for p in action.choices.values():
+                _set_formatter(p)
+
+
+#: The tile-link models ``--model`` takes, as help text (the list is plate_env.physics.tilelink.backend.MODELS, not
+#: imported here: half a second of start-up; tests/test_hardening3_inputs.py checks the two agree).
+TILELINK_MODELS_HELP = "pointmass, rigid, rigid_limit, rigid_fast"
 
 
 class _DefaultsFormatter(argparse.HelpFormatter):
@@ -273,7 +286,9 @@ class _DefaultsFormatter(argparse.HelpFormatter):
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
-        shown = action.default not in (None, False, argparse.SUPPRESS) and action.option_strings
+        d = action.default  # by identity: a default of 0 or 0.0 is shown (0 == False hid --seed's, issue 40)
+        shown = (action.option_strings and not (d is None or d is False or d is argparse.SUPPRESS or d == [])
+                 and not isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction)))
         if shown and "%(default)" not in text:
             text += " (default: %(default)s)"
         return text
@@ -318,7 +333,7 @@ def _add_bench(sub) -> None:
     b.add_argument("--no-cache", action="store_true", help="keep no episodes on disk")
     b.add_argument("--chunk", type=_arg(checks.integer, 1, 1000), default=2, help="episodes per task")
     b.add_argument("--markdown", default=None, help="also write the leaderboard, under a title and the suite's "
-                   "description, to this markdown file (what experiments/leaderboard.py wrote)")
+                   "description, to this markdown file")
     b.add_argument("--plot", default=None, help="write the error curves (after the results are printed)")
     b.add_argument("--no-progress", action="store_true", help="no progress bar")
     b.add_argument("--json", action="store_true", help="print one JSON document")

@@ -217,3 +217,46 @@ def test_identify_json_schema(capsys):
     assert out["n_probes"] == len(out["probes"]) == 8
     assert set(out["estimate"]) >= {"ok", "omega_n_rad_s", "omega_n_stderr_rad_s", "method"}
     assert out["omega_n_true_rad_s"] == pytest.approx(17 * math.pi)
+
+
+def _all_parsers():
+    import argparse
+
+    from plate_env.cli import build_parser
+
+    out, todo = [], [("plate-env", build_parser())]
+    while todo:
+        name, p = todo.pop()
+        out.append((name, p))
+        for a in p._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                todo += [(f"{name} {k}", sp) for k, sp in a.choices.items()]
+    return out
+
+
+def test_every_option_with_a_default_shows_it_in_every_subcommand_help():
+    """Issue 40 item 5: --seed's default 0 was hidden (0 == False) and build's subcommands showed none."""
+    import argparse
+
+    checked = 0
+    for name, p in _all_parsers():
+        text = " ".join(p.format_help().split())
+        for a in p._actions:
+            d = a.default
+            if (not a.option_strings or d is None or d is False or d is argparse.SUPPRESS or d == []
+                    or isinstance(a, (argparse._StoreTrueAction, argparse._HelpAction))):
+                continue
+            flag = a.option_strings[-1]
+            block = text.split(flag, 2)[-1][:400]  # the option's own help follows its flags in the listing
+            assert f"(default: {d})" in block or "default" in (a.help or ""), (name, flag, d)
+            checked += 1
+    assert checked > 30
+
+
+def test_help_lists_the_tilelink_models_the_code_has_and_names_no_missing_script():
+    from plate_env.cli import TILELINK_MODELS_HELP
+    from plate_env.physics.tilelink.backend import MODELS
+
+    assert TILELINK_MODELS_HELP == ", ".join(MODELS)
+    for name, p in _all_parsers():
+        assert "experiments/leaderboard.py" not in p.format_help(), name
