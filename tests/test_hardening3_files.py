@@ -220,6 +220,9 @@ def test_item10_an_unwritable_cache_is_said_once_and_each_grid_computed_once(tmp
     """A cache directory that cannot be made (under a file: unwritable for root too): ``cannot write the cache`` is
     printed once per process, not once per entry (before: 6 times in one fit), and an entry is computed once per
     process even for a new atlas instance of the same arrays (before: computed again)."""
+    import subprocess
+    import sys
+
     from plate_env.identify.forward import Member
     from plate_env.identify.inference import member_response
     from plate_env.surrogate.atlas import load_atlas_file
@@ -228,16 +231,17 @@ def test_item10_an_unwritable_cache_is_said_once_and_each_grid_computed_once(tmp
     blocker.write_text("")
     monkeypatch.setenv("PLATE_ENV_CACHE_DIR", str(blocker / "cache"))
     fit = ["fit", str(CHEESE_CSV), "--amp", "3", "--forward", "tilelink/pointmass"]
+    # two fits in one fresh process (in this one, earlier tests may have computed and memoised the grids already)
+    code = f"from plate_env.cli import main; assert main({fit!r}) == 0; assert main({fit!r}) == 0"
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    assert run.stderr.count("cannot write the cache") == 1, run.stderr
     capsys.readouterr()
-    assert main(fit) == 0
-    assert main(fit) == 0
-    err = capsys.readouterr().err
-    assert err.count("cannot write the cache") == 1, err
     atlas = load_atlas_file("atlas_tilelink_rigid_limit_f2.npz")
     w = np.geomspace(atlas.omega_n[0], atlas.omega_n[-1], 30)
     a = np.linspace(atlas.alpha[0], atlas.alpha[-1], 4)
     got = [member_response(Member(dataclasses.replace(atlas), 1.0), 3.0, w, a)[0](21.0) for _ in range(3)]
     err = capsys.readouterr().err
     assert err.count("computing the tilelink/rigid_limit atlas's response") == 1, err
-    assert "cannot write the cache" not in err
+    assert err.count("cannot write the cache") <= 1, err  # once per process: this one may not have said it yet
     assert all(np.array_equal(x, y) for g in got[1:] for x, y in zip(got[0], g, strict=True))
