@@ -290,9 +290,9 @@ def evaluate(agent, suite: Suite | str, *, label: str | None = None, budgets_s: 
                   for j in range(0, len(todo), chunk)]
         bar = None
         if progress:
-            from tqdm.auto import tqdm
+            from plate_env.core.progress import progress_bar
 
-            bar = tqdm(total=n, initial=n - len(todo), desc=f"{label} on {suite.name}", unit="episode")
+            bar = progress_bar(n, f"{label} on {suite.name}", "episode", initial=n - len(todo))
         fh = open_for_append(path) if path else None
         try:
             for _, episodes in ex.map(run_episode_chunk, chunks):

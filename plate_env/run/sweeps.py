@@ -228,9 +228,9 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
         executor, own = InProcessExecutor(), True
     bar = None
     if progress and chunks:
-        from tqdm.auto import tqdm
+        from plate_env.core.progress import progress_bar
 
-        bar = tqdm(total=sum(map(len, chunks)), desc=desc, unit="probe")
+        bar = progress_bar(sum(map(len, chunks)), desc, "probe")
     fh = None
     if cache and chunks:
         try:

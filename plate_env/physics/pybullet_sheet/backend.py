@@ -139,9 +139,9 @@ class PyBulletPhysics:
         units = self.units(probes)
         bar = None
         if progress:
-            from tqdm.auto import tqdm
+            from plate_env.core.progress import progress_bar
 
-            bar = tqdm(total=len(probes), desc="probes", unit="probe")
+            bar = progress_bar(len(probes), "probes", "probe")
         results: list[ProbeResult] = []
         try:
             args = [(u, self.config, self.stderr_tol_deg_s, self.k_elastic) for u in units]

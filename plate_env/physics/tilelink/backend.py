@@ -210,9 +210,9 @@ class TileLinkPhysics:
         results: list[ProbeResult] = []
         bar = None
         if progress:
-            from tqdm.auto import tqdm
+            from plate_env.core.progress import progress_bar
 
-            bar = tqdm(total=len(probes), desc="probes", unit="probe")
+            bar = progress_bar(len(probes), "probes", "probe")
         try:
             for start in range(0, len(probes), chunk):
                 part = probes[start:start + chunk]
