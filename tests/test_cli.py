@@ -260,3 +260,17 @@ def test_help_lists_the_tilelink_models_the_code_has_and_names_no_missing_script
     assert TILELINK_MODELS_HELP == ", ".join(MODELS)
     for name, p in _all_parsers():
         assert "experiments/leaderboard.py" not in p.format_help(), name
+
+
+def test_a_sweep_csv_writes_the_settings_as_typed(tmp_path):
+    """Issue 40 item 6: ``a_p_deg`` was written as 3.0000000000000004 (a radian round trip)."""
+    import csv
+
+    from plate_env.cli import main
+
+    out = tmp_path / "s.csv"
+    assert main(["sweep", "--physics", "atlas", "--omega-n", "17pi", "--alpha", "45", "--freqs", "10:12:0.1",
+                 "--csv", str(out)]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert {r["a_p_deg"] for r in rows} == {"3.0"}
+    assert [r["f_p_hz"] for r in rows][:4] == ["10.0", "10.1", "10.2", "10.3"]

@@ -23,3 +23,4 @@ def test_plain_progress_counts_tenths_and_the_end(capsys):
     p.close()
     got = capsys.readouterr().err.splitlines()
     assert got == [f"x: {k}/100 probes" for k in range(10, 100, 10)] + ["x: 100/100 probes"]
+

@@ -90,6 +90,11 @@ REQUIRED = ("f_p_hz", "omega_b_deg_s")
 OPTIONAL = ("stderr_deg_s", "a_p_deg", "unstable")
 
 
+def _setting(x: float) -> str:
+    """A probe setting (f_p Hz, A_p deg) as written to a CSV: 12 significant digits, without float noise."""
+    return repr(float(f"{float(x):.12g}"))
+
+
 def write_lab_csv(table: ProbeTable, path: str | Path) -> None:
     """Write probes as the lab CSV :func:`read_lab_csv` reads (every column; an unstable probe's omega_B and stderr
     as 0, as the env records them: it has no steady rotation). Written all at once (:func:`write_atomic`): a
@@ -100,7 +105,9 @@ def write_lab_csv(table: ProbeTable, path: str | Path) -> None:
             w.writerow(("f_p_hz", "a_p_deg", "omega_b_deg_s", "stderr_deg_s", "unstable"))
             for f, a, om, se, un in zip(table.f_p_hz, table.a_p_deg, table.omega_b_deg_s, table.stderr_deg_s,
                                         table.unstable, strict=True):
-                w.writerow((repr(float(f)), repr(float(a)), repr(0.0 if un else float(om)),
+                # the settings as typed (12 significant digits: 3.0, not the 3.0000000000000004 a radian round trip
+                # gives; issue 40 item 6); the measurements in full
+                w.writerow((_setting(f), _setting(a), repr(0.0 if un else float(om)),
                             repr(0.0 if un else float(se)), int(bool(un))))
 
     write_atomic(path, write, "CSV")
