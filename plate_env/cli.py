@@ -96,17 +96,14 @@ def plot_path(text: str) -> Path:
 
 
 def output_path(text: str, option: str) -> Path:
-    """A file an option will write (``--markdown``, ``--csv``), checked before any work: not a directory, its
-    directory exists and is writable, an existing file is writable."""
-    path = Path(text)
-    parent = path.parent if str(path.parent) else Path(".")
-    if not text or path.is_dir():
-        raise CliError(f"{option} {text!r} is a directory or empty; give a file name")
-    if not parent.is_dir() or not os.access(parent, os.W_OK):
-        raise CliError(f"{option} {text!r}: directory {str(parent)!r} does not exist or is not writable")
-    if path.exists() and not (path.is_file() and os.access(path, os.W_OK)):
-        raise CliError(f"{option} {text!r}: the file exists and is not a writable regular file")
-    return path
+    """A file an option will write (``--markdown``, ``--csv``), checked before any work
+    (:func:`plate_env.core.files.check_output`: not a directory or special file, its directory writable)."""
+    from plate_env.core.files import check_output
+
+    try:
+        return check_output(text, option)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
 
 
 def parse_freqs(text: str) -> np.ndarray:
