@@ -257,3 +257,17 @@ def test_tianshou_collector_batches_the_infos():
     err = buf.info.relative_error[:len(buf)]
     assert err.dtype == np.float64 and np.isnan(err).any() and np.isfinite(err).any()
     envs.close()
+
+
+def test_the_v0_training_id_runs_v0_on_the_atlas():
+    """Issue 41 item 2: PlateRotationAtlas-v0 is v0 on the point mass's atlas (the same contract, microsecond
+    probes), and the env's docstring says which ids train and which evaluate."""
+    env = gym.make("PlateRotationAtlas-v0")
+    live = gym.make("PlateRotation-v0")
+    assert env.unwrapped.physics_name == "atlas" and live.unwrapped.physics_name == "tilelink"
+    assert env.unwrapped.model == live.unwrapped.model == "pointmass"
+    assert env.observation_space == live.observation_space and env.action_space == live.action_space
+    ids = PlateRotationEnv.__doc__.split("## Ids: training and evaluation")[1]
+    assert "PlateRotationAtlas-v0" in ids and "evaluation" in ids and "train" in ids
+    env.close()
+    live.close()
