@@ -4,9 +4,9 @@
     python experiments/readme_tables.py --check    # exit 1 and name each table that differs from its result file
 
 A table lives between ``<!-- table: NAME -->`` and ``<!-- /table -->``; NAME is a key of ``TABLES``, whose entry
-names the JSON file in experiments/results/ it is rendered from. Nothing here measures anything: it only formats
-numbers that experiments/*.py wrote (each file's own script regenerates it), so a number in the docs cannot drift
-from its result. tests/test_readme.py runs the check.
+names the JSON file in experiments/results/ it is rendered from (env_info: plate_env/env/info.py, the env's info
+schema). Nothing here measures anything: it only formats numbers that experiments/*.py wrote (each file's own script
+regenerates it), so a number in the docs cannot drift from its result. tests/test_readme.py runs the check.
 """
 
 from __future__ import annotations
@@ -312,6 +312,13 @@ def bench_models() -> str:
 
 
 #: Every generated table: its name in the markers, the result file it is rendered from, and the renderer.
+def env_info() -> str:
+    """The env's info schema (plate_env.env.info.FIELDS), the one declaration of its keys."""
+    from plate_env.env import info
+
+    return info.markdown()
+
+
 TABLES: dict[str, tuple[str, Callable[[], str]]] = {
     "forward_models_within": ("forward_models_within.json", forward_models_within),
     "forward_models_within_sampling": ("forward_models_within.json", forward_models_within_sampling),
@@ -335,6 +342,7 @@ TABLES: dict[str, tuple[str, Callable[[], str]]] = {
     "rigid_fast_routes": ("rigid_fast.json", rigid_fast_routes),
     "validate_paper_counts": ("validate_paper.json", validate_paper_counts),
     "bench_models": ("bench_models.json", bench_models),
+    "env_info": ("plate_env/env/info.py", env_info),
 }
 
 
@@ -343,7 +351,8 @@ def render(name: str) -> str:
     if name not in TABLES:
         raise KeyError(f"unknown table {name!r}; known: {', '.join(TABLES)}")
     source, fn = TABLES[name]
-    return (f"{fn()}\n\n<sub>Rendered from `experiments/results/{source}` by `python experiments/readme_tables.py`; "
+    where = source if source.startswith("plate_env/") else f"experiments/results/{source}"
+    return (f"{fn()}\n\n<sub>Rendered from `{where}` by `python experiments/readme_tables.py`; "
             "do not edit by hand.</sub>\n")
 
 

@@ -111,6 +111,7 @@ def test_atlas_domain_follows_its_provenance():
     (dict(camera_fps=True), "camera_fps"),
     (dict(calibration=3), "calibration"),
     (dict(calibration="paper", amplitudes_deg=(12.0,)), "calibration"),  # the paper calibration is at 3 deg
+    (dict(reveal_truth="yes"), "reveal_truth"),
 ])
 def test_env_options_refused_at_construction_naming_them(kwargs, name):
     with pytest.raises(ValueError, match=name):
@@ -168,8 +169,8 @@ def test_reset_options_checked_naming_them(options, name):
 
 def test_reset_options_fix_the_object_without_changing_the_seeded_draws():
     env = PlateRotationEnv(physics="atlas", max_probes=3)
-    _, info = env.reset(seed=4, options={"omega_n": 30.0, "alpha": 0.7})
-    assert (info["omega_n_true"], info["alpha_true"]) == (30.0, 0.7)
+    env.reset(seed=4, options={"omega_n": 30.0, "alpha": 0.7})
+    assert (env.hidden_object().omega_n, env.hidden_object().alpha) == (30.0, 0.7)
     a = env.step(PROBE)[0]
     env.reset(seed=4, options={"omega_n": 30.0, "alpha": 0.7, "mass": 0.0136})
     assert np.array_equal(a, env.step(PROBE)[0])

@@ -51,8 +51,8 @@ def test_the_atlas_id_identifies_its_objects_through_the_faithful_forward_model(
         est = info["estimate"]
         assert est["ok"], est.get("reason")
         errors.append(info["relative_error"])
-        lo, hi = est["omega_n_ci95_rad_s"]
-        inside.append(lo <= info["omega_n_true"] <= hi)
+        lo, hi = est["omega_n_ci95_lo_rad_s"], est["omega_n_ci95_hi_rad_s"]
+        inside.append(lo <= info["omega_n_true_rad_s"] <= hi)
     assert np.median(errors) < 0.05 and sum(inside) >= 6, (errors, inside)
 
 

@@ -130,10 +130,11 @@ def test_env_episode_end_reads_the_state_and_equals_identify():
         *_, info = env.step(env.encode_action(f, 3.0, 1.0))
     assert "estimate" in info
     ref = identify(env.table(), method="atlas", physics="tilelink", model="pointmass", known=env.known_inputs())
-    def present(d):  # the env's info leaves out fields without a value (Gymnasium's vector infos)
-        return {k: present(v) if isinstance(v, dict) else v for k, v in d.items() if v is not None}
+    from plate_env.env.info import build
+    from plate_env.env.rotation import _estimate_values
 
-    assert info["estimate"] == present(ref.to_dict())
+    assert info["estimate"] == build(_estimate_values(ref))["estimate"]
+    assert info["estimate"]["omega_n_rad_s"] == ref.omega_n and info["estimate"]["ok"] == ref.ok
     assert env.posterior_state().n_probes == 5  # one state, each probe added once
     clone = pickle.loads(pickle.dumps(env))  # the state is not pickled: rebuilt from the probes
     assert clone._posterior is None and clone.estimate().to_dict() == ref.to_dict()

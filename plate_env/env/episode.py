@@ -159,8 +159,11 @@ def run_episode(env, agent, seed: int, options: dict | None = None,
         estimate = e.estimate()  # the env's own posterior of these probes (its episode end computed it)
     else:
         estimate = estimate_of(env, table, agent.method, fm)
-    return EpisodeResult(agent=agent.name, omega_n_true=info["omega_n_true"], alpha_true=info["alpha_true"],
+    # the truth from the env, not the info: a budget of max_sim_s ends the episode here before the env terminates it
+    # (the info shows the hidden object on the terminating step only)
+    obj = e.hidden_object()
+    return EpisodeResult(agent=agent.name, omega_n_true=obj.omega_n, alpha_true=obj.alpha,
                          estimate=estimate, probes=table, prefix=prefixes,
                          n_probes=len(table),
-                         sim_s=info["sim_s"], wall_s=time.perf_counter() - t0, probe_sim_s=tuple(sims),
+                         sim_s=float(info["sim_s"]), wall_s=time.perf_counter() - t0, probe_sim_s=tuple(sims),
                          decision_wall_s=tuple(decisions))

@@ -26,6 +26,7 @@ from plate_env.core.probe import (
 )
 from plate_env.core.probe_table import ProbeTable
 from plate_env.core.setup import B_P_RANGE_M, DEFAULT_MAX_PROBES, FREQ_RANGE_HZ, MAX_PROBES_RANGE, PAPER_SETUP
+from plate_env.env import info as info_schema
 from plate_env.env.codec import ACTION_SIZE, Codec
 from plate_env.identify.estimate import METHODS, Estimate
 from plate_env.physics import PHYSICS_NAMES, make_physics
@@ -106,14 +107,23 @@ class PlateRotationEnv(gym.Env):
     ## Episode End
 
     Terminated when the action says stop (after the first probe), when ``max_probes`` probes have run, or when the
-    probes have taken ``max_sim_s`` simulated seconds (the probe that crosses it still runs). Never truncated.
-    The final step's ``info`` carries the estimate (``estimate``: omega_n_hat and its 68 %/95 % intervals, alpha_hat;
-    ``relative_error``, absent without estimate) and ``wall_s``, the episode's wall-clock seconds (the one
-    non-deterministic number). Every ``info`` has ``omega_n_true`` (rad/s), ``alpha_true`` (rad), ``mass_true`` (kg),
-    ``probes``, ``sim_s`` and, after a probe, ``last_probe`` (the probe's settings and outcome). A field without a
-    value is left out rather than None, at every depth (``estimate``'s ``bound``, ``reason``, ``check.worst``; the
-    probe's ``reason``): Gymnasium's vector envs batch each info key into one array with a presence mask ``_key``,
-    and None cannot share that array with numbers or dicts.
+    probes have taken ``max_sim_s`` simulated seconds (the probe that crosses it still runs). Never truncated by the
+    env itself (an outer ``TimeLimit`` may truncate; the info of a truncated step is a non-final one).
+
+    ## Info
+
+    One schema, declared in :mod:`plate_env.env.info` (``FIELDS``): every key below is in every ``info``, of
+    ``reset`` and of every ``step``, with the same numpy dtype (float64, int64, bool) or str, so that Gymnasium's
+    vector envs, tianshou's ``Batch`` and SB3's ``Monitor(info_keywords=("relative_error",))`` can batch and log it.
+    A field without a value holds NaN (numbers) or ``""`` (strings), and a flag says whether there is one
+    (``estimate.ok``, ``estimate.check.ok``, ``last_probe.ok``, ``truth_revealed``). The hidden object (``*_true_*``
+    and ``last_probe``'s ``omega_n_rad_s``, ``alpha_deg``, ``mass_g``) is NaN until the terminating step, so a policy
+    that reads the info learns nothing it could not measure; ``reveal_truth=True`` shows it on every step (for
+    diagnostics; never for training). ``last_probe.omega_b_deg_s`` is the observation's omega_B (the camera's
+    measurement, 0 for an unstable probe: it has no rotation rate). The estimate's posterior members and
+    per-amplitude fits (keys that vary) are not in the info: ``env.unwrapped.estimate()`` has them.
+
+{info_table}
 
     ## Arguments
 
@@ -142,6 +152,7 @@ class PlateRotationEnv(gym.Env):
     | ``error_cap`` | 1 | largest error charged |
     | ``no_estimate_penalty`` | 1 | reward when no estimate can be made |
     | ``render_mode`` | None | ``rgb_array`` or ``human`` |
+    | ``reveal_truth`` | False | the hidden object in every step's info (diagnostics only; see Info) |
 
     ``physics_options``: e.g. ``{"model": "rigid"}`` or ``{"dt": 2e-4}`` for tilelink; for the atlas
     ``{"instability_rho": 0.9, "instability_corr_hz": 2.0}`` draws instability correlated along f_p within an
@@ -193,8 +204,10 @@ class PlateRotationEnv(gym.Env):
                  max_sim_s: float | None = None, measure_range_s: tuple[float, float] = (0.25, 2.0),
                  settle_s: float = 0.5, camera_fps: float = 30.0, angle_noise_deg: float = 0.5,
                  cost_per_sim_s: float = 0.005, error_cap: float = 1.0, no_estimate_penalty: float = 1.0,
-                 render_mode: str | None = None, calibration=None) -> None:
+                 render_mode: str | None = None, calibration=None, reveal_truth: bool = False) -> None:
         super().__init__()
+        if not isinstance(reveal_truth, (bool, np.bool_)):
+            raise ValueError(f"reveal_truth = {reveal_truth!r} must be True or False")
         # every option checked (a ValueError naming it) before the physics is built
         render_mode = checks.one_of("render_mode", render_mode, (None, *self.metadata["render_modes"]))
         method = checks.one_of("method", method, METHODS)
@@ -241,6 +254,7 @@ class PlateRotationEnv(gym.Env):
         self.error_cap = error_cap
         self.no_estimate_penalty = no_estimate_penalty
         self.render_mode = render_mode
+        self.reveal_truth = bool(reveal_truth)
         lo, hi = omega_n_range_pi
         masses = (MASS_KG * (1.0 - mass_variation), MASS_KG * (1.0 + mass_variation))
         objects = [ObjectSpec(omega_n=math.pi * w, alpha=math.radians(a), mass=m)
@@ -369,18 +383,18 @@ class PlateRotationEnv(gym.Env):
             reward -= self.cost_per_sim_s * result.sim_s
         spent = len(self._rows) >= self.max_probes or (self.max_sim_s is not None and self._sim_s >= self.max_sim_s)
         terminated = result is None or spent
-        info = self._info()
         if terminated:
             self._done = True
-            info["wall_s"] = self._wall_s
             est = self.estimate()
-            info["estimate"] = _present(est.to_dict())
-            if est.ok:
-                info["relative_error"] = est.relative_error(self._obj.omega_n)
-                reward -= min(info["relative_error"], self.error_cap)
+            error = est.relative_error(self._obj.omega_n) if est.ok else None
+            if error is not None:
+                reward -= min(error, self.error_cap)
             else:
                 reward -= self.no_estimate_penalty
+            info = self._info(final=True, estimate=est, error=error)
             jit.episode_ended()  # a process that runs many episodes loads the compiled kernels (plate_env.core.jit)
+        else:
+            info = self._info()
         if self.render_mode == "human":
             self.render()
         return self._obs(), float(reward), bool(terminated), False, info
@@ -452,6 +466,11 @@ class PlateRotationEnv(gym.Env):
                 self._posterior = str(exc)
         return self._posterior
 
+    def hidden_object(self) -> ObjectSpec | None:
+        """The episode's hidden object (None before the first reset), for a scorer or a diagnostic, never for an
+        agent: the info shows it on the terminating step only (or on every step with ``reveal_truth=True``)."""
+        return self._obj
+
     def known_inputs(self) -> KnownInputs:
         """What a lab would know of this episode's set-up: B_p and the disc's mass and diameter (weighed and
         measured, unlike its stiffness); the paper's set-up before the first reset."""
@@ -464,16 +483,31 @@ class PlateRotationEnv(gym.Env):
         sim_left = 1.0 - self._sim_s / self.max_sim_s if self.max_sim_s else 1.0
         return self.codec.completed(self._obs_rows, 1.0 - len(self._rows) / self.max_probes, sim_left)
 
-    def _info(self) -> dict[str, Any]:
-        info: dict[str, Any] = {"omega_n_true": self._obj.omega_n if self._obj else None,
-                                "alpha_true": self._obj.alpha if self._obj else None,
-                                "mass_true": self._obj.mass if self._obj else None,
-                                "probes": len(self._rows), "sim_s": self._sim_s}
+    def _info(self, final: bool = False, estimate: Estimate | None = None, error: float | None = None) -> dict:
+        """The step's info (:mod:`plate_env.env.info`: every key on every step): the hidden object on the
+        terminating step (``final``) or with ``reveal_truth``, the estimate and its error on the terminating step."""
+        truth = (final or self.reveal_truth) and self._obj is not None
+        v: dict[str, Any] = {"truth_revealed": truth, "probes": len(self._rows), "sim_s": self._sim_s,
+                             "estimate.ok": False, "estimate.check.ok": False, "last_probe.ok": self._last is not None}
+        if truth:
+            v.update(omega_n_true_rad_s=self._obj.omega_n, alpha_true_rad=self._obj.alpha, mass_true_kg=self._obj.mass)
         if self._last is not None:
-            last = self._last.to_dict()
-            last.pop("wall_s")
-            info["last_probe"] = _present(last)
-        return info
+            p = self._last.to_dict()
+            _, _, omega, se, unstable, _ = self._rows[-1]  # the camera's measurement: the observation's and the table's
+            v.update({"last_probe.f_p_hz": p["f_p_hz"], "last_probe.a_p_deg": p["a_p_deg"],
+                      "last_probe.b_p_mm": p["b_p_mm"], "last_probe.omega_b_deg_s": omega,
+                      "last_probe.stderr_deg_s": se, "last_probe.unstable": unstable,
+                      "last_probe.reason": p["reason"], "last_probe.sim_s": p["sim_s"],
+                      "last_probe.periods_measured": p["periods_measured"]})
+            if truth:
+                v.update({"last_probe.omega_n_rad_s": p["omega_n_rad_s"], "last_probe.alpha_deg": p["alpha_deg"],
+                          "last_probe.mass_g": p["mass_g"]})
+        if final:
+            v["wall_s"] = self._wall_s
+            v["relative_error"] = error
+            if estimate is not None:
+                v.update(_estimate_values(estimate))
+        return info_schema.build(v)
 
     # ------------------------------------------------------------------ render / close
     def render(self):
@@ -525,9 +559,34 @@ class PlateRotationEnv(gym.Env):
         self._closed = False
 
 
-def _present(d: dict) -> dict:
-    """``d`` without its None values, at every depth (the env's info: see the class's Episode End)."""
-    return {k: _present(v) if isinstance(v, dict) else v for k, v in d.items() if v is not None}
+if PlateRotationEnv.__doc__:  # the info table rendered from its one declaration (None under python -OO)
+    PlateRotationEnv.__doc__ = PlateRotationEnv.__doc__.replace(
+        "{info_table}", "\n".join("    " + line for line in info_schema.markdown("``").splitlines()))
+
+
+def _estimate_values(est: Estimate) -> dict[str, Any]:
+    """The info fields (dotted keys, :mod:`plate_env.env.info`) of an estimate: ``Estimate.to_dict`` with its
+    intervals split into their ends, its bound and check in fixed fields, and without the fields whose keys vary
+    (the posterior's members, the per-amplitude fits: ``env.unwrapped.estimate()`` has them)."""
+    d = est.to_dict()
+    v = {f"estimate.{k}": d[k] for k in ("ok", "method", "reason", "forward", "n_probes", "n_unstable")}
+    if est.omega_n > 0:  # an answer (a rejected one, ok False, keeps its values); 0: none, NaN in the info
+        v.update({f"estimate.{k}": d[k] for k in ("omega_n_rad_s", "omega_n_stderr_rad_s", "omega_n_pi")})
+        for level in ("68", "95"):
+            v[f"estimate.omega_n_ci{level}_lo_rad_s"], v[f"estimate.omega_n_ci{level}_hi_rad_s"] = \
+                d[f"omega_n_ci{level}_rad_s"]
+    if est.alpha is not None:
+        v["estimate.alpha_deg"], v["estimate.alpha_stderr_deg"] = d["alpha_deg"], d["alpha_stderr_deg"]
+    if d["bound"] is not None:
+        v["estimate.bound.side"], v["estimate.bound.omega_n_rad_s"] = d["bound"]["side"], d["bound"]["omega_n_rad_s"]
+    check = d["check"]
+    if check is not None:
+        v["estimate.check.ok"] = True
+        v.update({f"estimate.check.{k}": check[k] for k in ("passed", "statistic", "p_value", "p_min", "n_probes",
+                                                            "member")})
+        if check["worst"] is not None:
+            v.update({f"estimate.check.worst.{k}": x for k, x in check["worst"].items()})
+    return v
 
 
 def _build_physics(name: str, options: dict):
