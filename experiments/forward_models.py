@@ -332,7 +332,7 @@ def stage_sensitivity(args) -> None:
              "95 % coverage (no sigma_eps) | no estimate |",
              "|---|---|---|---|---|---|"]
     numbers: dict = {}
-    for name in nz._FIELDS:
+    for name in nz.FIELDS:
         band = getattr(nz.PRIOR, name)
         for end, value in (("low", band.lo), ("high", band.hi)):
             nu = dataclasses.replace(nz.NOMINAL, **{name: value})

@@ -132,14 +132,14 @@ def main() -> None:
                 a2 = math.atan(k * math.tan(math.radians(vp.CHEESE)))
                 specs = [replace(s, obj=replace(s.obj, alpha=a2)) for s in specs]
             if args.no_simulate:
-                from plate_env.run.sweeps import _from_record
+                from plate_env.run.sweeps import result_from_record
                 done = load_cache(cache)
                 tag = backend_tag(physics)
                 recs = [done.get(spec_key(tag, s)) for s in specs]
                 if not all(recs):
                     md.append(f"| {name} | {w:g}pi | not run | | | | | | |")
                     continue
-                res = [_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
+                res = [result_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
             else:
                 if cache != table_cache:
                     copy_records(physics, specs, table_cache, cache)

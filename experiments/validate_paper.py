@@ -42,7 +42,7 @@ from plate_env.build import eval_sets as bm
 from plate_env.core.probe import ProbeResult, ProbeSpec
 from plate_env.identify.fitting import fit_results
 from plate_env.run.executor import BackendSpec
-from plate_env.run.sweeps import _from_record, backend_tag, load_cache, run_cached, spec_key
+from plate_env.run.sweeps import backend_tag, load_cache, result_from_record, run_cached, spec_key
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import reproduce_paper as rp  # noqa: E402  (the paper's numbers, encoded once)
@@ -194,7 +194,7 @@ def centred_12deg_rows(model: str, cache_dir: Path) -> dict | None:
     recs = [done.get(spec_key(tag, s)) for s in specs]
     if not all(recs):
         return None
-    res = [_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
+    res = [result_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
     n = len(freqs(model, 12.0))
     out = {}
     for i, w in enumerate((*rp.FIG8_OMEGAS_PI[12.0], *SEC5_STIFF_PI)):
@@ -224,7 +224,7 @@ def cached_sweeps(model: str, cache_dir: Path) -> dict[tuple[Sweep, int], list[P
             specs = sw.specs(model, p)
             recs = [done.get(spec_key(tag, s)) for s in specs]
             if all(r is not None for r in recs):
-                out[(sw, p)] = [_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
+                out[(sw, p)] = [result_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
     return out
 
 
