@@ -11,7 +11,8 @@ the training ids (PlateRotationAtlas-v0 for v0's point mass, PlateRotationAtlas-
 live ids run at 12 (v0) and 0.6 (v1) steps/s here (``experiments/results/env_ids_speed.md``), so ``--live-steps``
 only checks that tianshou collects and trains on them.
 
-Writes ``experiments/results/tianshou_ppo.{json,md}``.
+Writes ``experiments/results/tianshou_ppo.{json,md}`` (``--name``: another stem; ``tianshou_ppo_live_v0`` holds
+``--ids PlateRotation-v0 --live`` , 20k steps on the live point mass).
 """
 
 from __future__ import annotations
@@ -160,6 +161,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--live", nargs="*", default=["PlateRotation-v0", "PlateRotation-v1"])
     ap.add_argument("--live-steps", type=int, default=64)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--name", default="tianshou_ppo", help="results file stem in experiments/results")
     args = ap.parse_args(argv)
     import os
 
@@ -179,8 +181,8 @@ def main(argv: list[str] | None = None) -> None:
            "tianshou": tianshou.__version__, "machine": f"{platform.machine()}, {os.cpu_count()} cores",
            "load": f"{os.getloadavg()[0]:.1f}", "trained": trained, "live": live}
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "tianshou_ppo.json").write_text(json.dumps(rec, indent=1) + "\n")
-    (RESULTS / "tianshou_ppo.md").write_text(_md(rec))
+    (RESULTS / f"{args.name}.json").write_text(json.dumps(rec, indent=1) + "\n")
+    (RESULTS / f"{args.name}.md").write_text(_md(rec))
     print(_md(rec))
 
 
