@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Sequence
+from pathlib import Path
 
 from plate_env.run.executor import add_executor_argument
 
@@ -164,8 +165,6 @@ def atlas_job(args: argparse.Namespace, record: dict):
 
 def _sweeps_dir(given: str | None):
     """``--sweeps``, else the user cache directory's ``sweeps/`` (ValueError when the cache is off)."""
-    from pathlib import Path
-
     from plate_env.core.cache import cache_dir
 
     if given is not None:
@@ -176,26 +175,17 @@ def _sweeps_dir(given: str | None):
     return root / "sweeps"
 
 
-def _input(given: str | None, name: str):
-    """An input file: ``given``, else the frozen one shipped in ``plate_env/data/inputs``."""
-    from plate_env.build.provenance import inputs_dir
-
-    return given if given is not None else inputs_dir() / name
-
-
 def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
     """Run ``plate-env build``; ``argv`` are the arguments after ``build`` (recorded in the artifact). A file
     written to a shipped file's place gets its manifest entry
     (:func:`plate_env.build.provenance.record_in_manifest`)."""
-    from pathlib import Path
-
-    from plate_env.build.provenance import build_record, record_in_manifest
+    from plate_env.build.provenance import build_record, inputs_dir, package_root, record_in_manifest
 
     record = build_record(argv)
-    for name in ("within", "lomo", "faithful"):
-        if hasattr(args, name):
+    for name in ("within", "lomo", "faithful"):  # an input not given: the one frozen in plate_env/data/inputs
+        if getattr(args, name, "") is None:
             stem = "faithful_forward" if name == "faithful" else f"forward_models_{name}"
-            setattr(args, name, _input(getattr(args, name), f"{stem}.json"))
+            setattr(args, name, inputs_dir() / f"{stem}.json")
     if args.artifact == "suite":
         from plate_env.build.suites import build_suite
 
@@ -212,7 +202,6 @@ def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
         return 0
     if args.artifact == "calibration" and args.name == "eq10":
         from plate_env.build.eq10 import LAB_AMP_DEG, LAB_SETS, LAB_SIMULATED, build_eq10
-        from plate_env.build.provenance import inputs_dir
 
         lab = args.lab_sweeps if args.lab_sweeps is not None else inputs_dir()
         cals = build_eq10(args.out, record, _sweeps_dir(args.sweeps), lab, args.executor)
@@ -249,13 +238,10 @@ def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
     if args.artifact == "policy":
         raise ValueError("plate-env build policy runs from the command line (plate_env.cli), which may import the "
                          "agents")
-    from plate_env.build.atlas import build_atlas
+    from plate_env.build.atlas import GRIDS, build_atlas
 
     job = atlas_job(args, record)
     atlas, out, lines = build_atlas(job)
-    from plate_env.build.atlas import GRIDS
-    from plate_env.build.provenance import package_root
-
     grid = job.grid_label()
     shipped = package_root("plate_env") / "data" / "grids" / f"{grid}.json"
     grid_file = None if grid in GRIDS else shipped if shipped.is_file() else Path(grid)

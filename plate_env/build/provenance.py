@@ -10,6 +10,7 @@ disagrees (``tests/test_manifest.py``)."""
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import json
 import os
 import platform
@@ -76,8 +77,6 @@ def file_sha256(path: str | Path) -> str:
 
 def package_root(package: str) -> Path:
     """The folder of an installed package of :data:`SHIPPED` (found without importing it)."""
-    import importlib.util
-
     spec = importlib.util.find_spec(package)
     if spec is None or not spec.submodule_search_locations:
         raise ValueError(f"package {package!r} is not installed")
