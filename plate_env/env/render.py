@@ -263,7 +263,7 @@ def _moving(draw, scene: Scene, phase: float, progress: float) -> None:
               fill=PLATE, width=7)
     half = r * 0.95
     if unstable:
-        hop = 6 + 10 * abs(math.sin(4 * math.pi * phase))
+        hop = 22 + 10 * abs(math.sin(4 * math.pi * phase))
         c = (px + n[0] * hop, py + n[1] * hop - 8)
         wrong = -1.6 * tilt + 0.12
         dd = (math.cos(wrong), -math.sin(wrong))

@@ -166,6 +166,16 @@ class PlateRotationEnv(gym.Env):
     object (the other quantities are still drawn). Unknown keys, non-numbers and objects the physics cannot answer
     are refused (ValueError naming the option).
 
+    ## Rendering
+
+    ``render_mode="rgb_array"``: :meth:`render` draws the state after the last step, one frame per probe
+    (``metadata["render_fps"]`` 1 on such an env: Gymnasium's ``RecordVideo`` gives a second per probe).
+    ``"rgb_array_list"`` (the video) and ``"human"`` (a window): each probe played in ``FRAMES_PER_PROBE`` frames
+    at ``render_fps`` (a second a probe) from its motion and measured omega_B, not re-simulated, plus a second at the
+    end. Each frame shows the probe (f_p, A_p, window, omega_B or UNSTABLE), the disc's yaw and trail, the plate's
+    tilt with the disc on it, the probes' omega_B(f_p), the current estimate with its intervals and, where the info
+    shows it, the truth (:mod:`plate_env.env.render`). Without a render mode nothing is drawn or estimated for it.
+
     ## Vector Environments
 
     ``gym.make_vec("PlateRotation-v0", num_envs=8, vectorization_mode="vector_entry_point", physics="atlas")``:
