@@ -139,17 +139,17 @@ def posterior_window(est, omega_n_true: float | None = None) -> tuple[float, flo
     """``(lo, hi, log)``: the omega_n range (rad/s) a posterior panel shows and whether its axis is logarithmic.
     An estimate: its 95 % interval (and the truth, when known), padded by 15 % of its width on either side (in
     log omega_n when the window spans more than :data:`LOG_AXIS_RATIO`). A bound: from a third of it to the
-    grid's top ("above") or from the grid's bottom to three times it ("below"). Otherwise the whole posterior
-    grid (log), or a decade around the truth."""
+    grid's top ("above") or from the grid's bottom to three times it ("below"; without a grid a decade beyond
+    it). Otherwise the whole posterior grid, or a factor 3 either side of the truth, or 1-1000 rad/s."""
     import math
 
     post = est.posterior
     grid = (float(post.omega_n[0]), float(post.omega_n[-1])) if post is not None else None
     if est.ok:
         lo, hi = est.omega_n_ci95
-    elif est.bound is not None and grid is not None:
+    elif est.bound is not None:
         side, x = est.bound
-        lo, hi = (x / 3, grid[1]) if side == "above" else (grid[0], 3 * x)
+        lo, hi = (x / 3, grid[1] if grid else 10 * x) if side == "above" else (grid[0] if grid else x / 10, 3 * x)
     elif grid is not None:
         lo, hi = grid
     elif omega_n_true is not None:
