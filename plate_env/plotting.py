@@ -49,10 +49,11 @@ UNSTABLE_P = 0.5
 UNSTABLE_COLOUR = "crimson"
 
 
-def _finish(fig: Figure, path: str | Path | None, dpi: int) -> Figure:
-    """Save ``fig`` to ``path`` (None: not written, for a caller that only inspects it) and return it."""
+def _finish(fig: Figure, path: str | Path | None, dpi: int | None) -> Figure:
+    """Save ``fig`` to ``path`` at ``dpi`` (None: :data:`DPI`, read now) and return it; ``path`` None: not
+    written, for a caller that only inspects the figure."""
     if path is not None:
-        save_figure(fig, path, dpi=dpi)
+        save_figure(fig, path, dpi=DPI if dpi is None else dpi)
     return fig
 
 
@@ -247,7 +248,7 @@ def _legend_below(ax, ncol: int = 1, order: bool = False) -> None:
 
 
 def plot_sweep(results: Sequence[ProbeResult], path: str | Path | None, title: str = "", *,
-               dpi: int = DPI) -> Figure:
+               dpi: int | None = None) -> Figure:
     """omega_B against f_p (:func:`draw_probes`: stable probes with error bars joined by a guide broken at
     unstable ones, unstable probes as crosses at 0, the reasons named). Written to ``path`` (None: not written);
     returns the figure."""
@@ -258,12 +259,12 @@ def plot_sweep(results: Sequence[ProbeResult], path: str | Path | None, title: s
     if len(table):
         draw_probes(ax, table, guide=True, reasons=[str(r.reason) for r in results if r.unstable])
     ax.set_title(title, fontsize=9)
-    _legend_below(ax)
+    _legend_below(ax, order=True)
     return _finish(fig, path, dpi)
 
 
 def plot_fit(table, est, path: str | Path | None, fm=None, *, omega_n_true: float | None = None,
-             dpi: int = DPI) -> Figure:
+             dpi: int | None = None) -> Figure:
     """Two panels. Left, the data (:func:`draw_probes`) and per amplitude the curve the estimate says they follow
     (:func:`draw_model`: drawn only where the model predicts stable probes, its predicted instability as a band
     at 0). Right, omega_n (:func:`draw_posterior`): the posterior on the scale of its own 95 % interval (a log
@@ -279,11 +280,11 @@ def plot_fit(table, est, path: str | Path | None, fm=None, *, omega_n_true: floa
     return _finish(fig, path, dpi)
 
 
-def plot_curves(summaries: Sequence[AgentSummary], path: str | Path | None, *, dpi: int = DPI) -> Figure:
+def plot_curves(summaries: Sequence[AgentSummary], path: str | Path | None, *, dpi: int | None = None) -> Figure:
     """A benchmark's curves (:func:`plate_env.bench.summary.board`'s summaries): median (solid) and 90th-percentile
-    (dashed) error against the probing budget, one colour per agent, errors capped at 100 %; the median's 95 %
-    interval at each scored budget. The y axis (log) reaches down to the smallest value drawn. Written to
-    ``path`` (None: not written); returns the figure."""
+    (dashed) error against the probing budget, one colour per agent, the curves capped at 100 %; the median and
+    its 95 % interval at each scored budget where that interval is closed. The y axis (log) reaches down to the
+    smallest value drawn. Written to ``path`` (None: not written); returns the figure."""
     import math
 
     import numpy as np
@@ -299,9 +300,9 @@ def plot_curves(summaries: Sequence[AgentSummary], path: str | Path | None, *, d
         med, p90 = (np.minimum(100 * np.asarray(v, float), cap) for v in (s.curve_median, s.curve_p90))
         ax.plot(x, med, "-", color=colour, label=f"{s.label} (area {100 * s.area.value:.1f} %)")
         ax.plot(x, p90, "--", color=colour, lw=0.8)
-        pts = [(b.budget_s, [min(100 * v, cap) for v in (b.scores.median_error.value, b.scores.median_error.lo,
-                                                          b.scores.median_error.hi)]) for b in s.budgets]
-        pts = [(bx, v) for bx, v in pts if all(math.isfinite(u) for u in v)]
+        # a budget's median with an open interval (no estimate for many objects: hi infinite) is left out
+        pts = [(b.budget_s, [100 * v for v in (m.value, m.lo, m.hi)]) for b in s.budgets
+               if math.isfinite((m := b.scores.median_error).value) and math.isfinite(m.hi)]
         if pts:
             v = np.array([p[1] for p in pts])
             ax.errorbar([p[0] for p in pts], v[:, 0], yerr=[v[:, 0] - v[:, 1], v[:, 2] - v[:, 0]], fmt="o",
