@@ -21,14 +21,15 @@ from plate_env.identify.forward import load_forward_model
 
 # ------------------------------------------------------------------------------------------------- helpers
 def capture(monkeypatch, name: str) -> list:
-    """Wrap ``plate_env.plotting.<name>`` so that the figures it returns are collected (and still written)."""
+    """Wrap ``plate_env.plotting.<name>`` so that each call's ``(figure returned, positional arguments, keyword
+    arguments)`` is collected (the figure is still written)."""
     import plate_env.plotting as plotting
 
     figs, real = [], getattr(plotting, name)
 
     def wrapped(*a, **kw):
         fig = real(*a, **kw)
-        figs.append(fig)
+        figs.append((fig, a, kw))
         return fig
 
     monkeypatch.setattr(plotting, name, wrapped)
@@ -128,17 +129,9 @@ def test_fit_plot_of_a_20pi_point_mass_sweep_shows_the_interval_and_no_curve_whe
     out = capsys.readouterr().out
     assert out.index("omega_n_hat") < out.index("plot:")  # the result is printed before the plot is made
     assert (tmp_path / "fit.png").stat().st_size > 5000
-    fig = figs[0]
+    fig, (table, est, _, fm), kw = figs[0]  # the figure, and the probes, estimate and forward model it drew
     data, post = fig.axes[:2]
-
-    from plate_env.cli import _known_inputs, build_parser  # the estimate the CLI plotted, recomputed
-    from plate_env.core.probe_table import read_lab_csv
-    from plate_env.identify import identify
-
-    args = build_parser().parse_args(["fit", str(csv), "--amp", "3"])
-    table = read_lab_csv(csv, a_p_deg=3.0)
-    est = identify(table, method="atlas", physics="lab", model="lab", forward="lab", known=_known_inputs(args))
-    assert est.ok
+    assert est.ok and est.forward == fm.name == "lab" and kw.get("omega_n_true") is None  # a CSV knows no truth
     assert est.omega_n_ci95[1] / est.omega_n_ci95[0] > 100  # the wide interval of the issue
     assert post.get_xscale() == "log"
     assert_window_shows_interval(post, est)
@@ -147,7 +140,6 @@ def test_fit_plot_of_a_20pi_point_mass_sweep_shows_the_interval_and_no_curve_whe
 
     (curve,) = model_curves(data).values()
     f, y = (np.asarray(v, float) for v in curve.get_data())
-    fm = load_forward_model("lab", _known_inputs(args))
     pred = predicted_curve(fm, est, f, 3.0)
     member = next(m for m in fm.members if m.label == pred.label)
     mean, _, p_un = member.atlas.predict(f, 3.0, est.omega_n, est.alpha)  # the atlas read directly
@@ -173,16 +165,13 @@ def test_identify_plot_marks_the_truth_and_draws_both_amplitudes_curves(tmp_path
     from plate_env.cli import main
 
     figs = capture(monkeypatch, "plot_fit")
-    got = []
-    import plate_env.plotting as plotting
-    real = plotting.draw_posterior
-    monkeypatch.setattr(plotting, "draw_posterior", lambda ax, est, truth=None: (got.append(est), real(ax, est, truth)))
     assert main(["identify", "--physics", "atlas", "--omega-n", "20pi", "--seed", "2", "--plot",
                  str(tmp_path / "run.png")]) == 0
     out = capsys.readouterr().out
     assert "true        = 62.83 rad/s (20pi)" in out and out.index("true ") < out.index("plot:")
-    data, post = figs[0].axes[:2]
-    (est,) = got
+    fig, (_, est, _, _), kw = figs[0]
+    assert kw["omega_n_true"] == pytest.approx(20 * math.pi)
+    data, post = fig.axes[:2]
     amps = sorted({lb.split(":")[0] for lb in assert_every_legend_entry_drawn(data)})
     assert amps == ["A_p = 12 deg", "A_p = 3 deg"], f"this episode was chosen for its two amplitudes, got {amps}"
     assert set(model_curves(data)) == {"A_p = 3 deg: tilelink/pointmass at the estimate",
@@ -287,7 +276,7 @@ def test_sweep_plot_breaks_its_guide_at_unstable_probes_and_draws_every_entry(tm
     assert main(["sweep", "--physics", "atlas", "--omega-n", "20pi", "--freqs", "12:34:2", "--amp", "3",
                  "--plot", str(tmp_path / "sweep.png"), "--no-progress"]) == 0
     capsys.readouterr()
-    ax = figs[0].axes[0]
+    ax = figs[0][0].axes[0]
     labels = assert_every_legend_entry_drawn(ax)
     assert any("unstable probes (slipped)" in lb for lb in labels)
     (guide,) = [ln for ln in ax.lines if ln.get_label().startswith("_") and ln.get_linestyle() == "-"
@@ -308,7 +297,7 @@ def test_bench_plot_reaches_down_to_its_smallest_value(tmp_path, monkeypatch, ca
     assert main(["bench", "--suite", "atlas-v0", "--agent", "bayes", "grid", "--limit", "3", "--no-cache",
                  "--no-progress", "--plot", str(tmp_path / "bench.png")]) == 0
     capsys.readouterr()
-    ax = figs[0].axes[0]
+    ax = figs[0][0].axes[0]
     assert_every_legend_entry_drawn(ax)
     ys = np.concatenate([np.asarray(ln.get_data()[1], float) for ln in ax.lines]
                         + [np.asarray(seg)[:, :, 1].ravel() for c in ax.collections
