@@ -137,11 +137,11 @@ def draw_model(ax, table, est, fm, colours: dict[float, str]) -> None:
 
 
 def posterior_window(est, omega_n_true: float | None = None) -> tuple[float, float, bool]:
-    """``(lo, hi, log)``: the omega_n range (rad/s) a posterior panel shows and whether its axis is logarithmic.
-    An estimate: its 95 % interval (and the truth, when known), padded by 15 % of its width on either side (in
-    log omega_n when the window spans more than :data:`LOG_AXIS_RATIO`). A bound: from a third of it to the
-    grid's top ("above") or from the grid's bottom to three times it ("below"; without a grid a decade beyond
-    it). Otherwise the whole posterior grid, or a factor 3 either side of the truth, or 1-1000 rad/s."""
+    """``(lo, hi, log)``: the omega_n range (rad/s) a posterior panel shows and whether its axis is logarithmic. An
+    estimate: its 95 % interval (and the truth, when known), padded by 15 % of its width on either side (in log
+    omega_n when the window spans more than :data:`LOG_AXIS_RATIO`; linear from 0 when it reaches 0). A bound: from a
+    third of it to the grid's top ("above") or from the grid's bottom to three times it ("below"; without a grid a
+    decade beyond it). Otherwise the whole posterior grid, or a factor 3 either side of the truth, or 1-1000 rad/s."""
     import math
 
     post = est.posterior
@@ -159,7 +159,9 @@ def posterior_window(est, omega_n_true: float | None = None) -> tuple[float, flo
         lo, hi = 1.0, 1000.0
     if omega_n_true is not None:
         lo, hi = min(lo, omega_n_true), max(hi, omega_n_true)
-    lo = max(lo, 1e-9)
+    if lo <= 0.0:  # an interval reaching zero (the Lorentz method's, say) has no log scale: linear from 0
+        hi = max(hi, 1e-9)
+        return 0.0, 1.15 * hi, False
     hi = max(hi, lo * (1 + 1e-6))
     log = hi / lo > LOG_AXIS_RATIO
     if log:
