@@ -68,7 +68,8 @@ def main() -> None:
                                                             np.full(f7.size, 10.0)),
               "examples/cheese_sweep.csv": read_lab_csv(Path(__file__).resolve().parent.parent / "examples" /
                                                         "cheese_sweep.csv", a_p_deg=3.0),
-              "zeros, every probe flagged unstable": _table(np.zeros(F_HZ.size)), "constant 300 deg/s": _table(np.full(F_HZ.size, 300.0)),
+              "zeros, every probe flagged unstable": _table(np.zeros(F_HZ.size)),
+              "constant 300 deg/s": _table(np.full(F_HZ.size, 300.0)),
               "negative (-20 f)": _table(-20.0 * F_HZ), "uniform noise 0-800": _table(rng.uniform(0, 800, F_HZ.size))}
     honest = _pointmass_sweeps(args.objects, rng)
     for name, t in sweeps.items():
