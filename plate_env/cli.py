@@ -571,7 +571,9 @@ def _fit_report(est, table) -> list[str]:
         if not fit.ok:
             out.append(f"    cannot fit: {fit.reason}")
             continue
-        out.append(f"    data points = {fit.n_used} used, {fit.n_unstable} unstable excluded")
+        left = "; ".join(f"{n} {why}" for why, n in fit.left_out) or "none"
+        out.append(f"    data points = {fit.n_used} used of {fit.n_used + sum(n for _, n in fit.left_out)}; left out: "
+                   f"{left}")
         out.append(f"    R-squared   = {fit.r2:.4f}")
         for name, val, err, unit in (("omega_max", fit.omega_max, fit.stderr[0], "deg/s"),
                                      ("f0", fit.f0, fit.stderr[1], "Hz"), ("b", fit.b, fit.stderr[2], "Hz")):
@@ -757,6 +759,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
             print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s "
                   f"({format_omega_pi(est.omega_n)}) by {est.method} on {source}")
             print(_intervals(est))
+            if est.note:
+                print(f"note: {est.note}")
             if est.alpha is not None:
                 print(f"alpha_hat   = {math.degrees(est.alpha):.1f} +- {math.degrees(est.alpha_stderr):.1f} deg")
             if est.method == "atlas" and est.forward == "lab":
