@@ -13,10 +13,17 @@ from plate_env.core.probe_table import ProbeTable
 from plate_env.identify.estimate import METHODS, Estimate
 from plate_env.identify.estimators import ForwardName, make_estimator
 from plate_env.identify.forward import ForwardModel
-from plate_env.identify.lorentz import extrapolated_peak, identify_lorentz, offset_intervals, positive_intervals
+from plate_env.identify.lorentz import (
+    extrapolated_peak,
+    identify_lorentz,
+    offset_intervals,
+    positive_intervals,
+    zero_interval_note,
+)
 from plate_env.surrogate.conditioning import KnownInputs
 
-__all__ = ["METHODS", "extrapolated_peak", "identify", "identify_lorentz", "offset_intervals", "positive_intervals"]
+__all__ = ["METHODS", "extrapolated_peak", "identify", "identify_lorentz", "offset_intervals", "positive_intervals",
+           "zero_interval_note"]
 
 
 def _table(probes: Sequence[ProbeResult] | ProbeTable) -> ProbeTable:
