@@ -9,7 +9,9 @@ seconds of the whole command, the load before/after), then the saved zip is load
 (plate_env_agents.sb3_zip: nothing unpickled) and played deterministically on ``--episodes`` objects (env seeds
 100000 + i) of PlateRotationAtlas-v0 with the entry's env_kwargs: the median relative error of omega_n, the share
 of episodes with an estimate, mean probes and reward. ``--keep DIR`` keeps the zips (DIR/ALGO.zip) for
-``plate-env bench --agent sb3:ALGO:DIR/ALGO.zip``. Writes experiments/results/zoo_algos.json and .md.
+``plate-env bench --agent sb3:ALGO:DIR/ALGO.zip``. Writes experiments/results/zoo_algos.json and .md (``--out``:
+another stem, for algorithms run as separate invocations at once; ``--merge STEM ...`` then writes zoo_algos.json
+and .md from their runs, in the order given).
 """
 
 from __future__ import annotations
@@ -79,7 +81,7 @@ def score(algo: str, zip_path: str, episodes: int) -> dict:
             "mean_probes": float(np.mean(probes))}
 
 
-def write_md(r: dict) -> None:
+def write_md(r: dict, stem: str = "zoo_algos") -> None:
     lines = ["# rl-zoo3 with the shipped conf: PPO, SAC, TD3, A2C on PlateRotationAtlas-v0", "",
              f"`python experiments/zoo_algos.py --steps {r['steps']} --episodes {r['episodes']}` at commit "
              f"`{r['commit']}`, rl_zoo3 {r['rl_zoo3']}, stable-baselines3 {r['sb3']}, torch {r['torch']}; 2 shared "
@@ -90,13 +92,16 @@ def write_md(r: dict) -> None:
              f"{r['episodes']} seeded objects (env seeds 100000+i, the entry's env_kwargs). Relative error of "
              "omega_n; an episode without an estimate counts as an infinite error. PPO: its tuned entry "
              "(agents/hyperparams/ppo.yml) cut to the same steps; SAC, TD3, A2C: SB3's defaults (their files).", "",
+             *([f"Merged from {', '.join(r['merged_from'])} (`--merge`): invocations that ran partly at the same "
+                "time on the same cores, so wall times are comparable only with the load beside them.", ""]
+               if r.get("merged_from") else []),
              "| algorithm | train wall s | load before / after | median rel. error | 90th pct | with estimate | "
              "mean probes |", "|---|---|---|---|---|---|---|"]
     for x in r["runs"]:
         lines.append(f"| {x['algo']} | {x['wall_s']:.0f} | {x['load_before']} / {x['load_after']} | "
                      f"{100 * x['median_rel_error']:.1f} % | {100 * x['p90_rel_error']:.1f} % | "
                      f"{100 * x['with_estimate']:.0f} % | {x['mean_probes']:.1f} |")
-    (RESULTS / "zoo_algos.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{stem}.md").write_text("\n".join(lines) + "\n")
 
 
 def main() -> None:
@@ -105,7 +110,15 @@ def main() -> None:
     ap.add_argument("--episodes", type=int, default=100)
     ap.add_argument("--algos", default="ppo,sac,td3,a2c")
     ap.add_argument("--keep", type=Path, default=None, help="keep the trained zips in this folder")
+    ap.add_argument("--out", default="zoo_algos", help="stem of the result files in experiments/results")
+    ap.add_argument("--merge", nargs="+", default=None, help="only merge these result stems into zoo_algos")
     args = ap.parse_args()
+    if args.merge:
+        parts = [json.loads((RESULTS / f"{stem}.json").read_text()) for stem in args.merge]
+        out = {**parts[0], "runs": [run for part in parts for run in part["runs"]], "merged_from": args.merge}
+        (RESULTS / f"{args.out}.json").write_text(json.dumps(out, indent=1) + "\n")
+        write_md(out, args.out)
+        return
     import rl_zoo3
     import stable_baselines3
     import torch
@@ -119,8 +132,8 @@ def main() -> None:
         run.update(score(algo, run["zip"], args.episodes))
         out["runs"].append(run)
         print(json.dumps(run), flush=True)
-        (RESULTS / "zoo_algos.json").write_text(json.dumps(out, indent=1) + "\n")
-        write_md(out)
+        (RESULTS / f"{args.out}.json").write_text(json.dumps(out, indent=1) + "\n")
+        write_md(out, args.out)
 
 
 if __name__ == "__main__":
