@@ -8,8 +8,11 @@ For each algorithm: ``python -m rl_zoo3.train --algo ALGO --env PlateRotationAtl
 seconds of the whole command, the load before/after), then the saved zip is loaded through ``sb3:ALGO:zip``
 (plate_env_agents.sb3_zip: nothing unpickled) and played deterministically on ``--episodes`` objects (env seeds
 100000 + i) of PlateRotationAtlas-v0 with the entry's env_kwargs: the median relative error of omega_n, the share
-of episodes with an estimate, mean probes and reward. ``--keep DIR`` keeps the zips (DIR/ALGO.zip) for
-``plate-env bench --agent sb3:ALGO:DIR/ALGO.zip``. Writes experiments/results/zoo_algos.json and .md (``--out``:
+of episodes with an estimate and the mean probes. ``--keep DIR`` keeps the zips (DIR/ALGO.zip) for
+``plate-env bench --agent sb3:ALGO:DIR/ALGO.zip``. ``--score ALGO=ZIP ...`` only scores zips trained by that
+command elsewhere (e.g. stopped with Ctrl-C on a loaded machine: rl-zoo3 then saves the model at the steps reached;
+the row's steps are the zip's ``num_timesteps`` and its wall time is not measured here). Writes
+experiments/results/zoo_algos.json and .md (``--out``:
 another stem, for algorithms run as separate invocations at once; ``--merge STEM ...`` then writes zoo_algos.json
 and .md from their runs, in the order given).
 """
@@ -76,7 +79,10 @@ def score(algo: str, zip_path: str, episodes: int) -> dict:
         probes.append(res.n_probes)
     env.close()
     errs_a = np.asarray(errs)
-    return {"episodes": episodes, "median_rel_error": float(np.median(errs_a)),
+    from plate_env_agents.sb3_zip import read_data
+
+    return {"steps_trained": int(read_data(zip_path)["num_timesteps"]), "episodes": episodes,
+            "median_rel_error": float(np.median(errs_a)),
             "p90_rel_error": float(np.quantile(errs_a, 0.9)), "with_estimate": float(np.mean(ok)),
             "mean_probes": float(np.mean(probes))}
 
@@ -95,10 +101,12 @@ def write_md(r: dict, stem: str = "zoo_algos") -> None:
              *([f"Merged from {', '.join(r['merged_from'])} (`--merge`): invocations that ran partly at the same "
                 "time on the same cores, so wall times are comparable only with the load beside them.", ""]
                if r.get("merged_from") else []),
-             "| algorithm | train wall s | load before / after | median rel. error | 90th pct | with estimate | "
-             "mean probes |", "|---|---|---|---|---|---|---|"]
+             "| algorithm | steps trained | train wall s | load before / after | median rel. error | 90th pct | "
+             "with estimate | mean probes |", "|---|---|---|---|---|---|---|---|"]
     for x in r["runs"]:
-        lines.append(f"| {x['algo']} | {x['wall_s']:.0f} | {x['load_before']} / {x['load_after']} | "
+        wall = f"{x['wall_s']:.0f}" if x.get("wall_s") is not None else "not measured (--score)"
+        lines.append(f"| {x['algo']} | {x.get('steps_trained', x.get('steps'))} | {wall} | "
+                     f"{x.get('load_before', '-')} / {x.get('load_after', '-')} | "
                      f"{100 * x['median_rel_error']:.1f} % | {100 * x['p90_rel_error']:.1f} % | "
                      f"{100 * x['with_estimate']:.0f} % | {x['mean_probes']:.1f} |")
     (RESULTS / f"{stem}.md").write_text("\n".join(lines) + "\n")
@@ -112,6 +120,7 @@ def main() -> None:
     ap.add_argument("--keep", type=Path, default=None, help="keep the trained zips in this folder")
     ap.add_argument("--out", default="zoo_algos", help="stem of the result files in experiments/results")
     ap.add_argument("--merge", nargs="+", default=None, help="only merge these result stems into zoo_algos")
+    ap.add_argument("--score", nargs="+", default=None, metavar="ALGO=ZIP", help="only score these zips")
     args = ap.parse_args()
     if args.merge:
         parts = [json.loads((RESULTS / f"{stem}.json").read_text()) for stem in args.merge]
@@ -127,8 +136,10 @@ def main() -> None:
                             cwd=Path(__file__).parent).stdout.strip()
     out = {"steps": args.steps, "episodes": args.episodes, "commit": commit, "rl_zoo3": rl_zoo3.__version__,
            "sb3": stable_baselines3.__version__, "torch": torch.__version__, "runs": []}
-    for algo in args.algos.split(","):
-        run = train(algo, args.steps, args.keep)
+    jobs = [tuple(x.split("=", 1)) for x in args.score] if args.score else [(a, None) for a in args.algos.split(",")]
+    for algo, zip_path in jobs:
+        run = train(algo, args.steps, args.keep) if zip_path is None else {"algo": algo, "zip": zip_path,
+                                                                           "wall_s": None}
         run.update(score(algo, run["zip"], args.episodes))
         out["runs"].append(run)
         print(json.dumps(run), flush=True)
