@@ -83,8 +83,14 @@ def score(algo: str, zip_path: str, episodes: int) -> dict:
 
     return {"steps_trained": int(read_data(zip_path)["num_timesteps"]), "episodes": episodes,
             "median_rel_error": float(np.median(errs_a)),
-            "p90_rel_error": float(np.quantile(errs_a, 0.9)), "with_estimate": float(np.mean(ok)),
+            "p90_rel_error": float(np.quantile(errs_a, 0.9, method="higher")),  # inf: > 10 % without estimate
+            "with_estimate": float(np.mean(ok)),
             "mean_probes": float(np.mean(probes))}
+
+
+def _pct(x: float) -> str:
+    """A relative error in percent; inf: no estimate; NaN: not available (a p90 before the fix to inf)."""
+    return "inf (no estimate)" if x == np.inf else "n/a" if np.isnan(x) else f"{100 * x:.1f} %"
 
 
 def write_md(r: dict, stem: str = "zoo_algos") -> None:
@@ -107,7 +113,7 @@ def write_md(r: dict, stem: str = "zoo_algos") -> None:
         wall = f"{x['wall_s']:.0f}" if x.get("wall_s") is not None else "not measured (--score)"
         lines.append(f"| {x['algo']} | {x.get('steps_trained', x.get('steps'))} | {wall} | "
                      f"{x.get('load_before', '-')} / {x.get('load_after', '-')} | "
-                     f"{100 * x['median_rel_error']:.1f} % | {100 * x['p90_rel_error']:.1f} % | "
+                     f"{_pct(x['median_rel_error'])} | {_pct(x['p90_rel_error'])} | "
                      f"{100 * x['with_estimate']:.0f} % | {x['mean_probes']:.1f} |")
     (RESULTS / f"{stem}.md").write_text("\n".join(lines) + "\n")
 
