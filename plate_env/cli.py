@@ -813,7 +813,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     if plot is not None:
         from plate_env.plotting import plot_fit
 
-        plot_fit(res.probes, est, str(plot), plot_fm)
+        plot_fit(res.probes, est, str(plot), plot_fm, omega_n_true=obj.omega_n)  # the truth printed above
         _say_plot(args, plot)
     return 0 if est.ok else 1
 

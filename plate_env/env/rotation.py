@@ -121,9 +121,10 @@ class PlateRotationEnv(gym.Env):
     One schema, declared in :mod:`plate_env.env.info` (``FIELDS``): every key below is in every ``info``, of
     ``reset`` and of every ``step``, with the same numpy dtype (float64, int64, bool) or str, so that Gymnasium's
     vector envs, tianshou's ``Batch`` and SB3's ``Monitor(info_keywords=("relative_error",))`` can batch and log it.
-    A field without a value holds NaN (numbers) or ``""`` (strings), and a flag says whether there is one
+    A field without a value holds its empty value (0 for numbers, ``inf`` for ``relative_error``, ``""`` for
+    strings; never NaN, which tianshou's trainers refuse in a buffer) and a flag says whether there is one
     (``estimate.ok``, ``estimate.check.ok``, ``last_probe.ok``, ``truth_revealed``). The hidden object (``*_true_*``
-    and ``last_probe``'s ``omega_n_rad_s``, ``alpha_deg``, ``mass_g``) is NaN until the terminating step, so a policy
+    and ``last_probe``'s ``omega_n_rad_s``, ``alpha_deg``, ``mass_g``) is empty until the terminating step, so a policy
     that reads the info learns nothing it could not measure; ``reveal_truth=True`` shows it on every step (for
     diagnostics; never for training). ``last_probe.omega_b_deg_s`` is the observation's omega_B (the camera's
     measurement, 0 for an unstable probe: it has no rotation rate). The estimate's posterior members and
@@ -576,7 +577,7 @@ def _estimate_values(est: Estimate) -> dict[str, Any]:
     (the posterior's members, the per-amplitude fits: ``env.unwrapped.estimate()`` has them)."""
     d = est.to_dict()
     v = {f"estimate.{k}": d[k] for k in ("ok", "method", "reason", "forward", "n_probes", "n_unstable")}
-    if est.omega_n > 0:  # an answer (a rejected one, ok False, keeps its values); 0: none, NaN in the info
+    if est.omega_n > 0:  # an answer (a rejected one, ok False, keeps its values); 0: none, empty in the info
         v.update({f"estimate.{k}": d[k] for k in ("omega_n_rad_s", "omega_n_stderr_rad_s", "omega_n_pi")})
         for level in ("68", "95"):
             v[f"estimate.omega_n_ci{level}_lo_rad_s"], v[f"estimate.omega_n_ci{level}_hi_rad_s"] = \

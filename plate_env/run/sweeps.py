@@ -37,8 +37,9 @@ TAG_DEFAULTS = {"record_interval_s": 1e-3, "slip_limit": SLIP_LIMIT_M, "k_elasti
 
 def backend_tag(physics: Physics | BackendSpec) -> str:
     """A string naming the backend and its settings (part of every cache key): every setting that changes a
-    result (:data:`TAG_SETTINGS`: model, time step, mesh, joint and contact parameters, record interval) is in it
-    (those of :data:`TAG_DEFAULTS` only when they differ from it). A :class:`BackendSpec` is built
+    result (the ``settings`` of the backend's ``describe()``, in :data:`TAG_SETTINGS`' order: model, time step, mesh,
+    joint and contact parameters, record interval) is in it (those of :data:`TAG_DEFAULTS` only when they differ
+    from it); a setting :data:`TAG_SETTINGS` does not list is refused (ValueError). A :class:`BackendSpec` is built
     (cheaply: no client or kernel is touched) to read them."""
     if isinstance(physics, BackendSpec):
         built = physics.build()
@@ -46,10 +47,16 @@ def backend_tag(physics: Physics | BackendSpec) -> str:
             return backend_tag(built)
         finally:
             built.close()
-    parts = [physics.name]
+    d = physics.describe()
+    settings = d["settings"]
+    unknown = set(settings) - set(TAG_SETTINGS)
+    if unknown:  # a setting the key would not name: two backends differing in it would share cached results
+        raise ValueError(f"{d['name']} declares settings {sorted(unknown)} that plate_env.run.sweeps.TAG_SETTINGS "
+                         "does not list")
+    parts = [d["name"]]
     for attr in TAG_SETTINGS:
-        if hasattr(physics, attr) and not (attr in TAG_DEFAULTS and getattr(physics, attr) == TAG_DEFAULTS[attr]):
-            parts.append(f"{attr}={getattr(physics, attr)}")
+        if attr in settings and not (attr in TAG_DEFAULTS and settings[attr] == TAG_DEFAULTS[attr]):
+            parts.append(f"{attr}={settings[attr]}")
     return ",".join(parts)
 
 
