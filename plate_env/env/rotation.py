@@ -109,7 +109,13 @@ class PlateRotationEnv(gym.Env):
 
     Terminated when the action says stop (after the first probe), when ``max_probes`` probes have run, or when the
     probes have taken ``max_sim_s`` simulated seconds (the probe that crosses it still runs). Never truncated by the
-    env itself (an outer ``TimeLimit`` may truncate; the info of a truncated step is a non-final one).
+    env itself. An outer ``TimeLimit`` shorter than the episode (``max_episode_steps`` <= ``max_probes``) truncates
+    without the env knowing: the truncated step is a non-final one (its reward is that probe's cost, its info has
+    no estimate and no truth), so the error is never charged and the return holds the probe costs only. Learners
+    that bootstrap truncated steps, as Gymnasium's contract says (SB3 through ``TimeLimit.truncated``), still value
+    the error to come; to end episodes with the error charged, bound them with ``max_probes`` or ``max_sim_s``.
+    After a truncation ``env.unwrapped.estimate()`` is the estimate of the probes so far (what a stop would have
+    charged). The registered ids' TimeLimit is the largest ``max_probes`` accepted: it never cuts an episode short.
 
     ## Info
 
