@@ -1,0 +1,519 @@
+"""numba kernel of the modal (floating-frame) rigid-tile disc, :mod:`plate_env.physics.tilelink.rigid_modal`
+(issue 34; experimental, not a registered backend model).
+
+One step of ``dt`` s (semi-implicit, like the rigid-tile kernel):
+
+1. the elastic forces of the modes: linear ``-w^2 q`` and the condensed joint stiffening ``-d/dq (q^T B s +
+   s^T H s / 2)``; each mode's spring-damper is integrated by backward Euler, so its response to an impulse is
+   scaled by ``1 / (1 + dt c + dt^2 w^2)`` (the modal "mass" of the step); gravity and the gyroscopic torque act
+   on the frame;
+2. the tiles' centres (frame + modal displacement + the static foreshortening ``U s``) and axes (frame x
+   the tile's modal rotation) are built;
+3. plate contact at every tile corner below the plate, the shared law (:func:`contact.spring_force`,
+   :func:`contact.damped_normal_force`, :func:`contact.friction_scale`) with a quarter of the tile's
+   coefficients, ``iterations`` Gauss-Seidel sweeps; a corner's impulse moves the frame (translation and rotation)
+   and the modes through the corner's mode shapes ``psi_k = phi_t,k + phi_r,k x c`` (``c`` its offset on the
+   tile);
+4. frame position/quaternion and modal coordinates advance with the new velocities.
+
+Records (~1 ms): the tile-link observation and checks (:func:`kernels.record`), FOLDED when a tile turns over.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+
+import numba
+import numpy as np
+
+from plate_env.core.probe import SLIP_LIMIT_M, ProbeResult, ProbeSpec, Status, check_probes
+from plate_env.physics.tilelink import params
+from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
+from plate_env.physics.tilelink.jit_cache import CACHE
+from plate_env.physics.tilelink.kernels import (
+    FAST,
+    damped_normal_force,
+    friction_scale,
+    load_first,
+    plate_at,
+    record,
+    spring_force,
+)
+from plate_env.physics.tilelink.params import DEFAULT_RECORD_INTERVAL_S, N_PARAMS, allocate_outputs, common_vector
+from plate_env.physics.tilelink.rigid_modal import ModalDiscConfig, build_modal_params
+
+(M_H, M_IB0, M_IB1, M_IB2, M_NITER, M_FOLDW, M_FS) = range(N_PARAMS, N_PARAMS + 7)
+N_MODAL_PARAMS = N_PARAMS + 7
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _quat_matrix(qw, qx, qy, qz, rm):
+    rm[0, 0] = 1.0 - 2.0 * (qy * qy + qz * qz)
+    rm[0, 1] = 2.0 * (qx * qy - qw * qz)
+    rm[0, 2] = 2.0 * (qx * qz + qw * qy)
+    rm[1, 0] = 2.0 * (qx * qy + qw * qz)
+    rm[1, 1] = 1.0 - 2.0 * (qx * qx + qz * qz)
+    rm[1, 2] = 2.0 * (qy * qz - qw * qx)
+    rm[2, 0] = 2.0 * (qx * qz - qw * qy)
+    rm[2, 1] = 2.0 * (qy * qz + qw * qx)
+    rm[2, 2] = 1.0 - 2.0 * (qx * qx + qy * qy)
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _rodrigues(tx, ty, tz, out):
+    ang = math.sqrt(tx * tx + ty * ty + tz * tz)
+    if ang < 1e-12:
+        sa = 1.0
+        ca = 0.5
+    else:
+        sa = math.sin(ang) / ang
+        ca = (1.0 - math.cos(ang)) / (ang * ang)
+    out[0, 0] = 1.0 - ca * (ty * ty + tz * tz)
+    out[0, 1] = -sa * tz + ca * tx * ty
+    out[0, 2] = sa * ty + ca * tx * tz
+    out[1, 0] = sa * tz + ca * tx * ty
+    out[1, 1] = 1.0 - ca * (tx * tx + tz * tz)
+    out[1, 2] = -sa * tx + ca * ty * tz
+    out[2, 0] = -sa * ty + ca * tx * tz
+    out[2, 1] = sa * tx + ca * ty * tz
+    out[2, 2] = 1.0 - ca * (tx * tx + ty * ty)
+
+
+@numba.njit(cache=CACHE, fastmath=FAST)
+def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_out, cu_out, cv_out):
+    """Simulate one probe of the modal disc; fills the traces and returns (status, records written).
+
+    ``pt``/``pr``: (N, 3, K) each tile's modal translation and rotation per mode (body frame); ``us``: (N, 3, P)
+    the static foreshortening per product ``s_p = q_a q_b`` of ``pairs`` (P, 2); ``bc`` (K, P), ``hq`` (P, P) the
+    cubic and quartic stiffening; ``omega``/``damp`` (K,) modal frequency and damping.
+    """
+    n = rest.shape[0]
+    nk = omega.shape[0]
+    npair = pairs.shape[0]
+    dt = prm[params.P_DT]
+    m = prm[params.P_MASS]
+    mtot = m * n
+    inv_mt = 1.0 / mtot
+    ib0, ib1, ib2 = prm[M_IB0], prm[M_IB1], prm[M_IB2]
+    n_iter = int(prm[M_NITER])
+    n_steps = int(prm[params.P_NSTEPS])
+    rec_every = int(prm[params.P_RECEVERY])
+    kc = 0.25 * prm[params.P_KC]
+    cc = 0.25 * prm[params.P_CC]
+    hh = 0.5 * prm[M_H]
+    grav = prm[params.P_G]
+    fs = prm[M_FS] > 0.5
+    mus, muk, vt = prm[params.P_MUS], prm[params.P_MUK], prm[params.P_VT]
+    # state
+    xf = np.empty(3)
+    vf = np.zeros(3)
+    wf = np.zeros(3)
+    q = np.zeros(nk)
+    qd = np.zeros(nk)
+    s = np.zeros(npair)
+    force = np.empty(nk)
+    sk = np.empty(nk)
+    for k in range(nk):
+        sk[k] = 1.0 / (1.0 + dt * damp[k] + dt * dt * omega[k] * omega[k])
+    tmp_p = np.empty(npair)
+    tmp_k = np.empty(nk)
+    rm = np.empty((3, 3))
+    iw = np.empty((3, 3))  # world inverse inertia
+    trot = np.empty((n, 3, 3))  # tile rotation in the body frame
+    x = np.empty((n, 3))  # tile centres, world
+    body = np.empty((n, 3))  # tile centres, body frame
+    ctile = np.empty(4 * n, dtype=np.int64)
+    cdat = np.empty((4 * n, 16))  # r (3), f_spring, u plate (3), kn_inv, dv_t/dp_n (3), c body (3), nb, spare
+    cimp = np.empty((4 * n, 3))
+    psi = np.empty((4 * n, 3, nk))
+    yaw0 = prm[params.P_YAW0]
+    xf[0] = prm[params.P_U0]
+    xf[1] = prm[params.P_V0]
+    xf[2] = -prm[params.P_DEPTH0]
+    qw, qx, qy, qz = math.cos(0.5 * yaw0), 0.0, 0.0, math.sin(0.5 * yaw0)
+    yaw = yaw0
+    n_rec = 0
+    status = Status.OK
+    for step in range(n_steps + 1):
+        th, th_dot, xp, xp_dot = plate_at(prm, step * dt)
+        s_th = math.sin(th)
+        c_th = math.cos(th)
+        pnx, pny, pnz = 0.0, -s_th, c_th
+        _quat_matrix(qw, qx, qy, qz, rm)
+        # products s and tile geometry
+        for p in range(npair):
+            s[p] = q[pairs[p, 0]] * q[pairs[p, 1]]
+        tile_w_min = 1.0
+        for i in range(n):
+            bx = rest[i, 0]
+            by = rest[i, 1]
+            bz = 0.0
+            tx = 0.0
+            ty = 0.0
+            tz = 0.0
+            for k in range(nk):
+                qk = q[k]
+                bx += pt[i, 0, k] * qk
+                by += pt[i, 1, k] * qk
+                bz += pt[i, 2, k] * qk
+                tx += pr[i, 0, k] * qk
+                ty += pr[i, 1, k] * qk
+                tz += pr[i, 2, k] * qk
+            if fs:
+                for p in range(npair):
+                    bx += us[i, 0, p] * s[p]
+                    by += us[i, 1, p] * s[p]
+                    bz += us[i, 2, p] * s[p]
+            body[i, 0], body[i, 1], body[i, 2] = bx, by, bz
+            _rodrigues(tx, ty, tz, trot[i])
+            for d in range(3):
+                x[i, d] = xf[d] + rm[d, 0] * bx + rm[d, 1] * by + rm[d, 2] * bz
+            # world tile normal's plate-normal component
+            nz_b0, nz_b1, nz_b2 = trot[i, 0, 2], trot[i, 1, 2], trot[i, 2, 2]
+            nwy = rm[1, 0] * nz_b0 + rm[1, 1] * nz_b1 + rm[1, 2] * nz_b2
+            nwz = rm[2, 0] * nz_b0 + rm[2, 1] * nz_b1 + rm[2, 2] * nz_b2
+            tw = -nwy * s_th + nwz * c_th
+            if tw < tile_w_min:
+                tile_w_min = tw
+        if step % rec_every == 0:
+            vmax2 = 0.0
+            for i in range(n):
+                rx = x[i, 0] - xf[0]
+                ry = x[i, 1] - xf[1]
+                rz = x[i, 2] - xf[2]
+                ux = 0.0
+                uy = 0.0
+                uz = 0.0
+                for k in range(nk):
+                    ux += pt[i, 0, k] * qd[k]
+                    uy += pt[i, 1, k] * qd[k]
+                    uz += pt[i, 2, k] * qd[k]
+                vx = vf[0] + wf[1] * rz - wf[2] * ry + rm[0, 0] * ux + rm[0, 1] * uy + rm[0, 2] * uz
+                vy = vf[1] + wf[2] * rx - wf[0] * rz + rm[1, 0] * ux + rm[1, 1] * uy + rm[1, 2] * uz
+                vz = vf[2] + wf[0] * ry - wf[1] * rx + rm[2, 0] * ux + rm[2, 1] * uy + rm[2, 2] * uz
+                sp = vx * vx + vy * vy + vz * vz
+                if not (sp <= vmax2):
+                    vmax2 = sp
+            extra = Status.OK
+            if tile_w_min < prm[M_FOLDW]:
+                extra = Status.FOLDED
+            status, yaw, n_rec = record(x, rest, cells, xp, s_th, c_th, yaw, vmax2, extra, prm, yaw_out, cu_out,
+                                        cv_out, n_rec)
+            if status != Status.OK:
+                break
+        if step == n_steps:
+            break
+        # 1. elastic forces of the modes (linear + condensed stiffening), backward Euler spring-damper
+        for k in range(nk):
+            acc = 0.0
+            for p in range(npair):
+                acc += bc[k, p] * s[p]
+            force[k] = -acc
+        # v = B^T q + H s, acting through ds/dq
+        for p in range(npair):
+            acc = 0.0
+            for k in range(nk):
+                acc += bc[k, p] * q[k]
+            for p2 in range(npair):
+                acc += hq[p, p2] * s[p2]
+            tmp_p[p] = acc
+        for p in range(npair):
+            a = pairs[p, 0]
+            b = pairs[p, 1]
+            force[a] -= tmp_p[p] * q[b]
+            force[b] -= tmp_p[p] * q[a]
+        for k in range(nk):
+            qd[k] = sk[k] * (qd[k] + dt * (force[k] - omega[k] * omega[k] * q[k]))
+        # frame: gravity, gyroscopic torque
+        vf[2] -= dt * grav
+        for r_ in range(3):
+            for c_ in range(3):
+                iw[r_, c_] = (rm[r_, 0] * rm[c_, 0] / ib0 + rm[r_, 1] * rm[c_, 1] / ib1
+                              + rm[r_, 2] * rm[c_, 2] / ib2)
+        # L = I w in body: w_b = R^T w
+        wbx = rm[0, 0] * wf[0] + rm[1, 0] * wf[1] + rm[2, 0] * wf[2]
+        wby = rm[0, 1] * wf[0] + rm[1, 1] * wf[1] + rm[2, 1] * wf[2]
+        wbz = rm[0, 2] * wf[0] + rm[1, 2] * wf[1] + rm[2, 2] * wf[2]
+        gx = -(wby * ib2 * wbz - wbz * ib1 * wby)
+        gy = -(wbz * ib0 * wbx - wbx * ib2 * wbz)
+        gz = -(wbx * ib1 * wby - wby * ib0 * wbx)
+        wbx += dt * gx / ib0
+        wby += dt * gy / ib1
+        wbz += dt * gz / ib2
+        for d in range(3):
+            wf[d] = rm[d, 0] * wbx + rm[d, 1] * wby + rm[d, 2] * wbz
+        # plate normal in the body frame
+        nbx = rm[0, 0] * pnx + rm[1, 0] * pny + rm[2, 0] * pnz
+        nby = rm[0, 1] * pnx + rm[1, 1] * pny + rm[2, 1] * pnz
+        nbz = rm[0, 2] * pnx + rm[1, 2] * pny + rm[2, 2] * pnz
+        # 2-3. active corners and their step-constant data
+        n_act = 0
+        for cnr in range(4):
+            for i in range(n):
+                sa = hh if (cnr == 0 or cnr == 3) else -hh
+                sb = hh if cnr < 2 else -hh
+                cbx = sa * trot[i, 0, 0] + sb * trot[i, 0, 1]
+                cby = sa * trot[i, 1, 0] + sb * trot[i, 1, 1]
+                cbz = sa * trot[i, 2, 0] + sb * trot[i, 2, 1]
+                py = x[i, 1] + rm[1, 0] * cbx + rm[1, 1] * cby + rm[1, 2] * cbz
+                pz = x[i, 2] + rm[2, 0] * cbx + rm[2, 1] * cby + rm[2, 2] * cbz
+                wc = -py * s_th + pz * c_th
+                if wc >= 0.0:
+                    continue
+                px = x[i, 0] + rm[0, 0] * cbx + rm[0, 1] * cby + rm[0, 2] * cbz
+                ctile[n_act] = i
+                rx = px - xf[0]
+                ry = py - xf[1]
+                rz = pz - xf[2]
+                cdat[n_act, 0] = rx
+                cdat[n_act, 1] = ry
+                cdat[n_act, 2] = rz
+                cdat[n_act, 3] = spring_force(-wc, kc)
+                cdat[n_act, 4] = xp_dot
+                cdat[n_act, 5] = -th_dot * pz
+                cdat[n_act, 6] = th_dot * py
+                # mode shapes at the corner (body frame), psi_k = phi_t + phi_r x c
+                pn_modal = 0.0
+                for k in range(nk):
+                    rxk, ryk, rzk = pr[i, 0, k], pr[i, 1, k], pr[i, 2, k]
+                    p0 = pt[i, 0, k] + ryk * cbz - rzk * cby
+                    p1 = pt[i, 1, k] + rzk * cbx - rxk * cbz
+                    p2 = pt[i, 2, k] + rxk * cby - ryk * cbx
+                    psi[n_act, 0, k] = p0
+                    psi[n_act, 1, k] = p1
+                    psi[n_act, 2, k] = p2
+                    proj = p0 * nbx + p1 * nby + p2 * nbz
+                    tmp_k[k] = sk[k] * proj
+                    pn_modal += proj * tmp_k[k]
+                # frame response to a unit normal impulse
+                cx = ry * pnz - rz * pny
+                cy = rz * pnx - rx * pnz
+                cz = rx * pny - ry * pnx
+                ix = iw[0, 0] * cx + iw[0, 1] * cy + iw[0, 2] * cz
+                iy = iw[1, 0] * cx + iw[1, 1] * cy + iw[1, 2] * cz
+                iz = iw[2, 0] * cx + iw[2, 1] * cy + iw[2, 2] * cz
+                cdat[n_act, 7] = inv_mt + cx * ix + cy * iy + cz * iz + pn_modal
+                # corner velocity per unit normal impulse, its tangential part
+                gx_ = pnx * inv_mt + iy * rz - iz * ry
+                gy_ = pny * inv_mt + iz * rx - ix * rz
+                gz_ = pnz * inv_mt + ix * ry - iy * rx
+                ubx = 0.0
+                uby = 0.0
+                ubz = 0.0
+                for k in range(nk):
+                    ubx += psi[n_act, 0, k] * tmp_k[k]
+                    uby += psi[n_act, 1, k] * tmp_k[k]
+                    ubz += psi[n_act, 2, k] * tmp_k[k]
+                gx_ += rm[0, 0] * ubx + rm[0, 1] * uby + rm[0, 2] * ubz
+                gy_ += rm[1, 0] * ubx + rm[1, 1] * uby + rm[1, 2] * ubz
+                gz_ += rm[2, 0] * ubx + rm[2, 1] * uby + rm[2, 2] * ubz
+                dvn = gx_ * pnx + gy_ * pny + gz_ * pnz
+                cdat[n_act, 8] = gx_ - dvn * pnx
+                cdat[n_act, 9] = gy_ - dvn * pny
+                cdat[n_act, 10] = gz_ - dvn * pnz
+                cimp[n_act, 0] = 0.0
+                cimp[n_act, 1] = 0.0
+                cimp[n_act, 2] = 0.0
+                n_act += 1
+        # 3. Gauss-Seidel sweeps over the active corners
+        for _it in range(n_iter):
+            for c in range(n_act):
+                rx, ry, rz = cdat[c, 0], cdat[c, 1], cdat[c, 2]
+                for sweep_part in range(2):
+                    # part 0 removes this corner's impulse; part 1 applies the new one
+                    if sweep_part == 0:
+                        jx, jy, jz = -cimp[c, 0], -cimp[c, 1], -cimp[c, 2]
+                    else:
+                        # relative velocity of the corner
+                        ubx = 0.0
+                        uby = 0.0
+                        ubz = 0.0
+                        for k in range(nk):
+                            ubx += psi[c, 0, k] * qd[k]
+                            uby += psi[c, 1, k] * qd[k]
+                            ubz += psi[c, 2, k] * qd[k]
+                        vrx = (vf[0] + wf[1] * rz - wf[2] * ry + rm[0, 0] * ubx + rm[0, 1] * uby + rm[0, 2] * ubz
+                               - cdat[c, 4])
+                        vry = (vf[1] + wf[2] * rx - wf[0] * rz + rm[1, 0] * ubx + rm[1, 1] * uby + rm[1, 2] * ubz
+                               - cdat[c, 5])
+                        vrz = (vf[2] + wf[0] * ry - wf[1] * rx + rm[2, 0] * ubx + rm[2, 1] * uby + rm[2, 2] * ubz
+                               - cdat[c, 6])
+                        vn = vrx * pnx + vry * pny + vrz * pnz
+                        fn = damped_normal_force(cdat[c, 3], vn, cc, cdat[c, 7], dt)
+                        jx = 0.0
+                        jy = 0.0
+                        jz = 0.0
+                        if fn > 0.0:
+                            pn = dt * fn
+                            tx = vrx - vn * pnx + pn * cdat[c, 8]
+                            ty = vry - vn * pny + pn * cdat[c, 9]
+                            tz = vrz - vn * pnz + pn * cdat[c, 10]
+                            slip = math.sqrt(tx * tx + ty * ty + tz * tz)
+                            jx = pn * pnx
+                            jy = pn * pny
+                            jz = pn * pnz
+                            if slip > 0.0:
+                                ex, ey, ez = tx / slip, ty / slip, tz / slip
+                                cx = ry * ez - rz * ey
+                                cy = rz * ex - rx * ez
+                                cz = rx * ey - ry * ex
+                                ix = iw[0, 0] * cx + iw[0, 1] * cy + iw[0, 2] * cz
+                                iy = iw[1, 0] * cx + iw[1, 1] * cy + iw[1, 2] * cz
+                                iz = iw[2, 0] * cx + iw[2, 1] * cy + iw[2, 2] * cz
+                                ebx = rm[0, 0] * ex + rm[1, 0] * ey + rm[2, 0] * ez
+                                eby = rm[0, 1] * ex + rm[1, 1] * ey + rm[2, 1] * ez
+                                ebz = rm[0, 2] * ex + rm[1, 2] * ey + rm[2, 2] * ez
+                                kt_inv = inv_mt + cx * ix + cy * iy + cz * iz
+                                for k in range(nk):
+                                    proj = psi[c, 0, k] * ebx + psi[c, 1, k] * eby + psi[c, 2, k] * ebz
+                                    kt_inv += sk[k] * proj * proj
+                                sc = friction_scale(slip, fn, mus, muk, vt, kt_inv, dt)
+                                ptan = (1.0 - sc) * slip / kt_inv
+                                jx -= ptan * ex
+                                jy -= ptan * ey
+                                jz -= ptan * ez
+                        cimp[c, 0] = jx
+                        cimp[c, 1] = jy
+                        cimp[c, 2] = jz
+                    if jx == 0.0 and jy == 0.0 and jz == 0.0:
+                        continue
+                    vf[0] += jx * inv_mt
+                    vf[1] += jy * inv_mt
+                    vf[2] += jz * inv_mt
+                    lx = ry * jz - rz * jy
+                    ly = rz * jx - rx * jz
+                    lz = rx * jy - ry * jx
+                    wf[0] += iw[0, 0] * lx + iw[0, 1] * ly + iw[0, 2] * lz
+                    wf[1] += iw[1, 0] * lx + iw[1, 1] * ly + iw[1, 2] * lz
+                    wf[2] += iw[2, 0] * lx + iw[2, 1] * ly + iw[2, 2] * lz
+                    jbx = rm[0, 0] * jx + rm[1, 0] * jy + rm[2, 0] * jz
+                    jby = rm[0, 1] * jx + rm[1, 1] * jy + rm[2, 1] * jz
+                    jbz = rm[0, 2] * jx + rm[1, 2] * jy + rm[2, 2] * jz
+                    for k in range(nk):
+                        qd[k] += sk[k] * (psi[c, 0, k] * jbx + psi[c, 1, k] * jby + psi[c, 2, k] * jbz)
+        # 4. integrate
+        for d in range(3):
+            xf[d] += dt * vf[d]
+        hx, hy, hz = 0.5 * dt * wf[0], 0.5 * dt * wf[1], 0.5 * dt * wf[2]
+        nw_ = qw - hx * qx - hy * qy - hz * qz
+        nx_ = qx + hx * qw + hy * qz - hz * qy
+        ny_ = qy + hy * qw + hz * qx - hx * qz
+        nz_ = qz + hz * qw + hx * qy - hy * qx
+        ln = 1.0 / math.sqrt(nw_ * nw_ + nx_ * nx_ + ny_ * ny_ + nz_ * nz_)
+        qw, qx, qy, qz = nw_ * ln, nx_ * ln, ny_ * ln, nz_ * ln
+        for k in range(nk):
+            q[k] += dt * qd[k]
+    return status, n_rec
+
+
+@numba.njit(cache=CACHE, parallel=True)
+def modal_batch_parallel(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_out, cu_out, cv_out,
+                         status_out, nrec_out):
+    """A batch over threads (one probe per iteration)."""
+    for b in numba.prange(prm.shape[0]):
+        st, r = modal_probe(prm[b], rest[b], pt[b], pr[b], us[b], omega[b], damp[b], pairs, bc[b], hq[b], cells,
+                            yaw_out[b], cu_out[b], cv_out[b])
+        status_out[b] = st
+        nrec_out[b] = r
+
+
+@numba.njit(cache=CACHE)
+def modal_batch_serial(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_out, cu_out, cv_out,
+                       status_out, nrec_out):
+    """The same batch on the calling thread."""
+    for b in range(prm.shape[0]):
+        st, r = modal_probe(prm[b], rest[b], pt[b], pr[b], us[b], omega[b], damp[b], pairs, bc[b], hq[b], cells,
+                            yaw_out[b], cu_out[b], cv_out[b])
+        status_out[b] = st
+        nrec_out[b] = r
+
+
+def _arrays(spec: ProbeSpec, config: ModalDiscConfig, kmax: int):
+    p = build_modal_params(spec.obj, config)
+    n, k = p.geom.n_nodes, p.phi.shape[1]
+    phi = np.zeros((6 * n, kmax))
+    phi[:, :k] = p.phi
+    ph = phi.reshape(n, 6, kmax)
+    omega = np.zeros(kmax)
+    damp = np.zeros(kmax)
+    omega[:k] = p.omega
+    damp[:k] = p.damp
+    bc = np.zeros((kmax, len(p.pairs)))
+    bc[:k] = p.b_cubic
+    us = p.u_static.reshape(n, 6, -1)[:, :3, :]
+    return (np.ascontiguousarray(ph[:, :3, :]), np.ascontiguousarray(ph[:, 3:, :]), np.ascontiguousarray(us),
+            omega, damp, bc, p.h_quartic)
+
+
+def run_modal_arrays(probes: Sequence[ProbeSpec], dt: float = 1e-4, slip_limit: float = SLIP_LIMIT_M,
+                     config: ModalDiscConfig = ModalDiscConfig(), iterations: int = 1, parallel: bool | None = None,
+                     law: ContactLaw = PAPER_CONTACT, record_interval_s: float = DEFAULT_RECORD_INTERVAL_S,
+                     fold_tile_w: float = -0.2) -> dict[str, np.ndarray]:
+    """Run a batch with the modal disc; the keys of ``TileLinkPhysics.run_param_arrays`` plus "wall_s"."""
+    probes = list(probes)
+    built = [build_modal_params(s.obj, config) for s in probes]
+    kmax = max(p.phi.shape[1] for p in built)
+    prm = np.stack([common_vector(s, dt, slip_limit, p.tile_mass, N_MODAL_PARAMS, contact_weight=0.25, law=law,
+                                  record_interval_s=record_interval_s) for s, p in zip(probes, built, strict=True)])
+    for b, p in enumerate(built):
+        prm[b, M_H] = p.tile_size
+        prm[b, M_IB0], prm[b, M_IB1], prm[b, M_IB2] = p.inertia_body
+        prm[b, M_NITER] = iterations
+        prm[b, M_FOLDW] = fold_tile_w
+        prm[b, M_FS] = 1.0 if config.foreshortening else 0.0
+    arrs = [_arrays(s, config, kmax) for s in probes]
+    pt, pr, us, omega, damp, bc, hq = (np.stack([a[i] for a in arrs]) for i in range(7))
+    rest = np.stack([p.geom.rest for p in built])
+    pairs = built[0].pairs
+    cells = built[0].geom.cells
+    out = allocate_outputs(prm)
+    if parallel is None:
+        parallel = len(prm) > 1
+    kernel = modal_batch_parallel if parallel else modal_batch_serial
+    t0 = time.perf_counter()
+    load_first(modal_probe, prm[0], rest[0], pt[0], pr[0], us[0], omega[0], damp[0], pairs, bc[0], hq[0], cells,
+               out["yaw"][0], out["cu"][0], out["cv"][0])
+    kernel(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, out["yaw"], out["cu"], out["cv"],
+           out["status"], out["nrec"])
+    out["wall_s"] = np.array(time.perf_counter() - t0)
+    return out
+
+
+class RigidModalPhysics:
+    """The modal disc behind the backend's ``run`` interface (experimental: not one of the tile-link ``MODELS``).
+
+    Args: ``dt`` s; ``config`` the reduction (:class:`rigid_modal.ModalDiscConfig`); ``iterations`` contact
+    Gauss-Seidel sweeps a step; ``slip_limit`` m.
+    """
+
+    def __init__(self, dt: float = 1e-4, config: ModalDiscConfig = ModalDiscConfig(), iterations: int = 1,
+                 slip_limit: float = SLIP_LIMIT_M) -> None:
+        if not (math.isfinite(dt) and 0.0 < dt <= 1e-3):
+            raise ValueError(f"dt = {dt!r} s must be in (0, 1e-3]")
+        if not (1 <= int(iterations) <= 20):
+            raise ValueError(f"iterations = {iterations!r} must be in [1, 20]")
+        self.dt = float(dt)
+        self.config = config
+        self.iterations = int(iterations)
+        self.slip_limit = float(slip_limit)
+        self.name = "tilelink"
+        self.model = "rigid_modal"
+
+    def run(self, probes: Sequence[ProbeSpec], progress: bool = False) -> list[ProbeResult]:
+        """Simulate the probes as one batch (``progress`` is accepted and ignored)."""
+        from plate_env.physics.tilelink.backend import result_from_arrays
+
+        probes = check_probes(probes)
+        if not probes:
+            return []
+        raw = self.run_arrays(probes)
+        wall = float(raw["wall_s"]) / len(probes)
+        return [result_from_arrays(s, raw, b, self.dt, wall) for b, s in enumerate(probes)]
+
+    def run_arrays(self, probes: Sequence[ProbeSpec]) -> dict[str, np.ndarray]:
+        return run_modal_arrays(probes, self.dt, self.slip_limit, self.config, self.iterations)
+
+    def close(self) -> None:
+        """Nothing to release."""
