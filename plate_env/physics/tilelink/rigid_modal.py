@@ -79,6 +79,10 @@ class ModalDiscConfig:
             raise ValueError(f"fd_rad = {self.fd_rad!r} rad must be in [1e-6, 0.1]")
 
 
+#: The default reduction.
+DEFAULT_MODAL = ModalDiscConfig()
+
+
 @dataclass(frozen=True)
 class ModalDiscParams:
     """Arrays of one object's modal disc (SI). ``phi``: (6N, K) mass-normalised mode shapes in the body frame
@@ -157,7 +161,7 @@ def _rigid_modes(geom: DiscGeometry) -> np.ndarray:
 
 
 @lru_cache(maxsize=64)
-def build_modal_params(obj: ObjectSpec, config: ModalDiscConfig = ModalDiscConfig()) -> ModalDiscParams:
+def build_modal_params(obj: ObjectSpec, config: ModalDiscConfig = DEFAULT_MODAL) -> ModalDiscParams:
     """The modal disc of one object (see the module docstring), ``k_b`` hitting ``obj.omega_n``."""
     from threadpoolctl import threadpool_limits
 

@@ -42,7 +42,7 @@ from plate_env.physics.tilelink.kernels import (
     spring_force,
 )
 from plate_env.physics.tilelink.params import DEFAULT_RECORD_INTERVAL_S, N_PARAMS, allocate_outputs, common_vector
-from plate_env.physics.tilelink.rigid_modal import ModalDiscConfig, build_modal_params
+from plate_env.physics.tilelink.rigid_modal import DEFAULT_MODAL, ModalDiscConfig, build_modal_params
 
 (M_H, M_IB0, M_IB1, M_IB2, M_NITER, M_FOLDW, M_FS) = range(N_PARAMS, N_PARAMS + 7)
 N_MODAL_PARAMS = N_PARAMS + 7
@@ -79,6 +79,73 @@ def _rodrigues(tx, ty, tz, out):
     out[2, 0] = -sa * ty + ca * tx * tz
     out[2, 1] = sa * tx + ca * ty * tz
     out[2, 2] = 1.0 - ca * (tx * tx + ty * ty)
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _tile_mobility(rx, ry, rz, inv_mt, iw, rm, a_body, wm, sk_, g1, tmp):
+    """The 6x6 world mobility ``wm`` of one tile: its (velocity, angular velocity) change per (force, torque)
+    impulse at its centre, through the frame (lever ``r`` from the frame origin, inverse inertia ``iw``) and the
+    modes (``a_body``: the tile's modal self-mobility ``sum_k s_k phi_k phi_k^T`` in the body frame, rotated by
+    ``rm``). ``sk_``, ``g1`` (3, 3) and ``tmp`` (6, 6) are scratch."""
+    sk_[0, 0], sk_[0, 1], sk_[0, 2] = 0.0, -rz, ry
+    sk_[1, 0], sk_[1, 1], sk_[1, 2] = rz, 0.0, -rx
+    sk_[2, 0], sk_[2, 1], sk_[2, 2] = -ry, rx, 0.0
+    for r_ in range(3):
+        for c_ in range(3):
+            g1[r_, c_] = iw[r_, 0] * sk_[0, c_] + iw[r_, 1] * sk_[1, c_] + iw[r_, 2] * sk_[2, c_]
+    for r_ in range(3):
+        for c_ in range(3):
+            wm[r_, c_] = -(sk_[r_, 0] * g1[0, c_] + sk_[r_, 1] * g1[1, c_] + sk_[r_, 2] * g1[2, c_])
+            wm[r_, 3 + c_] = -(sk_[r_, 0] * iw[0, c_] + sk_[r_, 1] * iw[1, c_] + sk_[r_, 2] * iw[2, c_])
+            wm[3 + r_, c_] = g1[r_, c_]
+            wm[3 + r_, 3 + c_] = iw[r_, c_]
+        wm[r_, r_] += inv_mt
+    # modal part: blockdiag(R, R) A blockdiag(R, R)^T
+    for r_ in range(6):
+        ro = 3 * (r_ // 3)
+        rr = r_ % 3
+        for c_ in range(6):
+            tmp[r_, c_] = (rm[rr, 0] * a_body[ro, c_] + rm[rr, 1] * a_body[ro + 1, c_]
+                           + rm[rr, 2] * a_body[ro + 2, c_])
+    for r_ in range(6):
+        for c_ in range(6):
+            co = 3 * (c_ // 3)
+            cc_ = c_ % 3
+            wm[r_, c_] += tmp[r_, co] * rm[cc_, 0] + tmp[r_, co + 1] * rm[cc_, 1] + tmp[r_, co + 2] * rm[cc_, 2]
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _apply_local(wm, cx, cy, cz, jx, jy, jz, lv, dwr):
+    """Impulse ``j`` at offset ``c`` from the tile centre: the tile's local velocities ``lv`` change by the
+    mobility ``wm`` times the wrench (j, c x j), which is added to ``dwr``."""
+    lx = cy * jz - cz * jy
+    ly = cz * jx - cx * jz
+    lz = cx * jy - cy * jx
+    for r_ in range(6):
+        lv[r_] += (wm[r_, 0] * jx + wm[r_, 1] * jy + wm[r_, 2] * jz + wm[r_, 3] * lx + wm[r_, 4] * ly
+                   + wm[r_, 5] * lz)
+    dwr[0] += jx
+    dwr[1] += jy
+    dwr[2] += jz
+    dwr[3] += lx
+    dwr[4] += ly
+    dwr[5] += lz
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _inv_mass_along(wm, cx, cy, cz, ex, ey, ez):
+    """Inverse effective mass of a tile point at offset ``c`` along the unit direction ``e``: ``e . du`` for a
+    unit impulse ``e`` there."""
+    lx = cy * ez - cz * ey
+    ly = cz * ex - cx * ez
+    lz = cx * ey - cy * ex
+    # e . dv + (c x e) . dw = w6^T wm w6 with w6 = (e, c x e)
+    acc = 0.0
+    for r_ in range(6):
+        wr = ex if r_ == 0 else ey if r_ == 1 else ez if r_ == 2 else lx if r_ == 3 else ly if r_ == 4 else lz
+        acc += wr * (wm[r_, 0] * ex + wm[r_, 1] * ey + wm[r_, 2] * ez + wm[r_, 3] * lx + wm[r_, 4] * ly
+                     + wm[r_, 5] * lz)
+    return acc
 
 
 @numba.njit(cache=CACHE, fastmath=FAST)
@@ -118,16 +185,31 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_ou
     for k in range(nk):
         sk[k] = 1.0 / (1.0 + dt * damp[k] + dt * dt * omega[k] * omega[k])
     tmp_p = np.empty(npair)
-    tmp_k = np.empty(nk)
     rm = np.empty((3, 3))
     iw = np.empty((3, 3))  # world inverse inertia
     trot = np.empty((n, 3, 3))  # tile rotation in the body frame
     x = np.empty((n, 3))  # tile centres, world
     body = np.empty((n, 3))  # tile centres, body frame
-    ctile = np.empty(4 * n, dtype=np.int64)
-    cdat = np.empty((4 * n, 16))  # r (3), f_spring, u plate (3), kn_inv, dv_t/dp_n (3), c body (3), nb, spare
+    cdat = np.empty((4 * n, 7))  # corner offset from its tile centre c (3, world), f_spring, plate velocity (3)
     cimp = np.empty((4 * n, 3))
-    psi = np.empty((4 * n, 3, nk))
+    tfirst = np.empty(n, dtype=np.int64)  # tiles in contact: their corners' range, the tile, its mobility
+    tlast = np.empty(n, dtype=np.int64)
+    ttile = np.empty(n, dtype=np.int64)
+    wmob = np.empty((n, 6, 6))
+    lv = np.empty(6)
+    sc3a = np.empty((3, 3))
+    sc3b = np.empty((3, 3))
+    sc6 = np.empty((6, 6))
+    dwr = np.empty(6)
+    # each tile's modal self-mobility (body frame): sum_k s_k phi_k phi_k^T over its 6 dofs
+    amob = np.zeros((n, 6, 6))
+    for i in range(n):
+        for k in range(nk):
+            for r_ in range(6):
+                vr_ = pt[i, r_, k] if r_ < 3 else pr[i, r_ - 3, k]
+                for c_ in range(6):
+                    vc_ = pt[i, c_, k] if c_ < 3 else pr[i, c_ - 3, k]
+                    amob[i, r_, c_] += sk[k] * vr_ * vc_
     yaw0 = prm[params.P_YAW0]
     xf[0] = prm[params.P_U0]
     xf[1] = prm[params.P_V0]
@@ -244,155 +326,133 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_ou
         wbz += dt * gz / ib2
         for d in range(3):
             wf[d] = rm[d, 0] * wbx + rm[d, 1] * wby + rm[d, 2] * wbz
-        # plate normal in the body frame
-        nbx = rm[0, 0] * pnx + rm[1, 0] * pny + rm[2, 0] * pnz
-        nby = rm[0, 1] * pnx + rm[1, 1] * pny + rm[2, 1] * pnz
-        nbz = rm[0, 2] * pnx + rm[1, 2] * pny + rm[2, 2] * pnz
-        # 2-3. active corners and their step-constant data
+        # 2-3. active corners grouped by tile, each tile's 6x6 mobility (frame + its modal self-mobility)
         n_act = 0
-        for cnr in range(4):
-            for i in range(n):
+        n_tact = 0
+        for i in range(n):
+            first = n_act
+            for cnr in range(4):
                 sa = hh if (cnr == 0 or cnr == 3) else -hh
                 sb = hh if cnr < 2 else -hh
                 cbx = sa * trot[i, 0, 0] + sb * trot[i, 0, 1]
                 cby = sa * trot[i, 1, 0] + sb * trot[i, 1, 1]
                 cbz = sa * trot[i, 2, 0] + sb * trot[i, 2, 1]
-                py = x[i, 1] + rm[1, 0] * cbx + rm[1, 1] * cby + rm[1, 2] * cbz
-                pz = x[i, 2] + rm[2, 0] * cbx + rm[2, 1] * cby + rm[2, 2] * cbz
+                cwx = rm[0, 0] * cbx + rm[0, 1] * cby + rm[0, 2] * cbz
+                cwy = rm[1, 0] * cbx + rm[1, 1] * cby + rm[1, 2] * cbz
+                cwz = rm[2, 0] * cbx + rm[2, 1] * cby + rm[2, 2] * cbz
+                py = x[i, 1] + cwy
+                pz = x[i, 2] + cwz
                 wc = -py * s_th + pz * c_th
                 if wc >= 0.0:
                     continue
-                px = x[i, 0] + rm[0, 0] * cbx + rm[0, 1] * cby + rm[0, 2] * cbz
-                ctile[n_act] = i
-                rx = px - xf[0]
-                ry = py - xf[1]
-                rz = pz - xf[2]
-                cdat[n_act, 0] = rx
-                cdat[n_act, 1] = ry
-                cdat[n_act, 2] = rz
+                cdat[n_act, 0] = cwx
+                cdat[n_act, 1] = cwy
+                cdat[n_act, 2] = cwz
                 cdat[n_act, 3] = spring_force(-wc, kc)
                 cdat[n_act, 4] = xp_dot
                 cdat[n_act, 5] = -th_dot * pz
                 cdat[n_act, 6] = th_dot * py
-                # mode shapes at the corner (body frame), psi_k = phi_t + phi_r x c
-                pn_modal = 0.0
-                for k in range(nk):
-                    rxk, ryk, rzk = pr[i, 0, k], pr[i, 1, k], pr[i, 2, k]
-                    p0 = pt[i, 0, k] + ryk * cbz - rzk * cby
-                    p1 = pt[i, 1, k] + rzk * cbx - rxk * cbz
-                    p2 = pt[i, 2, k] + rxk * cby - ryk * cbx
-                    psi[n_act, 0, k] = p0
-                    psi[n_act, 1, k] = p1
-                    psi[n_act, 2, k] = p2
-                    proj = p0 * nbx + p1 * nby + p2 * nbz
-                    tmp_k[k] = sk[k] * proj
-                    pn_modal += proj * tmp_k[k]
-                # frame response to a unit normal impulse
-                cx = ry * pnz - rz * pny
-                cy = rz * pnx - rx * pnz
-                cz = rx * pny - ry * pnx
-                ix = iw[0, 0] * cx + iw[0, 1] * cy + iw[0, 2] * cz
-                iy = iw[1, 0] * cx + iw[1, 1] * cy + iw[1, 2] * cz
-                iz = iw[2, 0] * cx + iw[2, 1] * cy + iw[2, 2] * cz
-                cdat[n_act, 7] = inv_mt + cx * ix + cy * iy + cz * iz + pn_modal
-                # corner velocity per unit normal impulse, its tangential part
-                gx_ = pnx * inv_mt + iy * rz - iz * ry
-                gy_ = pny * inv_mt + iz * rx - ix * rz
-                gz_ = pnz * inv_mt + ix * ry - iy * rx
-                ubx = 0.0
-                uby = 0.0
-                ubz = 0.0
-                for k in range(nk):
-                    ubx += psi[n_act, 0, k] * tmp_k[k]
-                    uby += psi[n_act, 1, k] * tmp_k[k]
-                    ubz += psi[n_act, 2, k] * tmp_k[k]
-                gx_ += rm[0, 0] * ubx + rm[0, 1] * uby + rm[0, 2] * ubz
-                gy_ += rm[1, 0] * ubx + rm[1, 1] * uby + rm[1, 2] * ubz
-                gz_ += rm[2, 0] * ubx + rm[2, 1] * uby + rm[2, 2] * ubz
-                dvn = gx_ * pnx + gy_ * pny + gz_ * pnz
-                cdat[n_act, 8] = gx_ - dvn * pnx
-                cdat[n_act, 9] = gy_ - dvn * pny
-                cdat[n_act, 10] = gz_ - dvn * pnz
                 cimp[n_act, 0] = 0.0
                 cimp[n_act, 1] = 0.0
                 cimp[n_act, 2] = 0.0
                 n_act += 1
-        # 3. Gauss-Seidel sweeps over the active corners
+            if n_act == first:
+                continue
+            tfirst[n_tact] = first
+            tlast[n_tact] = n_act
+            ttile[n_tact] = i
+            _tile_mobility(x[i, 0] - xf[0], x[i, 1] - xf[1], x[i, 2] - xf[2], inv_mt, iw, rm, amob[i], wmob[n_tact],
+                           sc3a, sc3b, sc6)
+            n_tact += 1
+        # 3. block Gauss-Seidel over the tiles in contact: each tile's corners solved with its own mobility, the
+        # tile's wrench change then pushed to the frame and the modes
         for _it in range(n_iter):
-            for c in range(n_act):
-                rx, ry, rz = cdat[c, 0], cdat[c, 1], cdat[c, 2]
-                for sweep_part in range(2):
-                    # part 0 removes this corner's impulse; part 1 applies the new one
-                    if sweep_part == 0:
-                        jx, jy, jz = -cimp[c, 0], -cimp[c, 1], -cimp[c, 2]
-                    else:
-                        # relative velocity of the corner
-                        ubx = 0.0
-                        uby = 0.0
-                        ubz = 0.0
-                        for k in range(nk):
-                            ubx += psi[c, 0, k] * qd[k]
-                            uby += psi[c, 1, k] * qd[k]
-                            ubz += psi[c, 2, k] * qd[k]
-                        vrx = (vf[0] + wf[1] * rz - wf[2] * ry + rm[0, 0] * ubx + rm[0, 1] * uby + rm[0, 2] * ubz
-                               - cdat[c, 4])
-                        vry = (vf[1] + wf[2] * rx - wf[0] * rz + rm[1, 0] * ubx + rm[1, 1] * uby + rm[1, 2] * ubz
-                               - cdat[c, 5])
-                        vrz = (vf[2] + wf[0] * ry - wf[1] * rx + rm[2, 0] * ubx + rm[2, 1] * uby + rm[2, 2] * ubz
-                               - cdat[c, 6])
-                        vn = vrx * pnx + vry * pny + vrz * pnz
-                        fn = damped_normal_force(cdat[c, 3], vn, cc, cdat[c, 7], dt)
-                        jx = 0.0
-                        jy = 0.0
-                        jz = 0.0
-                        if fn > 0.0:
-                            pn = dt * fn
-                            tx = vrx - vn * pnx + pn * cdat[c, 8]
-                            ty = vry - vn * pny + pn * cdat[c, 9]
-                            tz = vrz - vn * pnz + pn * cdat[c, 10]
-                            slip = math.sqrt(tx * tx + ty * ty + tz * tz)
-                            jx = pn * pnx
-                            jy = pn * pny
-                            jz = pn * pnz
-                            if slip > 0.0:
-                                ex, ey, ez = tx / slip, ty / slip, tz / slip
-                                cx = ry * ez - rz * ey
-                                cy = rz * ex - rx * ez
-                                cz = rx * ey - ry * ex
-                                ix = iw[0, 0] * cx + iw[0, 1] * cy + iw[0, 2] * cz
-                                iy = iw[1, 0] * cx + iw[1, 1] * cy + iw[1, 2] * cz
-                                iz = iw[2, 0] * cx + iw[2, 1] * cy + iw[2, 2] * cz
-                                ebx = rm[0, 0] * ex + rm[1, 0] * ey + rm[2, 0] * ez
-                                eby = rm[0, 1] * ex + rm[1, 1] * ey + rm[2, 1] * ez
-                                ebz = rm[0, 2] * ex + rm[1, 2] * ey + rm[2, 2] * ez
-                                kt_inv = inv_mt + cx * ix + cy * iy + cz * iz
-                                for k in range(nk):
-                                    proj = psi[c, 0, k] * ebx + psi[c, 1, k] * eby + psi[c, 2, k] * ebz
-                                    kt_inv += sk[k] * proj * proj
-                                sc = friction_scale(slip, fn, mus, muk, vt, kt_inv, dt)
-                                ptan = (1.0 - sc) * slip / kt_inv
-                                jx -= ptan * ex
-                                jy -= ptan * ey
-                                jz -= ptan * ez
-                        cimp[c, 0] = jx
-                        cimp[c, 1] = jy
-                        cimp[c, 2] = jz
-                    if jx == 0.0 and jy == 0.0 and jz == 0.0:
-                        continue
-                    vf[0] += jx * inv_mt
-                    vf[1] += jy * inv_mt
-                    vf[2] += jz * inv_mt
-                    lx = ry * jz - rz * jy
-                    ly = rz * jx - rx * jz
-                    lz = rx * jy - ry * jx
-                    wf[0] += iw[0, 0] * lx + iw[0, 1] * ly + iw[0, 2] * lz
-                    wf[1] += iw[1, 0] * lx + iw[1, 1] * ly + iw[1, 2] * lz
-                    wf[2] += iw[2, 0] * lx + iw[2, 1] * ly + iw[2, 2] * lz
-                    jbx = rm[0, 0] * jx + rm[1, 0] * jy + rm[2, 0] * jz
-                    jby = rm[0, 1] * jx + rm[1, 1] * jy + rm[2, 1] * jz
-                    jbz = rm[0, 2] * jx + rm[1, 2] * jy + rm[2, 2] * jz
-                    for k in range(nk):
-                        qd[k] += sk[k] * (psi[c, 0, k] * jbx + psi[c, 1, k] * jby + psi[c, 2, k] * jbz)
+            for t in range(n_tact):
+                i = ttile[t]
+                wm = wmob[t]
+                rx = x[i, 0] - xf[0]
+                ry = x[i, 1] - xf[1]
+                rz = x[i, 2] - xf[2]
+                ubx = 0.0
+                uby = 0.0
+                ubz = 0.0
+                obx = 0.0
+                oby = 0.0
+                obz = 0.0
+                for k in range(nk):
+                    qk = qd[k]
+                    ubx += pt[i, 0, k] * qk
+                    uby += pt[i, 1, k] * qk
+                    ubz += pt[i, 2, k] * qk
+                    obx += pr[i, 0, k] * qk
+                    oby += pr[i, 1, k] * qk
+                    obz += pr[i, 2, k] * qk
+                lv[0] = vf[0] + wf[1] * rz - wf[2] * ry + rm[0, 0] * ubx + rm[0, 1] * uby + rm[0, 2] * ubz
+                lv[1] = vf[1] + wf[2] * rx - wf[0] * rz + rm[1, 0] * ubx + rm[1, 1] * uby + rm[1, 2] * ubz
+                lv[2] = vf[2] + wf[0] * ry - wf[1] * rx + rm[2, 0] * ubx + rm[2, 1] * uby + rm[2, 2] * ubz
+                lv[3] = wf[0] + rm[0, 0] * obx + rm[0, 1] * oby + rm[0, 2] * obz
+                lv[4] = wf[1] + rm[1, 0] * obx + rm[1, 1] * oby + rm[1, 2] * obz
+                lv[5] = wf[2] + rm[2, 0] * obx + rm[2, 1] * oby + rm[2, 2] * obz
+                for d in range(6):
+                    dwr[d] = 0.0
+                for c in range(tfirst[t], tlast[t]):
+                    cx, cy, cz = cdat[c, 0], cdat[c, 1], cdat[c, 2]
+                    _apply_local(wm, cx, cy, cz, -cimp[c, 0], -cimp[c, 1], -cimp[c, 2], lv, dwr)
+                    vrx = lv[0] + lv[4] * cz - lv[5] * cy - cdat[c, 4]
+                    vry = lv[1] + lv[5] * cx - lv[3] * cz - cdat[c, 5]
+                    vrz = lv[2] + lv[3] * cy - lv[4] * cx - cdat[c, 6]
+                    vn = vrx * pnx + vry * pny + vrz * pnz
+                    kn_inv = _inv_mass_along(wm, cx, cy, cz, pnx, pny, pnz)
+                    fn = damped_normal_force(cdat[c, 3], vn, cc, kn_inv, dt)
+                    jx = 0.0
+                    jy = 0.0
+                    jz = 0.0
+                    if fn > 0.0:
+                        pn = dt * fn
+                        jx = pn * pnx
+                        jy = pn * pny
+                        jz = pn * pnz
+                        _apply_local(wm, cx, cy, cz, jx, jy, jz, lv, dwr)
+                        vrx = lv[0] + lv[4] * cz - lv[5] * cy - cdat[c, 4]
+                        vry = lv[1] + lv[5] * cx - lv[3] * cz - cdat[c, 5]
+                        vrz = lv[2] + lv[3] * cy - lv[4] * cx - cdat[c, 6]
+                        vn2 = vrx * pnx + vry * pny + vrz * pnz
+                        tx = vrx - vn2 * pnx
+                        ty = vry - vn2 * pny
+                        tz = vrz - vn2 * pnz
+                        slip = math.sqrt(tx * tx + ty * ty + tz * tz)
+                        if slip > 0.0:
+                            ex, ey, ez = tx / slip, ty / slip, tz / slip
+                            kt_inv = _inv_mass_along(wm, cx, cy, cz, ex, ey, ez)
+                            sc = friction_scale(slip, fn, mus, muk, vt, kt_inv, dt)
+                            ptan = (1.0 - sc) * slip / kt_inv
+                            _apply_local(wm, cx, cy, cz, -ptan * ex, -ptan * ey, -ptan * ez, lv, dwr)
+                            jx -= ptan * ex
+                            jy -= ptan * ey
+                            jz -= ptan * ez
+                    cimp[c, 0] = jx
+                    cimp[c, 1] = jy
+                    cimp[c, 2] = jz
+                # push the tile's wrench change (at its centre) to the frame and the modes
+                fx, fy, fz, lx, ly, lz = dwr[0], dwr[1], dwr[2], dwr[3], dwr[4], dwr[5]
+                vf[0] += fx * inv_mt
+                vf[1] += fy * inv_mt
+                vf[2] += fz * inv_mt
+                ax_ = ry * fz - rz * fy + lx
+                ay_ = rz * fx - rx * fz + ly
+                az_ = rx * fy - ry * fx + lz
+                wf[0] += iw[0, 0] * ax_ + iw[0, 1] * ay_ + iw[0, 2] * az_
+                wf[1] += iw[1, 0] * ax_ + iw[1, 1] * ay_ + iw[1, 2] * az_
+                wf[2] += iw[2, 0] * ax_ + iw[2, 1] * ay_ + iw[2, 2] * az_
+                fbx = rm[0, 0] * fx + rm[1, 0] * fy + rm[2, 0] * fz
+                fby = rm[0, 1] * fx + rm[1, 1] * fy + rm[2, 1] * fz
+                fbz = rm[0, 2] * fx + rm[1, 2] * fy + rm[2, 2] * fz
+                lbx = rm[0, 0] * lx + rm[1, 0] * ly + rm[2, 0] * lz
+                lby = rm[0, 1] * lx + rm[1, 1] * ly + rm[2, 1] * lz
+                lbz = rm[0, 2] * lx + rm[1, 2] * ly + rm[2, 2] * lz
+                for k in range(nk):
+                    qd[k] += sk[k] * (pt[i, 0, k] * fbx + pt[i, 1, k] * fby + pt[i, 2, k] * fbz
+                                      + pr[i, 0, k] * lbx + pr[i, 1, k] * lby + pr[i, 2, k] * lbz)
         # 4. integrate
         for d in range(3):
             xf[d] += dt * vf[d]
@@ -448,7 +508,7 @@ def _arrays(spec: ProbeSpec, config: ModalDiscConfig, kmax: int):
 
 
 def run_modal_arrays(probes: Sequence[ProbeSpec], dt: float = 1e-4, slip_limit: float = SLIP_LIMIT_M,
-                     config: ModalDiscConfig = ModalDiscConfig(), iterations: int = 1, parallel: bool | None = None,
+                     config: ModalDiscConfig = DEFAULT_MODAL, iterations: int = 1, parallel: bool | None = None,
                      law: ContactLaw = PAPER_CONTACT, record_interval_s: float = DEFAULT_RECORD_INTERVAL_S,
                      fold_tile_w: float = -0.2) -> dict[str, np.ndarray]:
     """Run a batch with the modal disc; the keys of ``TileLinkPhysics.run_param_arrays`` plus "wall_s"."""
@@ -488,7 +548,7 @@ class RigidModalPhysics:
     Gauss-Seidel sweeps a step; ``slip_limit`` m.
     """
 
-    def __init__(self, dt: float = 1e-4, config: ModalDiscConfig = ModalDiscConfig(), iterations: int = 1,
+    def __init__(self, dt: float = 1e-4, config: ModalDiscConfig = DEFAULT_MODAL, iterations: int = 1,
                  slip_limit: float = SLIP_LIMIT_M) -> None:
         if not (math.isfinite(dt) and 0.0 < dt <= 1e-3):
             raise ValueError(f"dt = {dt!r} s must be in (0, 1e-3]")

@@ -1,0 +1,74 @@
+"""Issue 34: the modal (floating-frame) rigid-tile disc against the converged rigid limit.
+
+Same probes, scoring and speed harness as ``experiments/rigid_fast_validation.py`` (its ``compare`` and ``speed``):
+every probe of ``experiments/results/rigid_reference.json`` (``rigid_limit`` at dt 6.25e-6 s), omega_B where both
+are stable (median / max |relative difference|), stability agreement, first-hump f0; speed as x real time for one
+probe and a batch of 32 with the point mass measured in the same run. The model
+(:mod:`plate_env.physics.tilelink.rigid_modal`) is experimental and not a registered backend model.
+
+Writes ``experiments/results/rigid_modal.json`` and ``.md`` (one run).
+Usage: ``nice -n 10 python experiments/rigid_modal_validation.py [--routes a,b] [--repeats 1] [--merge]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import plate_env as pe
+from plate_env.physics.tilelink.rigid_modal import ModalDiscConfig
+from plate_env.physics.tilelink.rigid_modal_kernels import RigidModalPhysics
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from rigid_fast_validation import _commit, compare, load_reference, markdown, spec_of, speed  # noqa: E402
+
+OUT = HERE / "results" / "rigid_modal"
+#: Routes: (dt s, reduction, contact sweeps a step, what it stands for).
+ROUTES = {
+    "modal_nl10_2e-4": (2e-4, ModalDiscConfig(), 1,
+                        "floating frame + modes < 200 Hz, stiffening in the 10 lowest out-of-plane modes (condensed), "
+                        "foreshortening, dt 2e-4, one contact sweep"),
+    "modal_nl10_1e-4": (1e-4, ModalDiscConfig(), 1, "the same at dt 1e-4"),
+    "modal_linear_2e-4": (2e-4, ModalDiscConfig(n_nonlinear=0, foreshortening=False), 1,
+                          "the linear floating frame (no stiffening, no foreshortening), dt 2e-4"),
+    "modal_nl10_100hz_2e-4": (2e-4, ModalDiscConfig(cutoff_hz=100.0), 1,
+                              "as modal_nl10_2e-4 with the cut-off at 100 Hz"),
+}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--routes", default=",".join(ROUTES), help="comma-separated subset of " + ", ".join(ROUTES))
+    ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--merge", action="store_true", help="keep the other routes of an earlier run's JSON")
+    args = ap.parse_args()
+    rows = load_reference()
+    specs = [spec_of(r) for r in rows]
+    report = {"reference_dt": rows[0]["dt_s"], "n_reference": len(rows), "routes": {}}
+    if args.merge and OUT.with_suffix(".json").exists():
+        report = json.loads(OUT.with_suffix(".json").read_text())
+    pointmass = pe.make_physics("tilelink")
+    for name in args.routes.split(","):
+        dt, cfg, iters, what = ROUTES[name]
+        physics = RigidModalPhysics(dt, cfg, iters)
+        physics.run(specs[:2])  # compile outside the timing
+        t0 = time.perf_counter()
+        results = physics.run(specs)
+        cmp_ = compare(rows, results)
+        report["routes"][name] = {"dt": dt, "what": what, "compare": cmp_, "sweep_wall_s": time.perf_counter() - t0,
+                                  "speed": speed(physics, pointmass, args.repeats), "commit": _commit()}
+        print(name, json.dumps(cmp_["summary"]), json.dumps(report["routes"][name]["speed"]), flush=True)
+        OUT.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
+    text = markdown(report).replace("# Issue 26: fast routes to the rigid limit",
+                                    "# Issue 34: the modal (floating-frame) rigid-tile disc against the rigid limit")
+    text = text.replace("python experiments/rigid_fast_validation.py", "python experiments/rigid_modal_validation.py")
+    OUT.with_suffix(".md").write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
