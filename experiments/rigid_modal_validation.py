@@ -40,6 +40,28 @@ ROUTES = {
 }
 
 
+def cpu_speed(physics, pointmass) -> dict:
+    """Real-time factors by CPU time of this process (the kernel's own cost on a loaded shared machine, where
+    wall time measures the other jobs too): the cheese at 20 Hz alone, and a 32-probe batch (summed over its
+    threads), the point mass beside it."""
+    import math
+
+    from plate_env.core.probe import ProbeSpec
+
+    cheese = pe.preset("cheese")
+    one = [ProbeSpec(cheese, pe.PlateMotion.from_paper(20.0, 3.0))]
+    batch = [ProbeSpec(cheese.with_(omega_n=(5 + k) * math.pi), pe.PlateMotion.from_paper(18 + 0.1 * k, 3.0))
+             for k in range(32)]
+    out = {}
+    for name, phys in (("route", physics), ("pointmass", pointmass)):
+        for label, specs in (("one_probe_cpu_rtf", one), ("batch32_cpu_rtf_per_core", batch)):
+            phys.run(specs)
+            t0 = time.process_time()
+            res = phys.run(specs)
+            out.setdefault(name, {})[label] = sum(r.sim_s for r in res) / (time.process_time() - t0)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--routes", default=",".join(ROUTES), help="comma-separated subset of " + ", ".join(ROUTES))
@@ -60,12 +82,21 @@ def main() -> None:
         results = physics.run(specs)
         cmp_ = compare(rows, results)
         report["routes"][name] = {"dt": dt, "what": what, "compare": cmp_, "sweep_wall_s": time.perf_counter() - t0,
-                                  "speed": speed(physics, pointmass, args.repeats), "commit": _commit()}
-        print(name, json.dumps(cmp_["summary"]), json.dumps(report["routes"][name]["speed"]), flush=True)
+                                  "speed": speed(physics, pointmass, args.repeats),
+                                  "cpu_speed": cpu_speed(physics, pointmass), "commit": _commit()}
+        print(name, json.dumps(cmp_["summary"]), json.dumps(report["routes"][name]["speed"]),
+              json.dumps(report["routes"][name]["cpu_speed"]), flush=True)
         OUT.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
     text = markdown(report).replace("# Issue 26: fast routes to the rigid limit",
                                     "# Issue 34: the modal (floating-frame) rigid-tile disc against the rigid limit")
     text = text.replace("python experiments/rigid_fast_validation.py", "python experiments/rigid_modal_validation.py")
+    text += "\nSpeed by CPU time of the process (x real time; a batch: per core, summed over its threads), the " \
+            "point mass beside it:\n\n" + "\n".join(
+                f"- {n}: one probe {r['cpu_speed']['route']['one_probe_cpu_rtf']:.1f} "
+                f"({r['cpu_speed']['pointmass']['one_probe_cpu_rtf']:.1f}), batch of 32 "
+                f"{r['cpu_speed']['route']['batch32_cpu_rtf_per_core']:.1f} "
+                f"({r['cpu_speed']['pointmass']['batch32_cpu_rtf_per_core']:.1f}) per core"
+                for n, r in report["routes"].items() if "cpu_speed" in r) + "\n"
     OUT.with_suffix(".md").write_text(text)
     print(text)
 
