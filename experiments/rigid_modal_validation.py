@@ -37,6 +37,8 @@ ROUTES = {
                           "the linear floating frame (no stiffening, no foreshortening), dt 2e-4"),
     "modal_nl10_100hz_2e-4": (2e-4, ModalDiscConfig(cutoff_hz=100.0), 1,
                               "as modal_nl10_2e-4 with the cut-off at 100 Hz"),
+    "modal_nl10_k40_2e-4": (2e-4, ModalDiscConfig(max_modes=40), 1,
+                            "as modal_nl10_2e-4 with at most the 40 lowest modes dynamic"),
 }
 
 

@@ -57,6 +57,7 @@ class ModalDiscConfig:
 
     Attributes:
         cutoff_hz: flexible modes below this frequency (Hz) are dynamic; the rest are condensed statically.
+        max_modes: at most this many dynamic modes (the lowest; 0: no cap beyond the cut-off).
         n_nonlinear: the lowest this many flexible out-of-plane modes carry the second-order joint terms
             (0: the linear floating frame).
         foreshortening: the static displacement ``U s`` moves the tile centres (kinematic).
@@ -65,6 +66,7 @@ class ModalDiscConfig:
     """
 
     cutoff_hz: float = 200.0
+    max_modes: int = 0
     n_nonlinear: int = 10
     foreshortening: bool = True
     fd_rad: float = 1e-3
@@ -73,6 +75,8 @@ class ModalDiscConfig:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.cutoff_hz) and 1.0 <= self.cutoff_hz <= 2000.0):
             raise ValueError(f"cutoff_hz = {self.cutoff_hz!r} must be in [1, 2000] Hz")
+        if not (0 <= int(self.max_modes) <= 306):
+            raise ValueError(f"max_modes = {self.max_modes!r} must be in [0, 306]")
         if not (0 <= int(self.n_nonlinear) <= 30):
             raise ValueError(f"n_nonlinear = {self.n_nonlinear!r} must be in [0, 30]")
         if not (math.isfinite(self.fd_rad) and 1e-6 <= self.fd_rad <= 1e-1):
@@ -110,14 +114,17 @@ class ModalDiscParams:
 def _rotvec_matrices(theta: np.ndarray) -> np.ndarray:
     """Rotation matrices (n, 3, 3) of rotation vectors (n, 3) (Rodrigues)."""
     ang = np.linalg.norm(theta, axis=1)
-    out = np.tile(np.eye(3), (len(theta), 1, 1))
-    for i, (a, t) in enumerate(zip(ang, theta, strict=True)):
-        if a == 0.0:
-            continue
-        k = t / a
-        kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-        out[i] = np.eye(3) + math.sin(a) * kx + (1 - math.cos(a)) * kx @ kx
-    return out
+    safe = np.where(ang > 0.0, ang, 1.0)
+    sa = np.where(ang > 0.0, np.sin(ang) / safe, 1.0)
+    ca = np.where(ang > 0.0, (1.0 - np.cos(ang)) / safe**2, 0.5)
+    kx = np.zeros((len(theta), 3, 3))
+    kx[:, 0, 1], kx[:, 0, 2], kx[:, 1, 2] = -theta[:, 2], theta[:, 1], -theta[:, 0]
+    kx[:, 1, 0], kx[:, 2, 0], kx[:, 2, 1] = theta[:, 2], -theta[:, 1], theta[:, 0]
+    return np.eye(3) + sa[:, None, None] * kx + ca[:, None, None] * (kx @ kx)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
 def joint_rows(geom: DiscGeometry, disp: np.ndarray) -> np.ndarray:
@@ -128,22 +135,20 @@ def joint_rows(geom: DiscGeometry, disp: np.ndarray) -> np.ndarray:
     x = np.column_stack([geom.rest, np.zeros(n)]) + d[:, :3]
     rot = _rotvec_matrices(d[:, 3:])
     hh = 0.5 * geom.spacing
-    out = np.empty((len(geom.links), 5))
-    for j, (a, b) in enumerate(geom.links):
-        o = int(geom.link_dir[j])
-        e1a, e1b = rot[a][:, o], rot[b][:, o]
-        na, nb = rot[a][:, 2], rot[b][:, 2]
-        ra, rb = hh * e1a, -hh * e1b
-        t1 = e1a + e1b
-        t1 /= np.linalg.norm(t1)
-        nn = na + nb
-        nn -= (nn @ t1) * t1
-        nn /= np.linalg.norm(nn)
-        t2 = np.cross(nn, t1)
-        dd = x[b] + rb - x[a] - ra
-        c = np.cross(na, nb)
-        out[j] = (dd @ t1, dd @ t2, dd @ nn, math.atan2(c @ t2, na @ nb), np.cross(e1a, e1b) @ nn)
-    return out
+    a, b = geom.links[:, 0], geom.links[:, 1]
+    o = geom.link_dir.astype(np.int64)
+    e1a = rot[a, :, o]
+    e1b = rot[b, :, o]
+    na, nb = rot[a, :, 2], rot[b, :, 2]
+    t1 = _unit(e1a + e1b)
+    nn = na + nb
+    nn = _unit(nn - np.sum(nn * t1, axis=1, keepdims=True) * t1)
+    t2 = np.cross(nn, t1)
+    dd = x[b] - hh * e1b - x[a] - hh * e1a
+    c = np.cross(na, nb)
+    return np.column_stack([np.sum(dd * t1, 1), np.sum(dd * t2, 1), np.sum(dd * nn, 1),
+                            np.arctan2(np.sum(c * t2, 1), np.sum(na * nb, 1)),
+                            np.sum(np.cross(e1a, e1b) * nn, 1)])
 
 
 def _rigid_modes(geom: DiscGeometry) -> np.ndarray:
@@ -197,6 +202,8 @@ def _build(obj: ObjectSpec, config: ModalDiscConfig) -> ModalDiscParams:
     flex /= np.sqrt(np.einsum("ik,ij,jk->k", flex, mmat, flex))
     wflex = np.concatenate([np.zeros(len(twist)), omegas[n_zero:]])
     dyn = wflex < 2 * math.pi * config.cutoff_hz
+    if config.max_modes:
+        dyn &= np.arange(len(wflex)) < config.max_modes
     phi_d, phi_s = flex[:, dyn], flex[:, ~dyn]
     w_d, w_s = wflex[dyn], wflex[~dyn]
     damp = np.einsum("ik,ij,jk->k", phi_d, cmat, phi_d)
