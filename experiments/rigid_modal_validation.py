@@ -38,12 +38,14 @@ ROUTES = {
                           "the linear floating frame (no stiffening, no foreshortening), dt 2e-4"),
     "modal_nl10_100hz_2e-4": (2e-4, ModalDiscConfig(cutoff_hz=100.0), 1,
                               "as modal_nl10_2e-4 with the cut-off at 100 Hz"),
+    "modal_nl10_2e-4_it3": (2e-4, ModalDiscConfig(), 3, "as modal_nl10_2e-4 with 3 contact sweeps a step"),
+    "modal_nl10_2e-4_it2": (2e-4, ModalDiscConfig(), 2, "as modal_nl10_2e-4 with 2 contact sweeps a step"),
     "modal_nl10_k40_2e-4": (2e-4, ModalDiscConfig(max_modes=40), 1,
                             "as modal_nl10_2e-4 with at most the 40 lowest modes dynamic"),
 }
 
 
-def cpu_speed(physics, pointmass, batch: bool = True) -> dict:
+def cpu_speed(physics, pointmass, with_batch: bool = True) -> dict:
     """Real-time factors by CPU time of this process (the kernel's own cost on a loaded shared machine, where
     wall time measures the other jobs too): the cheese at 20 Hz alone, and a 32-probe batch (summed over its
     threads), the point mass beside it."""
@@ -57,7 +59,7 @@ def cpu_speed(physics, pointmass, batch: bool = True) -> dict:
              for k in range(32)]
     out = {}
     for name, phys in (("route", physics), ("pointmass", pointmass)):
-        for label, specs in (("one_probe_cpu_rtf", one), ("batch32_cpu_rtf_per_core", batch))[:2 if batch else 1]:
+        for label, specs in (("one_probe_cpu_rtf", one), ("batch32_cpu_rtf_per_core", batch))[:2 if with_batch else 1]:
             phys.run(specs)
             t0 = time.process_time()
             res = phys.run(specs)

@@ -367,7 +367,10 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_ou
         # 3. block Gauss-Seidel over the tiles in contact: each tile's corners solved with its own mobility, the
         # tile's wrench change then pushed to the frame and the modes
         for _it in range(n_iter):
-            for t in range(n_tact):
+            for tt in range(n_tact):
+                # the visiting order alternates from step to step (and sweep to sweep): a fixed order biases the
+                # friction impulses of one sweep towards one side of the disc
+                t = tt if (step + _it) % 2 == 0 else n_tact - 1 - tt
                 i = ttile[t]
                 wm = wmob[t]
                 rx = x[i, 0] - xf[0]
