@@ -813,7 +813,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     if plot is not None:
         from plate_env.plotting import plot_fit
 
-        plot_fit(res.probes, est, str(plot), plot_fm)
+        plot_fit(res.probes, est, str(plot), plot_fm, omega_n_true=obj.omega_n)  # the truth printed above
         _say_plot(args, plot)
     return 0 if est.ok else 1
 
@@ -891,15 +891,18 @@ def _cmd_build(args: argparse.Namespace) -> int:
     the command line imports (the seam to the agents)."""
     if args.artifact != "policy":
         return run_build(args, args.argv[1:])
-    from plate_env.build.provenance import build_record
+    from plate_env.build.provenance import build_record, record_in_manifest
     from plate_env.core.files import check_output
     from plate_env_agents.train import train_policy
 
     for path in (Path(args.out), Path(args.out).with_suffix(".npz"), Path(args.out).with_suffix(".json")):
         check_output(path, "--out")  # before the training (an hour at the default steps), not at its save
-    meta = train_policy(args.out, build_record(args.argv[1:]), hyperparams=args.hyperparams, env_id=args.env_id,
+    record = build_record(args.argv[1:])
+    meta = train_policy(args.out, record, hyperparams=args.hyperparams, env_id=args.env_id,
                         seed=args.seed, timesteps=args.timesteps, eval_freq=args.eval_freq,
                         eval_episodes=args.eval_episodes, eval_seed=args.eval_seed, threads=args.threads)
+    for path in (Path(args.out), Path(args.out).with_suffix(".npz"), Path(args.out).with_suffix(".json")):
+        record_in_manifest(path, record)  # a shipped policy's files get their manifest entries
     out, ev = Path(args.out), meta["eval"]
     kept = (f"best eval reward {ev['best_reward']:.4f} at {ev['best_at_timesteps']} steps" if ev["curve"] else
             "no evaluation ran: the last model")
