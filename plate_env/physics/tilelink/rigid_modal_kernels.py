@@ -146,6 +146,298 @@ def _inv_mass_along(wm, cx, cy, cz, ex, ey, ez):
         acc += wr * (wm[r_, 0] * ex + wm[r_, 1] * ey + wm[r_, 2] * ez + wm[r_, 3] * lx + wm[r_, 4] * ly
                      + wm[r_, 5] * lz)
     return acc
+@numba.njit(cache=CACHE, inline="always")
+def _self_mobility(pt, pr, sk, amob):
+    """Each tile's modal self-mobility (body frame) ``sum_k s_k phi_k phi_k^T`` over its 6 dofs into ``amob``."""
+    n = pt.shape[0]
+    nk = sk.shape[0]
+    for i in range(n):
+        for k in range(nk):
+            for r_ in range(6):
+                vr_ = pt[i, r_, k] if r_ < 3 else pr[i, r_ - 3, k]
+                for c_ in range(6):
+                    vc_ = pt[i, c_, k] if c_ < 3 else pr[i, c_ - 3, k]
+                    amob[i, r_, c_] += sk[k] * vr_ * vc_
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _tile_geometry(q, s, pairs, rest, pt, pr, us, fs, xf, rm, trot, x, s_th, c_th):
+    """Stage 2: the products ``s``, each tile's rotation in the body frame (``trot``) and world centre (``x``,
+    with the foreshortening ``U s`` when ``fs``). Returns the lowest plate-normal component of a tile normal."""
+    n = rest.shape[0]
+    nk = q.shape[0]
+    npair = pairs.shape[0]
+    for p in range(npair):
+        s[p] = q[pairs[p, 0]] * q[pairs[p, 1]]
+    tile_w_min = 1.0
+    for i in range(n):
+        bx = rest[i, 0]
+        by = rest[i, 1]
+        bz = 0.0
+        tx = 0.0
+        ty = 0.0
+        tz = 0.0
+        for k in range(nk):
+            qk = q[k]
+            bx += pt[i, 0, k] * qk
+            by += pt[i, 1, k] * qk
+            bz += pt[i, 2, k] * qk
+            tx += pr[i, 0, k] * qk
+            ty += pr[i, 1, k] * qk
+            tz += pr[i, 2, k] * qk
+        if fs:
+            for p in range(npair):
+                bx += us[i, 0, p] * s[p]
+                by += us[i, 1, p] * s[p]
+                bz += us[i, 2, p] * s[p]
+        _rodrigues(tx, ty, tz, trot[i])
+        for d in range(3):
+            x[i, d] = xf[d] + rm[d, 0] * bx + rm[d, 1] * by + rm[d, 2] * bz
+        # world tile normal's plate-normal component
+        nz_b0, nz_b1, nz_b2 = trot[i, 0, 2], trot[i, 1, 2], trot[i, 2, 2]
+        nwy = rm[1, 0] * nz_b0 + rm[1, 1] * nz_b1 + rm[1, 2] * nz_b2
+        nwz = rm[2, 0] * nz_b0 + rm[2, 1] * nz_b1 + rm[2, 2] * nz_b2
+        tw = -nwy * s_th + nwz * c_th
+        if tw < tile_w_min:
+            tile_w_min = tw
+    return tile_w_min
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _max_speed(x, xf, vf, wf, rm, pt, qd):
+    """The largest squared tile-centre speed (m^2/s^2; the foreshortening's velocity left out)."""
+    n = x.shape[0]
+    nk = qd.shape[0]
+    vmax2 = 0.0
+    for i in range(n):
+        rx = x[i, 0] - xf[0]
+        ry = x[i, 1] - xf[1]
+        rz = x[i, 2] - xf[2]
+        ux = 0.0
+        uy = 0.0
+        uz = 0.0
+        for k in range(nk):
+            ux += pt[i, 0, k] * qd[k]
+            uy += pt[i, 1, k] * qd[k]
+            uz += pt[i, 2, k] * qd[k]
+        vx = vf[0] + wf[1] * rz - wf[2] * ry + rm[0, 0] * ux + rm[0, 1] * uy + rm[0, 2] * uz
+        vy = vf[1] + wf[2] * rx - wf[0] * rz + rm[1, 0] * ux + rm[1, 1] * uy + rm[1, 2] * uz
+        vz = vf[2] + wf[0] * ry - wf[1] * rx + rm[2, 0] * ux + rm[2, 1] * uy + rm[2, 2] * uz
+        sp = vx * vx + vy * vy + vz * vz
+        if not (sp <= vmax2):
+            vmax2 = sp
+    return vmax2
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt):
+    """Stage 1: the modes' elastic forces and their backward-Euler spring-damper velocity update."""
+    nk = q.shape[0]
+    npair = pairs.shape[0]
+    for k in range(nk):
+        acc = 0.0
+        for p in range(npair):
+            acc += bc[k, p] * s[p]
+        force[k] = -acc
+    # v = B^T q + H s, acting through ds/dq
+    for p in range(npair):
+        acc = 0.0
+        for k in range(nk):
+            acc += bc[k, p] * q[k]
+        for p2 in range(npair):
+            acc += hq[p, p2] * s[p2]
+        tmp_p[p] = acc
+    for p in range(npair):
+        a = pairs[p, 0]
+        b = pairs[p, 1]
+        force[a] -= tmp_p[p] * q[b]
+        force[b] -= tmp_p[p] * q[a]
+    for k in range(nk):
+        qd[k] = sk[k] * (qd[k] + dt * (force[k] - omega[k] * omega[k] * q[k]))
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _frame_forces(vf, wf, rm, iw, dt, grav, ib0, ib1, ib2):
+    """Stage 1 for the frame: gravity, the world inverse inertia ``iw``, the gyroscopic torque."""
+    vf[2] -= dt * grav
+    for r_ in range(3):
+        for c_ in range(3):
+            iw[r_, c_] = (rm[r_, 0] * rm[c_, 0] / ib0 + rm[r_, 1] * rm[c_, 1] / ib1
+                          + rm[r_, 2] * rm[c_, 2] / ib2)
+    # L = I w in body: w_b = R^T w
+    wbx = rm[0, 0] * wf[0] + rm[1, 0] * wf[1] + rm[2, 0] * wf[2]
+    wby = rm[0, 1] * wf[0] + rm[1, 1] * wf[1] + rm[2, 1] * wf[2]
+    wbz = rm[0, 2] * wf[0] + rm[1, 2] * wf[1] + rm[2, 2] * wf[2]
+    gx = -(wby * ib2 * wbz - wbz * ib1 * wby)
+    gy = -(wbz * ib0 * wbx - wbx * ib2 * wbz)
+    gz = -(wbx * ib1 * wby - wby * ib0 * wbx)
+    wbx += dt * gx / ib0
+    wby += dt * gy / ib1
+    wbz += dt * gz / ib2
+    for d in range(3):
+        wf[d] = rm[d, 0] * wbx + rm[d, 1] * wby + rm[d, 2] * wbz
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _active_tiles(hh, trot, rm, x, xf, s_th, c_th, th_dot, xp_dot, kc, cdat, cimp, tfirst, tlast, ttile,
+                  inv_mt, iw, amob, wmob, sc3a, sc3b, sc6):
+    """Stage 3a: the corners below the plate grouped by tile, each tile's 6x6 mobility. Returns how many tiles."""
+    n = x.shape[0]
+    n_act = 0
+    n_tact = 0
+    for i in range(n):
+        first = n_act
+        for cnr in range(4):
+            sa = hh if (cnr == 0 or cnr == 3) else -hh
+            sb = hh if cnr < 2 else -hh
+            cbx = sa * trot[i, 0, 0] + sb * trot[i, 0, 1]
+            cby = sa * trot[i, 1, 0] + sb * trot[i, 1, 1]
+            cbz = sa * trot[i, 2, 0] + sb * trot[i, 2, 1]
+            cwx = rm[0, 0] * cbx + rm[0, 1] * cby + rm[0, 2] * cbz
+            cwy = rm[1, 0] * cbx + rm[1, 1] * cby + rm[1, 2] * cbz
+            cwz = rm[2, 0] * cbx + rm[2, 1] * cby + rm[2, 2] * cbz
+            py = x[i, 1] + cwy
+            pz = x[i, 2] + cwz
+            wc = -py * s_th + pz * c_th
+            if wc >= 0.0:
+                continue
+            cdat[n_act, 0] = cwx
+            cdat[n_act, 1] = cwy
+            cdat[n_act, 2] = cwz
+            cdat[n_act, 3] = spring_force(-wc, kc)
+            cdat[n_act, 4] = xp_dot
+            cdat[n_act, 5] = -th_dot * pz
+            cdat[n_act, 6] = th_dot * py
+            cimp[n_act, 0] = 0.0
+            cimp[n_act, 1] = 0.0
+            cimp[n_act, 2] = 0.0
+            n_act += 1
+        if n_act == first:
+            continue
+        tfirst[n_tact] = first
+        tlast[n_tact] = n_act
+        ttile[n_tact] = i
+        _tile_mobility(x[i, 0] - xf[0], x[i, 1] - xf[1], x[i, 2] - xf[2], inv_mt, iw, rm, amob[i], wmob[n_tact],
+                       sc3a, sc3b, sc6)
+        n_tact += 1
+    return n_tact
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _contact_sweeps(step, n_iter, n_tact, ttile, tfirst, tlast, wmob, x, xf, vf, wf, rm, iw, pt, pr, qd, sk,
+                    cdat, cimp, lv, dwr, pnx, pny, pnz, cc, dt, mus, muk, vt, inv_mt):
+    """Stage 3b: ``n_iter`` block Gauss-Seidel sweeps over the tiles in contact (module docstring)."""
+    nk = qd.shape[0]
+    # 3. block Gauss-Seidel over the tiles in contact: each tile's corners solved with its own mobility, the
+    # tile's wrench change then pushed to the frame and the modes
+    for _it in range(n_iter):
+        for tt in range(n_tact):
+            # the visiting order alternates from step to step (and sweep to sweep): a fixed order biases the
+            # friction impulses of one sweep towards one side of the disc
+            t = tt if (step + _it) % 2 == 0 else n_tact - 1 - tt
+            i = ttile[t]
+            wm = wmob[t]
+            rx = x[i, 0] - xf[0]
+            ry = x[i, 1] - xf[1]
+            rz = x[i, 2] - xf[2]
+            ubx = 0.0
+            uby = 0.0
+            ubz = 0.0
+            obx = 0.0
+            oby = 0.0
+            obz = 0.0
+            for k in range(nk):
+                qk = qd[k]
+                ubx += pt[i, 0, k] * qk
+                uby += pt[i, 1, k] * qk
+                ubz += pt[i, 2, k] * qk
+                obx += pr[i, 0, k] * qk
+                oby += pr[i, 1, k] * qk
+                obz += pr[i, 2, k] * qk
+            lv[0] = vf[0] + wf[1] * rz - wf[2] * ry + rm[0, 0] * ubx + rm[0, 1] * uby + rm[0, 2] * ubz
+            lv[1] = vf[1] + wf[2] * rx - wf[0] * rz + rm[1, 0] * ubx + rm[1, 1] * uby + rm[1, 2] * ubz
+            lv[2] = vf[2] + wf[0] * ry - wf[1] * rx + rm[2, 0] * ubx + rm[2, 1] * uby + rm[2, 2] * ubz
+            lv[3] = wf[0] + rm[0, 0] * obx + rm[0, 1] * oby + rm[0, 2] * obz
+            lv[4] = wf[1] + rm[1, 0] * obx + rm[1, 1] * oby + rm[1, 2] * obz
+            lv[5] = wf[2] + rm[2, 0] * obx + rm[2, 1] * oby + rm[2, 2] * obz
+            for d in range(6):
+                dwr[d] = 0.0
+            for c in range(tfirst[t], tlast[t]):
+                cx, cy, cz = cdat[c, 0], cdat[c, 1], cdat[c, 2]
+                _apply_local(wm, cx, cy, cz, -cimp[c, 0], -cimp[c, 1], -cimp[c, 2], lv, dwr)
+                vrx = lv[0] + lv[4] * cz - lv[5] * cy - cdat[c, 4]
+                vry = lv[1] + lv[5] * cx - lv[3] * cz - cdat[c, 5]
+                vrz = lv[2] + lv[3] * cy - lv[4] * cx - cdat[c, 6]
+                vn = vrx * pnx + vry * pny + vrz * pnz
+                kn_inv = _inv_mass_along(wm, cx, cy, cz, pnx, pny, pnz)
+                fn = damped_normal_force(cdat[c, 3], vn, cc, kn_inv, dt)
+                jx = 0.0
+                jy = 0.0
+                jz = 0.0
+                if fn > 0.0:
+                    pn = dt * fn
+                    jx = pn * pnx
+                    jy = pn * pny
+                    jz = pn * pnz
+                    _apply_local(wm, cx, cy, cz, jx, jy, jz, lv, dwr)
+                    vrx = lv[0] + lv[4] * cz - lv[5] * cy - cdat[c, 4]
+                    vry = lv[1] + lv[5] * cx - lv[3] * cz - cdat[c, 5]
+                    vrz = lv[2] + lv[3] * cy - lv[4] * cx - cdat[c, 6]
+                    vn2 = vrx * pnx + vry * pny + vrz * pnz
+                    tx = vrx - vn2 * pnx
+                    ty = vry - vn2 * pny
+                    tz = vrz - vn2 * pnz
+                    slip = math.sqrt(tx * tx + ty * ty + tz * tz)
+                    if slip > 0.0:
+                        ex, ey, ez = tx / slip, ty / slip, tz / slip
+                        kt_inv = _inv_mass_along(wm, cx, cy, cz, ex, ey, ez)
+                        sc = friction_scale(slip, fn, mus, muk, vt, kt_inv, dt)
+                        ptan = (1.0 - sc) * slip / kt_inv
+                        _apply_local(wm, cx, cy, cz, -ptan * ex, -ptan * ey, -ptan * ez, lv, dwr)
+                        jx -= ptan * ex
+                        jy -= ptan * ey
+                        jz -= ptan * ez
+                cimp[c, 0] = jx
+                cimp[c, 1] = jy
+                cimp[c, 2] = jz
+            # push the tile's wrench change (at its centre) to the frame and the modes
+            fx, fy, fz, lx, ly, lz = dwr[0], dwr[1], dwr[2], dwr[3], dwr[4], dwr[5]
+            vf[0] += fx * inv_mt
+            vf[1] += fy * inv_mt
+            vf[2] += fz * inv_mt
+            ax_ = ry * fz - rz * fy + lx
+            ay_ = rz * fx - rx * fz + ly
+            az_ = rx * fy - ry * fx + lz
+            wf[0] += iw[0, 0] * ax_ + iw[0, 1] * ay_ + iw[0, 2] * az_
+            wf[1] += iw[1, 0] * ax_ + iw[1, 1] * ay_ + iw[1, 2] * az_
+            wf[2] += iw[2, 0] * ax_ + iw[2, 1] * ay_ + iw[2, 2] * az_
+            fbx = rm[0, 0] * fx + rm[1, 0] * fy + rm[2, 0] * fz
+            fby = rm[0, 1] * fx + rm[1, 1] * fy + rm[2, 1] * fz
+            fbz = rm[0, 2] * fx + rm[1, 2] * fy + rm[2, 2] * fz
+            lbx = rm[0, 0] * lx + rm[1, 0] * ly + rm[2, 0] * lz
+            lby = rm[0, 1] * lx + rm[1, 1] * ly + rm[2, 1] * lz
+            lbz = rm[0, 2] * lx + rm[1, 2] * ly + rm[2, 2] * lz
+            for k in range(nk):
+                qd[k] += sk[k] * (pt[i, 0, k] * fbx + pt[i, 1, k] * fby + pt[i, 2, k] * fbz
+                                  + pr[i, 0, k] * lbx + pr[i, 1, k] * lby + pr[i, 2, k] * lbz)
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _advance(xf, vf, wf, q, qd, dt, qw, qx, qy, qz):
+    """Stage 4: frame position and quaternion, modal coordinates. Returns the new quaternion."""
+    nk = q.shape[0]
+    for d in range(3):
+        xf[d] += dt * vf[d]
+    hx, hy, hz = 0.5 * dt * wf[0], 0.5 * dt * wf[1], 0.5 * dt * wf[2]
+    nw_ = qw - hx * qx - hy * qy - hz * qz
+    nx_ = qx + hx * qw + hy * qz - hz * qy
+    ny_ = qy + hy * qw + hz * qx - hx * qz
+    nz_ = qz + hz * qw + hx * qy - hy * qx
+    ln = 1.0 / math.sqrt(nw_ * nw_ + nx_ * nx_ + ny_ * ny_ + nz_ * nz_)
+    qw, qx, qy, qz = nw_ * ln, nx_ * ln, ny_ * ln, nz_ * ln
+    for k in range(nk):
+        q[k] += dt * qd[k]
+    return qw, qx, qy, qz
 
 
 @numba.njit(cache=CACHE, fastmath=FAST)
@@ -189,7 +481,6 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_ou
     iw = np.empty((3, 3))  # world inverse inertia
     trot = np.empty((n, 3, 3))  # tile rotation in the body frame
     x = np.empty((n, 3))  # tile centres, world
-    body = np.empty((n, 3))  # tile centres, body frame
     cdat = np.empty((4 * n, 7))  # corner offset from its tile centre c (3, world), f_spring, plate velocity (3)
     cimp = np.empty((4 * n, 3))
     tfirst = np.empty(n, dtype=np.int64)  # tiles in contact: their corners' range, the tile, its mobility
@@ -201,15 +492,8 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_ou
     sc3b = np.empty((3, 3))
     sc6 = np.empty((6, 6))
     dwr = np.empty(6)
-    # each tile's modal self-mobility (body frame): sum_k s_k phi_k phi_k^T over its 6 dofs
     amob = np.zeros((n, 6, 6))
-    for i in range(n):
-        for k in range(nk):
-            for r_ in range(6):
-                vr_ = pt[i, r_, k] if r_ < 3 else pr[i, r_ - 3, k]
-                for c_ in range(6):
-                    vc_ = pt[i, c_, k] if c_ < 3 else pr[i, c_ - 3, k]
-                    amob[i, r_, c_] += sk[k] * vr_ * vc_
+    _self_mobility(pt, pr, sk, amob)
     yaw0 = prm[params.P_YAW0]
     xf[0] = prm[params.P_U0]
     xf[1] = prm[params.P_V0]
@@ -224,60 +508,9 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_ou
         c_th = math.cos(th)
         pnx, pny, pnz = 0.0, -s_th, c_th
         _quat_matrix(qw, qx, qy, qz, rm)
-        # products s and tile geometry
-        for p in range(npair):
-            s[p] = q[pairs[p, 0]] * q[pairs[p, 1]]
-        tile_w_min = 1.0
-        for i in range(n):
-            bx = rest[i, 0]
-            by = rest[i, 1]
-            bz = 0.0
-            tx = 0.0
-            ty = 0.0
-            tz = 0.0
-            for k in range(nk):
-                qk = q[k]
-                bx += pt[i, 0, k] * qk
-                by += pt[i, 1, k] * qk
-                bz += pt[i, 2, k] * qk
-                tx += pr[i, 0, k] * qk
-                ty += pr[i, 1, k] * qk
-                tz += pr[i, 2, k] * qk
-            if fs:
-                for p in range(npair):
-                    bx += us[i, 0, p] * s[p]
-                    by += us[i, 1, p] * s[p]
-                    bz += us[i, 2, p] * s[p]
-            body[i, 0], body[i, 1], body[i, 2] = bx, by, bz
-            _rodrigues(tx, ty, tz, trot[i])
-            for d in range(3):
-                x[i, d] = xf[d] + rm[d, 0] * bx + rm[d, 1] * by + rm[d, 2] * bz
-            # world tile normal's plate-normal component
-            nz_b0, nz_b1, nz_b2 = trot[i, 0, 2], trot[i, 1, 2], trot[i, 2, 2]
-            nwy = rm[1, 0] * nz_b0 + rm[1, 1] * nz_b1 + rm[1, 2] * nz_b2
-            nwz = rm[2, 0] * nz_b0 + rm[2, 1] * nz_b1 + rm[2, 2] * nz_b2
-            tw = -nwy * s_th + nwz * c_th
-            if tw < tile_w_min:
-                tile_w_min = tw
+        tile_w_min = _tile_geometry(q, s, pairs, rest, pt, pr, us, fs, xf, rm, trot, x, s_th, c_th)
         if step % rec_every == 0:
-            vmax2 = 0.0
-            for i in range(n):
-                rx = x[i, 0] - xf[0]
-                ry = x[i, 1] - xf[1]
-                rz = x[i, 2] - xf[2]
-                ux = 0.0
-                uy = 0.0
-                uz = 0.0
-                for k in range(nk):
-                    ux += pt[i, 0, k] * qd[k]
-                    uy += pt[i, 1, k] * qd[k]
-                    uz += pt[i, 2, k] * qd[k]
-                vx = vf[0] + wf[1] * rz - wf[2] * ry + rm[0, 0] * ux + rm[0, 1] * uy + rm[0, 2] * uz
-                vy = vf[1] + wf[2] * rx - wf[0] * rz + rm[1, 0] * ux + rm[1, 1] * uy + rm[1, 2] * uz
-                vz = vf[2] + wf[0] * ry - wf[1] * rx + rm[2, 0] * ux + rm[2, 1] * uy + rm[2, 2] * uz
-                sp = vx * vx + vy * vy + vz * vz
-                if not (sp <= vmax2):
-                    vmax2 = sp
+            vmax2 = _max_speed(x, xf, vf, wf, rm, pt, qd)
             extra = Status.OK
             if tile_w_min < prm[M_FOLDW]:
                 extra = Status.FOLDED
@@ -287,187 +520,13 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_ou
                 break
         if step == n_steps:
             break
-        # 1. elastic forces of the modes (linear + condensed stiffening), backward Euler spring-damper
-        for k in range(nk):
-            acc = 0.0
-            for p in range(npair):
-                acc += bc[k, p] * s[p]
-            force[k] = -acc
-        # v = B^T q + H s, acting through ds/dq
-        for p in range(npair):
-            acc = 0.0
-            for k in range(nk):
-                acc += bc[k, p] * q[k]
-            for p2 in range(npair):
-                acc += hq[p, p2] * s[p2]
-            tmp_p[p] = acc
-        for p in range(npair):
-            a = pairs[p, 0]
-            b = pairs[p, 1]
-            force[a] -= tmp_p[p] * q[b]
-            force[b] -= tmp_p[p] * q[a]
-        for k in range(nk):
-            qd[k] = sk[k] * (qd[k] + dt * (force[k] - omega[k] * omega[k] * q[k]))
-        # frame: gravity, gyroscopic torque
-        vf[2] -= dt * grav
-        for r_ in range(3):
-            for c_ in range(3):
-                iw[r_, c_] = (rm[r_, 0] * rm[c_, 0] / ib0 + rm[r_, 1] * rm[c_, 1] / ib1
-                              + rm[r_, 2] * rm[c_, 2] / ib2)
-        # L = I w in body: w_b = R^T w
-        wbx = rm[0, 0] * wf[0] + rm[1, 0] * wf[1] + rm[2, 0] * wf[2]
-        wby = rm[0, 1] * wf[0] + rm[1, 1] * wf[1] + rm[2, 1] * wf[2]
-        wbz = rm[0, 2] * wf[0] + rm[1, 2] * wf[1] + rm[2, 2] * wf[2]
-        gx = -(wby * ib2 * wbz - wbz * ib1 * wby)
-        gy = -(wbz * ib0 * wbx - wbx * ib2 * wbz)
-        gz = -(wbx * ib1 * wby - wby * ib0 * wbx)
-        wbx += dt * gx / ib0
-        wby += dt * gy / ib1
-        wbz += dt * gz / ib2
-        for d in range(3):
-            wf[d] = rm[d, 0] * wbx + rm[d, 1] * wby + rm[d, 2] * wbz
-        # 2-3. active corners grouped by tile, each tile's 6x6 mobility (frame + its modal self-mobility)
-        n_act = 0
-        n_tact = 0
-        for i in range(n):
-            first = n_act
-            for cnr in range(4):
-                sa = hh if (cnr == 0 or cnr == 3) else -hh
-                sb = hh if cnr < 2 else -hh
-                cbx = sa * trot[i, 0, 0] + sb * trot[i, 0, 1]
-                cby = sa * trot[i, 1, 0] + sb * trot[i, 1, 1]
-                cbz = sa * trot[i, 2, 0] + sb * trot[i, 2, 1]
-                cwx = rm[0, 0] * cbx + rm[0, 1] * cby + rm[0, 2] * cbz
-                cwy = rm[1, 0] * cbx + rm[1, 1] * cby + rm[1, 2] * cbz
-                cwz = rm[2, 0] * cbx + rm[2, 1] * cby + rm[2, 2] * cbz
-                py = x[i, 1] + cwy
-                pz = x[i, 2] + cwz
-                wc = -py * s_th + pz * c_th
-                if wc >= 0.0:
-                    continue
-                cdat[n_act, 0] = cwx
-                cdat[n_act, 1] = cwy
-                cdat[n_act, 2] = cwz
-                cdat[n_act, 3] = spring_force(-wc, kc)
-                cdat[n_act, 4] = xp_dot
-                cdat[n_act, 5] = -th_dot * pz
-                cdat[n_act, 6] = th_dot * py
-                cimp[n_act, 0] = 0.0
-                cimp[n_act, 1] = 0.0
-                cimp[n_act, 2] = 0.0
-                n_act += 1
-            if n_act == first:
-                continue
-            tfirst[n_tact] = first
-            tlast[n_tact] = n_act
-            ttile[n_tact] = i
-            _tile_mobility(x[i, 0] - xf[0], x[i, 1] - xf[1], x[i, 2] - xf[2], inv_mt, iw, rm, amob[i], wmob[n_tact],
-                           sc3a, sc3b, sc6)
-            n_tact += 1
-        # 3. block Gauss-Seidel over the tiles in contact: each tile's corners solved with its own mobility, the
-        # tile's wrench change then pushed to the frame and the modes
-        for _it in range(n_iter):
-            for tt in range(n_tact):
-                # the visiting order alternates from step to step (and sweep to sweep): a fixed order biases the
-                # friction impulses of one sweep towards one side of the disc
-                t = tt if (step + _it) % 2 == 0 else n_tact - 1 - tt
-                i = ttile[t]
-                wm = wmob[t]
-                rx = x[i, 0] - xf[0]
-                ry = x[i, 1] - xf[1]
-                rz = x[i, 2] - xf[2]
-                ubx = 0.0
-                uby = 0.0
-                ubz = 0.0
-                obx = 0.0
-                oby = 0.0
-                obz = 0.0
-                for k in range(nk):
-                    qk = qd[k]
-                    ubx += pt[i, 0, k] * qk
-                    uby += pt[i, 1, k] * qk
-                    ubz += pt[i, 2, k] * qk
-                    obx += pr[i, 0, k] * qk
-                    oby += pr[i, 1, k] * qk
-                    obz += pr[i, 2, k] * qk
-                lv[0] = vf[0] + wf[1] * rz - wf[2] * ry + rm[0, 0] * ubx + rm[0, 1] * uby + rm[0, 2] * ubz
-                lv[1] = vf[1] + wf[2] * rx - wf[0] * rz + rm[1, 0] * ubx + rm[1, 1] * uby + rm[1, 2] * ubz
-                lv[2] = vf[2] + wf[0] * ry - wf[1] * rx + rm[2, 0] * ubx + rm[2, 1] * uby + rm[2, 2] * ubz
-                lv[3] = wf[0] + rm[0, 0] * obx + rm[0, 1] * oby + rm[0, 2] * obz
-                lv[4] = wf[1] + rm[1, 0] * obx + rm[1, 1] * oby + rm[1, 2] * obz
-                lv[5] = wf[2] + rm[2, 0] * obx + rm[2, 1] * oby + rm[2, 2] * obz
-                for d in range(6):
-                    dwr[d] = 0.0
-                for c in range(tfirst[t], tlast[t]):
-                    cx, cy, cz = cdat[c, 0], cdat[c, 1], cdat[c, 2]
-                    _apply_local(wm, cx, cy, cz, -cimp[c, 0], -cimp[c, 1], -cimp[c, 2], lv, dwr)
-                    vrx = lv[0] + lv[4] * cz - lv[5] * cy - cdat[c, 4]
-                    vry = lv[1] + lv[5] * cx - lv[3] * cz - cdat[c, 5]
-                    vrz = lv[2] + lv[3] * cy - lv[4] * cx - cdat[c, 6]
-                    vn = vrx * pnx + vry * pny + vrz * pnz
-                    kn_inv = _inv_mass_along(wm, cx, cy, cz, pnx, pny, pnz)
-                    fn = damped_normal_force(cdat[c, 3], vn, cc, kn_inv, dt)
-                    jx = 0.0
-                    jy = 0.0
-                    jz = 0.0
-                    if fn > 0.0:
-                        pn = dt * fn
-                        jx = pn * pnx
-                        jy = pn * pny
-                        jz = pn * pnz
-                        _apply_local(wm, cx, cy, cz, jx, jy, jz, lv, dwr)
-                        vrx = lv[0] + lv[4] * cz - lv[5] * cy - cdat[c, 4]
-                        vry = lv[1] + lv[5] * cx - lv[3] * cz - cdat[c, 5]
-                        vrz = lv[2] + lv[3] * cy - lv[4] * cx - cdat[c, 6]
-                        vn2 = vrx * pnx + vry * pny + vrz * pnz
-                        tx = vrx - vn2 * pnx
-                        ty = vry - vn2 * pny
-                        tz = vrz - vn2 * pnz
-                        slip = math.sqrt(tx * tx + ty * ty + tz * tz)
-                        if slip > 0.0:
-                            ex, ey, ez = tx / slip, ty / slip, tz / slip
-                            kt_inv = _inv_mass_along(wm, cx, cy, cz, ex, ey, ez)
-                            sc = friction_scale(slip, fn, mus, muk, vt, kt_inv, dt)
-                            ptan = (1.0 - sc) * slip / kt_inv
-                            _apply_local(wm, cx, cy, cz, -ptan * ex, -ptan * ey, -ptan * ez, lv, dwr)
-                            jx -= ptan * ex
-                            jy -= ptan * ey
-                            jz -= ptan * ez
-                    cimp[c, 0] = jx
-                    cimp[c, 1] = jy
-                    cimp[c, 2] = jz
-                # push the tile's wrench change (at its centre) to the frame and the modes
-                fx, fy, fz, lx, ly, lz = dwr[0], dwr[1], dwr[2], dwr[3], dwr[4], dwr[5]
-                vf[0] += fx * inv_mt
-                vf[1] += fy * inv_mt
-                vf[2] += fz * inv_mt
-                ax_ = ry * fz - rz * fy + lx
-                ay_ = rz * fx - rx * fz + ly
-                az_ = rx * fy - ry * fx + lz
-                wf[0] += iw[0, 0] * ax_ + iw[0, 1] * ay_ + iw[0, 2] * az_
-                wf[1] += iw[1, 0] * ax_ + iw[1, 1] * ay_ + iw[1, 2] * az_
-                wf[2] += iw[2, 0] * ax_ + iw[2, 1] * ay_ + iw[2, 2] * az_
-                fbx = rm[0, 0] * fx + rm[1, 0] * fy + rm[2, 0] * fz
-                fby = rm[0, 1] * fx + rm[1, 1] * fy + rm[2, 1] * fz
-                fbz = rm[0, 2] * fx + rm[1, 2] * fy + rm[2, 2] * fz
-                lbx = rm[0, 0] * lx + rm[1, 0] * ly + rm[2, 0] * lz
-                lby = rm[0, 1] * lx + rm[1, 1] * ly + rm[2, 1] * lz
-                lbz = rm[0, 2] * lx + rm[1, 2] * ly + rm[2, 2] * lz
-                for k in range(nk):
-                    qd[k] += sk[k] * (pt[i, 0, k] * fbx + pt[i, 1, k] * fby + pt[i, 2, k] * fbz
-                                      + pr[i, 0, k] * lbx + pr[i, 1, k] * lby + pr[i, 2, k] * lbz)
-        # 4. integrate
-        for d in range(3):
-            xf[d] += dt * vf[d]
-        hx, hy, hz = 0.5 * dt * wf[0], 0.5 * dt * wf[1], 0.5 * dt * wf[2]
-        nw_ = qw - hx * qx - hy * qy - hz * qz
-        nx_ = qx + hx * qw + hy * qz - hz * qy
-        ny_ = qy + hy * qw + hz * qx - hx * qz
-        nz_ = qz + hz * qw + hx * qy - hy * qx
-        ln = 1.0 / math.sqrt(nw_ * nw_ + nx_ * nx_ + ny_ * ny_ + nz_ * nz_)
-        qw, qx, qy, qz = nw_ * ln, nx_ * ln, ny_ * ln, nz_ * ln
-        for k in range(nk):
-            q[k] += dt * qd[k]
+        _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt)
+        _frame_forces(vf, wf, rm, iw, dt, grav, ib0, ib1, ib2)
+        n_tact = _active_tiles(hh, trot, rm, x, xf, s_th, c_th, th_dot, xp_dot, kc, cdat, cimp, tfirst, tlast, ttile,
+                               inv_mt, iw, amob, wmob, sc3a, sc3b, sc6)
+        _contact_sweeps(step, n_iter, n_tact, ttile, tfirst, tlast, wmob, x, xf, vf, wf, rm, iw, pt, pr, qd, sk, cdat,
+                        cimp, lv, dwr, pnx, pny, pnz, cc, dt, mus, muk, vt, inv_mt)
+        qw, qx, qy, qz = _advance(xf, vf, wf, q, qd, dt, qw, qx, qy, qz)
     return status, n_rec
 
 
