@@ -14,6 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import plate_env  # noqa: F401 - registers the environment
+from plate_env.env.render import H, W
 from plate_env.env.rotation import PlateRotationEnv
 
 FAST = {"tilelink": dict(max_probes=4), "atlas": dict(max_probes=6),
@@ -155,7 +156,7 @@ def test_rgb_array_render_and_no_render_by_default():
     env.reset(seed=0)
     env.step(np.array([0.0, -1.0, 0.0, -1.0], np.float32))
     frame = env.render()
-    assert frame.shape == (240, 480, 3) and frame.dtype == np.uint8
+    assert frame.shape == (H, W, 3) and frame.dtype == np.uint8
     assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 3
     env.close()
     plain = make("tilelink")
@@ -248,13 +249,13 @@ def test_vector_infos_batch_episode_ends_with_and_without_estimates(mode):
     vec.close()
 
 
-def test_pybullet_rgb_array_uses_tiny_renderer():
+def test_pybullet_rgb_array_draws_the_same_frame():
     pytest.importorskip("pybullet")
     env = PlateRotationEnv(physics="pybullet", render_mode="rgb_array", **FAST["pybullet"])
     env.reset(seed=0)
     env.step(np.array([-0.6, -1.0, -1.0, -1.0], np.float32))
     frame = env.render()
-    assert frame.shape == (240, 480, 3) and frame.dtype == np.uint8
+    assert frame.shape == (H, W, 3) and frame.dtype == np.uint8
     assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 10
     env.close()
     assert env._renderer is None
