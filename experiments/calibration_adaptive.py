@@ -152,11 +152,60 @@ def scores(truth: np.ndarray, preds) -> dict[str, np.ndarray]:
     return out
 
 
+def feat_fit_ev(prior: cs.FeatPrior, F: np.ndarray, y: np.ndarray):
+    """:func:`calibration_study.feat_fit` and the references' log marginal likelihood under ``prior`` (the scatter
+    prior normalised on the grid); 0 without a reference that has features."""
+    wt, parts = cs.feat_fit(prior, F, y)
+    ok = F[:, 0] == 1
+    x, yy = cs.feat_x(F[ok]), y[ok]
+    lp = -0.5 * ((np.log(cs.FEAT_SIGMAS) - math.log(prior.sigma_median)) / prior.log_sd) ** 2
+    lp -= np.logaddexp.reduce(lp)
+    for j, sg in enumerate(cs.FEAT_SIGMAS):
+        cov_y = sg ** 2 * np.eye(len(yy)) + x @ prior.c0 @ x.T
+        r = yy - x @ prior.m0
+        _, logdet = np.linalg.slogdet(cov_y)
+        lp[j] += -0.5 * (logdet + r @ np.linalg.solve(cov_y, r) + len(yy) * math.log(2 * math.pi))
+    return (wt, parts), float(np.logaddexp.reduce(lp))
+
+
+def offset_only(prior: cs.FeatPrior) -> cs.FeatPrior:
+    """The same prior with the slopes held at their prior means (sd 1e-4): only the intercept and the scatter are
+    learned from the references."""
+    c0 = prior.c0.copy()
+    c0[1:, :] = 0.0
+    c0[:, 1:] = 0.0
+    c0[1, 1] = c0[2, 2] = 1e-8
+    return cs.FeatPrior(prior.m0, c0, prior.sigma_median, prior.log_sd)
+
+
+def bma_predict(fits, f_row: np.ndarray, nu: float):
+    """The candidates' predictives averaged by their evidence (``fits``: [(post, log_ev)])."""
+    from plate_env.identify.lab_calibration import Prediction
+
+    preds = [(feat_predict_t(post, f_row, nu), lev) for post, lev in fits]
+    if not preds[0][0].ok:
+        return preds[0][0]
+    lev = np.array([lv for _, lv in preds])
+    w = np.exp(lev - lev.max())
+    w /= w.sum()
+    # mixture quantiles from each candidate's own quantiles: interpolate a CDF through its 5 quantile points (log)
+    grid = cs._Y
+    cdf = np.zeros_like(grid)
+    for (p, _), wi in zip(preds, w, strict=True):
+        qs = np.log([p.ci95[0], p.ci68[0], p.omega_n, p.ci68[1], p.ci95[1]])
+        cdf += wi * np.interp(grid, qs, [0.025, 0.16, 0.5, 0.84, 0.975], left=0.0, right=1.0)
+
+    def q(level: float) -> float:
+        return float(math.exp(np.interp(level, cdf, grid)))
+
+    return Prediction(True, q(0.5), (q(0.16), q(0.84)), (q(0.025), q(0.975)))
+
+
 def run(args) -> dict:
     data = {s: load(s, args.lab_n, args.features) for s in args.sources}
     out: dict = {"command": "python " + " ".join(sys.argv), "commit": cs.commit(), "draws": args.draws,
                  "seed": args.seed, "log_sd": args.log_sd, "lab_n": args.lab_n,
-                 "features": args.features, "nu": args.nu,
+                 "features": args.features, "nu": args.nu, "bma": args.bma,
                  "oracle": {s: oracle(labs) for s, labs in data.items()}, "priors": {}, "by_k": {}}
     priors = {}
     for s in args.sources:
@@ -176,8 +225,13 @@ def run(args) -> dict:
                 for d in range(args.draws):
                     ref = rng.choice(n, size=K, replace=False)
                     others = [i for i in range(n) if i not in set(ref.tolist())]
-                    post = cs.feat_fit(priors[s], lab.features[ref], np.log(lab.truth[ref]))
-                    preds = [feat_predict_t(post, lab.features[i], args.nu) for i in others]
+                    y = np.log(lab.truth[ref])
+                    if args.bma:
+                        fits = [feat_fit_ev(pr, lab.features[ref], y) for pr in (priors[s], offset_only(priors[s]))]
+                        preds = [bma_predict(fits, lab.features[i], args.nu) for i in others]
+                    else:
+                        post = cs.feat_fit(priors[s], lab.features[ref], y)
+                        preds = [feat_predict_t(post, lab.features[i], args.nu) for i in others]
                     for k, v in scores(lab.truth[others], preds).items():
                         res[k][others, d] = v
                 bl.append(res)
@@ -225,6 +279,8 @@ def main() -> None:
     ap.add_argument("--features", default="lorentz", choices=list(FEATURES),
                     help="the hump features: the Eq. 9 Lorentzian fit, or the largest stable probe (raw)")
     ap.add_argument("--nu", type=float, default=math.inf, help="the predictive's degrees of freedom per scatter")
+    ap.add_argument("--bma", action="store_true", help="average the full line and the intercept-only line (slopes "
+                    "at the prior's) by the references' marginal likelihood")
     ap.add_argument("--tag", default="", help="suffix of the result files (variants)")
     args = ap.parse_args()
     res = run(args)
