@@ -11,8 +11,10 @@ imported, except by mypy with ``--mypy``). Counts:
 - ``experiments_private_imports``: names starting with ``_`` imported from ``plate_env``/``plate_env_agents`` by a
   file under ``experiments/``, imports of a module path with such a component, and private members reached through
   a name such an import bound (``rk._step``);
-- ``script_to_script_imports``: imports, in ``experiments/``, of a module that is a file of ``experiments/``;
-- ``tests_importing_scripts``: the same from ``tests/``;
+- ``script_to_script_imports``: imports, in ``experiments/``, of a module that is a file of ``experiments/`` (the
+  scripts' shared helper module ``common.py`` and the scripts' own tests ``test_*.py`` are not scripts);
+- ``tests_importing_scripts``: the same from ``tests/`` (a name that is also a module of ``tests/`` excluded: it
+  imports that module); ``experiments_tests_importing_scripts``: the same from ``experiments/test_*.py``;
 - ``import_hooks``: classes defining ``find_spec`` plus statements touching ``sys.meta_path`` in ``plate_env/``;
 - ``imports_inside_functions``: import statements inside a function body in ``plate_env/`` and ``agents/``;
 - ``modules_over_400_lines`` and the largest, in ``plate_env/`` and ``agents/``;
@@ -194,12 +196,18 @@ def counts(root: Path, with_mypy: bool) -> dict:
     pkg = _trees(root, "plate_env", "agents")
     exp = _trees(root, "experiments")
     tests = _trees(root, "tests")
-    scripts = {p.stem for p in (root / "experiments").glob("*.py")} if (root / "experiments").exists() else set()
+    # scripts: files of experiments/ but the scripts' one shared helper module (common.py) and their own tests
+    scripts = {p.stem for p in (root / "experiments").glob("*.py") if p.stem != "common"
+               and not p.stem.startswith("test_")} if (root / "experiments").exists() else set()
+    own_tests = {p: t for p, t in exp.items() if p.name.startswith("test_")}
+    # a module of tests/ of the same name as a script (tests/cross_cpu.py) is what a test imports by that name
+    test_modules = {p.stem for p in (root / "tests").glob("*.py")}
     n_big, biggest = long_modules(root)
     out = {"method_string_branches": method_string_branches(pkg), "env_constructor_args": env_constructor_args(root),
            "experiments_private_imports": experiments_private_imports(exp),
-           "script_to_script_imports": script_imports(exp, scripts),
-           "tests_importing_scripts": script_imports(tests, scripts),
+           "script_to_script_imports": script_imports({p: t for p, t in exp.items() if p not in own_tests}, scripts),
+           "tests_importing_scripts": script_imports(tests, scripts - test_modules),
+           "experiments_tests_importing_scripts": script_imports(own_tests, scripts),
            "import_hooks": import_hooks(_trees(root, "plate_env")),
            "imports_inside_functions": imports_inside_functions(pkg), "modules_over_400_lines": n_big,
            "largest_modules": biggest, "cli_lines": cli_lines(root)}

@@ -13,7 +13,7 @@ file). Reported: the distinct crossings (caller function -> callee function) and
 The paths: ``gym.make("PlateRotation-v0", physics="atlas")`` (the backend's construction included),
 ``reset(seed=0)`` and steps drawn from the action space seeded with 0 (never the stop action) until the probe
 budget ends the episode and the env estimates; ``plate-env fit sweep.csv`` (the atlas method, the ``lab`` forward
-model) on experiments/bench_speed.py's tile-link sweep (SWEEP_CSV). Writes experiments/results/layer_crossings.md.
+model) on the tile-link sweep of common.SWEEP_CSV. Writes experiments/results/layer_crossings.md.
 """
 
 from __future__ import annotations
@@ -27,8 +27,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_speed import SWEEP_CSV  # noqa: E402
+from common import SWEEP_CSV
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent

@@ -52,13 +52,13 @@ def play(seed: int):
     return SPENT[0], frames, env.unwrapped
 
 
-def docs_images(frames: list[np.ndarray], rows) -> list[str]:
+def docs_images(frames: list[np.ndarray], table) -> list[str]:
     """The frames docs/env.md shows: an unstable probe at 3/4 of its period, the last 12-deg stable probe at 1/4."""
     from PIL import Image
 
-    start = [1 + k * render.FRAMES_PER_PROBE for k in range(len(rows))]
-    unstable = next(k for k, r in enumerate(rows) if r[4])
-    stable = max(k for k, r in enumerate(rows) if not r[4])
+    start = [1 + k * render.FRAMES_PER_PROBE for k in range(len(table))]
+    unstable = next(k for k in range(len(table)) if table.unstable[k])
+    stable = max(k for k in range(len(table)) if not table.unstable[k])
     out = ROOT / "docs" / "img"
     out.mkdir(exist_ok=True)
     paths = [out / "render_unstable.png", out / "render_probe.png"]
@@ -85,7 +85,7 @@ def main() -> None:
         seconds.append(len(frames) / env.metadata["render_fps"])
         per_frame.append(spent / len(frames))
         if args.docs and seed == 1:
-            written = docs_images(frames, env._rows)
+            written = docs_images(frames, env.table())
     scene = env._scene()
     n = 10
     t0 = time.process_time()

@@ -98,7 +98,9 @@ def _to_line(key: str, r: ProbeResult) -> str:
                        "periods_measured": r.periods_measured})
 
 
-def _from_record(spec: ProbeSpec, d: dict) -> ProbeResult:
+def result_from_record(spec: ProbeSpec, d: dict) -> ProbeResult:
+    """The :class:`ProbeResult` of ``spec`` from its cache record ``d`` (a line of a sweep cache, as
+    :func:`load_cache` returns them): omega_B and its standard error in deg/s, simulated and wall time in s."""
     return ProbeResult(spec=spec, omega_b_deg_s=float(d["omega_b_deg_s"]), stderr_deg_s=float(d["stderr_deg_s"]),
                        unstable=bool(d["unstable"]), reason=d["reason"], sim_s=float(d["sim_s"]),
                        wall_s=float(d["wall_s"]), periods_measured=int(d["periods_measured"]))
@@ -265,7 +267,7 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
                 if bar is not None:
                     bar.update(len(idx))
     except KeyboardInterrupt:
-        raise SweepInterrupted([_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)
+        raise SweepInterrupted([result_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)
                                 if k in done]) from None
     finally:
         if own and executor is not None:
@@ -275,6 +277,6 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
                 fh.close()
         if bar is not None:
             bar.close()
-    out = [_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)]
+    out = [result_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)]
     assert all(math.isfinite(r.omega_b_deg_s) for r in out)
     return out
