@@ -292,7 +292,8 @@ def test_no_help_text_names_a_path_that_does_not_exist():
 
     repo = Path(plate_env.__file__).parent.parent
     # an installed package's path names its own folder (plate_env_agents is the repository's agents/ folder)
-    packages = {"plate_env": Path(plate_env.__file__).parent, "plate_env_agents": Path(plate_env_agents.__file__).parent}
+    packages = {"plate_env": Path(plate_env.__file__).parent,
+                "plate_env_agents": Path(plate_env_agents.__file__).parent}
 
     def exists(token: str) -> bool:
         top, _, rest = token.partition("/")
