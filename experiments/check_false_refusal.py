@@ -58,6 +58,7 @@ def episode_record(env, agent, seed: int) -> dict:
     e = env.unwrapped
     env_est = e.estimate()  # the estimate the env's reward charged (its own posterior of these probes)
     rec = {"seed": seed, "agent": agent.name, "n_probes": r.n_probes, "omega_n_true_rad_s": r.omega_n_true,
+           "alpha_true_rad": r.alpha_true, "probes": r.probes.to_rows(),
            "env_ok": env_est.ok, "env_reason": None if env_est.ok else env_est.reason,
            "env_error": env_est.relative_error(r.omega_n_true) if env_est.ok else None,
            "bench_ok": r.estimate.ok, "bench_error": r.relative_error if r.estimate.ok else None,
@@ -104,6 +105,42 @@ def run(env_id: str, agents: list[str], episodes: int, seed0: int) -> Path:
                 rec["env"], rec["wall_s"] = env_id, time.perf_counter() - t0
                 fh.write(json.dumps(rec) + "\n")
                 fh.flush()
+    return out
+
+
+def stored(paths: list[Path]) -> Path:
+    """The check recomputed on stored live bayes episodes (their probe tables; ``experiments/forward_models.py``'s
+    cache of live point-mass episodes, default known inputs): the estimate of record is bayes's estimate model's,
+    the shipped model's under the rule now and before. Written as ``PlateRotation-v0-stored.jsonl``."""
+    from plate_env.core.probe_table import ProbeTable
+    from plate_env.identify.forward import load_forward_model
+    from plate_env.identify.inference import identify_atlas, predictive_check
+    from plate_env_agents.bayes import BayesAgent
+
+    agent = BayesAgent()
+    agent.fm = shipped = load_forward_model("tilelink/pointmass")
+    design = agent.estimate_model()
+    RUNS.mkdir(parents=True, exist_ok=True)
+    out = RUNS / "PlateRotation-v0-stored.jsonl"
+    with out.open("w") as fh:
+        for path in paths:
+            for line in path.read_text().splitlines():
+                d = json.loads(line)
+                rows = d["table"]
+                table = ProbeTable.from_arrays(*([r[k] for r in rows] for k in (
+                    "f_p_hz", "a_p_deg", "omega_b_deg_s", "stderr_deg_s", "unstable")))
+                rec = {"seed": f"{path.stem}:{d['i']}", "agent": "bayes", "n_probes": len(table), "source": path.name}
+                for name, fm in (("env", design), ("shipped", shipped)):
+                    est = identify_atlas(table, fm)
+                    rec[f"{name}_p"] = None if est.check is None else est.check.p_value
+                    rec[f"{name}_p_before"] = None
+                    if est.check is not None and est.posterior is not None:
+                        with node_share(0.0):
+                            rec[f"{name}_p_before"] = predictive_check(fm, table, est.posterior).p_value
+                    rec[f"{name}_ok"] = est.ok
+                    rec[f"{name}_error"] = est.relative_error(d["omega_n"]) if est.ok else None
+                rec.update(bench_p=rec["env_p"], bench_ok=rec["env_ok"], bench_error=rec["env_error"])
+                fh.write(json.dumps(rec) + "\n")
     return out
 
 
@@ -220,9 +257,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--episodes", type=int, default=1000)
     ap.add_argument("--seed0", type=int, default=1000)
     ap.add_argument("--report", action="store_true")
+    ap.add_argument("--stored", nargs="+", type=Path, default=None,
+                    help="recompute the check on stored live bayes episodes (experiments/cache/forward_models_bayes_"
+                         "s510.jsonl s520.jsonl)")
     args = ap.parse_args(argv)
     if args.report:
         report()
+        return 0
+    if args.stored:
+        print(stored(args.stored))
         return 0
     from plate_env_agents import AGENT_NAMES
 

@@ -21,25 +21,40 @@ from plate_env.identify.estimate import CHECK_P_MIN
 from plate_env.identify.forward import load_forward_model
 from plate_env_agents import make_agent
 
-SEED_1022 = Path(__file__).parent / "data" / "issue38_bayes_seed1022_probes.json"
+DATA = Path(__file__).parent / "data"
+#: Live in-model episodes the check refused before: bayes seed 1022 (the issue's; a 12 deg probe on the steep flank
+#: between omega_n nodes, 40 model scales off the spline at the truth) and a stored live bayes episode (a 3 deg probe
+#: at 13 Hz where the response peaks in alpha between the atlas's alpha nodes, 15.7 scales off: still refused, see
+#: the xfail below).
+EPISODES = {"bayes-1022": DATA / "issue38_bayes_seed1022_probes.json",
+            "bayes-s510-8": DATA / "issue38_bayes_s510_8_probes.json"}
+ALPHA_OPEN = pytest.mark.xfail(strict=True, reason=(
+    "open (issue 38 item 3): the atlas's interpolation between alpha nodes is not in the check's reference; a reach "
+    "along alpha (half a node interval) lets this episode through but also lets tests/test_hardening.py's 60pi "
+    "object (outside the atlas) through as a confident 18pi"))
 
 
-def _table_1022() -> ProbeTable:
-    rows = json.loads(SEED_1022.read_text())["probes"]
+def _table(path: Path) -> ProbeTable:
+    rows = json.loads(path.read_text())["probes"]
     return ProbeTable.from_arrays(*([r[k] for r in rows] for k in ("f_p_hz", "a_p_deg", "omega_b_deg_s",
                                                                    "stderr_deg_s", "unstable")))
 
 
-def test_live_in_model_episode_1022_is_not_refused():
-    """The live point-mass episode the issue saw refused (bayes, seed 1022: 30 probes from that very model, one on
-    the steep 12 deg flank between the atlas's f_p nodes, 40 model scales off the spline at the truth) passes the
-    env's check; with the rule before (probes pinned to the grid's omega_n, no node share) it is refused."""
-    table = _table_1022()
+def _table_1022() -> ProbeTable:
+    return _table(EPISODES["bayes-1022"])
+
+
+@pytest.mark.parametrize("name", ["bayes-1022", pytest.param("bayes-s510-8", marks=ALPHA_OPEN)])
+def test_live_in_model_episodes_are_not_refused(name):
+    """Live point-mass episodes the check refused (probes from that very model) pass it on the env's shipped
+    forward model, with an estimate near the truth; with the rule before (no node share: probes pinned to the
+    checked object but for the member's blur, 0 here) they are refused."""
+    table = _table(EPISODES[name])
     fm = load_forward_model("tilelink/pointmass")
     est = identify(table, forward=fm)
     assert est.ok and est.check is not None and est.check.passed, est.check
-    truth = json.loads(SEED_1022.read_text())["omega_n_true_rad_s"]
-    assert est.relative_error(truth) < 0.10
+    truth = json.loads(EPISODES[name].read_text())["omega_n_true_rad_s"]
+    assert est.relative_error(truth) < 0.15
     old = inference.CHECK_NODE_SHARE
     try:
         inference.CHECK_NODE_SHARE = 0.0
@@ -51,7 +66,7 @@ def test_live_in_model_episode_1022_is_not_refused():
 
 def test_the_checks_reach_is_at_least_half_an_atlas_node_interval():
     """A member without blur (the shipped point mass) still lets each probe move half the atlas's median omega_n
-    node interval; a member's larger blur wins."""
+    node interval along log omega_n; a member's larger blur wins."""
     import dataclasses
 
     m = load_forward_model("tilelink/pointmass").members[0]
