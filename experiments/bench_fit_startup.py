@@ -4,13 +4,13 @@ PyBullet's first probe, for this tree and an earlier commit, in one run.
     python experiments/bench_fit_startup.py --ref 690d019 [--repeats 5] [--no-pybullet]
 
 Every figure is the wall time of a fresh process (``sys.executable``) whose ``plate_env`` is the tree's (this
-checkout, or ``git archive <ref>``: :func:`bench_speed.tree_path`), the two trees measured alternately, each
+checkout, or ``git archive <ref>``: :func:`common.tree_path`), the two trees measured alternately, each
 repeat of each figure one after the other, so both see the same load; the median of the repeats and the ratio
 before / after are the figures to read (the machine is shared: the load average is recorded before and after).
 Each tree has its own disk cache (``PLATE_ENV_CACHE_DIR``), filled by one untimed run of each command first: the
 figures are a warm machine's (the ring-down calibration, atlas splines and responses already cached).
 
-- ``fit --forward F``: ``python -m plate_env fit SWEEP --forward F --json`` (bench_speed's 9-point sweep at 3 deg).
+- ``fit --forward F``: ``python -m plate_env fit SWEEP --forward F --json`` (common.SWEEP_CSV: 9 points at 3 deg).
 - ``import plate_env`` / ``import plate_env.cli``: ``python -c "import ..."`` (the interpreter's own start-up
   included: ``python -c pass`` is reported as the floor).
 - ``pybullet``: bench_speed's ``m_pybullet`` (a PyBullet env's reset and first probe after import, the import and
@@ -32,9 +32,9 @@ import tempfile
 import time
 from pathlib import Path
 
+import common
+
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-import bench_speed  # noqa: E402  (the trees, the sweep and the PyBullet measurement are bench_speed's)
 
 RESULTS = HERE / "results"
 FORWARDS = ("lab", "tilelink/pointmass")
@@ -58,7 +58,7 @@ def figures(csv: Path, pybullet: bool) -> list[tuple[str, list[str], str | None]
     out += [(f"plate-env fit --forward {fm} (whole command)",
              [py, "-m", "plate_env", "fit", str(csv), "--forward", fm, "--json"], "omega_n_rad_s") for fm in FORWARDS]
     if pybullet:
-        out.append(("PyBullet first probe", [py, str(Path(bench_speed.__file__)), "--measure", "pybullet"],
+        out.append(("PyBullet first probe", [py, str(common.HERE / "bench_speed.py"), "--measure", "pybullet"],
                     "first_probe_after_import_s"))
     return out
 
@@ -70,9 +70,9 @@ def main() -> None:
     ap.add_argument("--no-pybullet", action="store_true")
     ap.add_argument("--out", default=str(RESULTS / "bench_fit_startup"), help="results path without extension")
     args = ap.parse_args()
-    commit = subprocess.run(["git", "-C", str(bench_speed.ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+    commit = subprocess.run(["git", "-C", str(common.ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
                             text=True).stdout.strip()
-    dirty = subprocess.run(["git", "-C", str(bench_speed.ROOT), "status", "--porcelain", "--untracked-files=no"],
+    dirty = subprocess.run(["git", "-C", str(common.ROOT), "status", "--porcelain", "--untracked-files=no"],
                            capture_output=True, text=True).stdout.strip()
     doc = {"command": "python experiments/bench_fit_startup.py " + " ".join(sys.argv[1:]),
            "commit": commit + ("+dirty" if dirty else ""), "ref": args.ref,
@@ -81,10 +81,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp_s:
         tmp = Path(tmp_s)
         csv = tmp / "sweep.csv"
-        csv.write_text(bench_speed.SWEEP_CSV)
+        csv.write_text(common.SWEEP_CSV)
         envs = {}
         for label, ref in (("before", args.ref), ("after", None)):
-            path = bench_speed.overlay(bench_speed.tree_path(ref if ref or dirty else "HEAD", tmp), tmp)
+            path = common.overlay(common.tree_path(ref if ref or dirty else "HEAD", tmp), tmp)
             envs[label] = dict(os.environ, PYTHONPATH=str(path), PLATE_ENV_CACHE_DIR=str(tmp / f"cache-{label}"))
         for name, cmd, key in figures(csv, not args.no_pybullet):
             rec = {label: {"wall_s": [], "cpu_s": [], "value": []} for label in envs}

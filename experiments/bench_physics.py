@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import argparse
 import math
-import statistics
 import time
 
 import numpy as np
+from common import rtf
 
 import plate_env as pe
 
@@ -26,17 +26,6 @@ A3 = 3.0
 
 def probes(objs, freqs, **kw):
     return [pe.ProbeSpec(o, pe.PlateMotion.from_paper(f, A3), **kw) for o in objs for f in freqs]
-
-
-def rtf(physics, specs, repeats):
-    physics.run(specs)  # warm (compile / load cache)
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        res = physics.run(specs)
-        times.append(time.perf_counter() - t0)
-    sim = sum(r.sim_s for r in res)
-    return sim / statistics.median(times), sum(r.unstable for r in res)
 
 
 def main() -> None:

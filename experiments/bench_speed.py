@@ -36,21 +36,14 @@ import tempfile
 import time
 from pathlib import Path
 
+from common import SWEEP_CSV, SWEEP_POINTS, attr, overlay, tree_path
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 RESULTS = HERE / "results"
 
 
 # ------------------------------------------------------------------------------------------- measurements
-def attr(module: str, old_module: str, name: str):
-    """``module.name``, or ``old_module.name`` in a tree before the layered layout (issue 24): the measurements run
-    on earlier commits too (``--ref``), so the old path is tried by name only where the new one does not exist."""
-    import importlib
-
-    try:
-        return getattr(importlib.import_module(module), name)
-    except ImportError:
-        return getattr(importlib.import_module(old_module), name)
 
 
 # Each runs in a fresh process (``--measure NAME``) and prints one JSON line.
@@ -143,18 +136,6 @@ def m_start(quick: bool) -> dict:
     del np
     return {"import_s": t1 - t0, "make_reset_s": t2 - t1, "first_step_s": t3 - t2,
             "make_to_first_step_s": t3 - t1, "first_episode_end_s": t5 - t4}
-
-
-#: A lab sweep at A_p = 3 deg inside every shipped forward model's atlas (10-26 Hz: the PyBullet atlas's band).
-#: A tile-link point-mass sweep of the README's object (omega_n 17 pi rad/s, alpha 45 deg), rounded to 4 decimals:
-#: ``plate-env sweep --physics tilelink --omega-n 17pi --alpha 45 --freqs 10:26:2 --csv sweep.csv``. Every shipped
-#: forward model gives an estimate from it (the fit timed is the one a user waits for, not a rejection).
-SWEEP_CSV = "f_p_hz,a_p_deg,omega_b_deg_s,stderr_deg_s,unstable\n" + "\n".join(
-    f"{f},{a},{w},{s},{u}" for f, a, w, s, u in [
-        (10, 3, 12.0143, 0.0067, 0), (12, 3, 70.3582, 0.0252, 0), (14, 3, 87.0871, 0.3142, 0),
-        (16, 3, 113.6140, 1.3952, 0), (18, 3, 183.7253, 1.0915, 0), (20, 3, 0.0000, 0.0000, 1),
-        (22, 3, 417.7760, 2.2727, 0), (24, 3, 510.5472, 3.0620, 0), (26, 3, 555.6221, 3.4492, 0)]) + "\n"
-SWEEP_POINTS = "9 points at A_p = 3 deg, 10-26 Hz (tile-link point mass, 17 pi rad/s, 45 deg)"
 
 
 def m_fit_inproc(quick: bool, forward: str, csv: str) -> dict:
@@ -255,30 +236,6 @@ MEASURES = {"env": m_env, "vec": m_vec, "start": m_start, "bayes": m_bayes, "pyb
 
 
 # ------------------------------------------------------------------------------------------- driver
-def tree_path(ref: str | None, tmp: Path) -> Path:
-    """The source tree under test: this checkout (None) or ``git archive ref`` unpacked under ``tmp``."""
-    if ref is None:
-        return ROOT
-    sha = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", ref], capture_output=True, text=True,
-                         check=True).stdout.strip()
-    dest = Path(tempfile.gettempdir()) / f"plate_env_bench_ref_{sha}"
-    if not (dest / "plate_env").is_dir():
-        dest.mkdir(parents=True, exist_ok=True)
-        arch = subprocess.run(["git", "-C", str(ROOT), "archive", sha], capture_output=True, check=True).stdout
-        subprocess.run(["tar", "-x", "-C", str(dest)], input=arch, check=True)
-    return dest
-
-
-def overlay(tree: Path, tmp: Path) -> Path:
-    """A directory whose ``plate_env`` and ``plate_env_agents`` are the tree's (first on PYTHONPATH: it wins over
-    the editable install)."""
-    d = tmp / tree.name.replace("/", "_")
-    d.mkdir(exist_ok=True)
-    for name, src in (("plate_env", tree / "plate_env"), ("plate_env_agents", tree / "agents")):
-        link = d / name
-        if not link.exists():
-            link.symlink_to(src)
-    return d
 
 
 def run_child(path: Path, args: list[str], env: dict, timeout: float = 1800.0) -> dict:

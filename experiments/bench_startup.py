@@ -21,16 +21,21 @@ from pathlib import Path
 
 PPO_CODE = """
 import time, json
+model = None
+if {force_sb3}:  # the SB3 path: the shipped zip and its provenance copied alone, without the numpy export beside it
+    import importlib.util, shutil, tempfile
+    from pathlib import Path
+    shipped = Path(importlib.util.find_spec("plate_env_agents").submodule_search_locations[0]) / "models"
+    model = Path(tempfile.mkdtemp()) / "ppo_plate.zip"
+    for suffix in (".zip", ".json"):
+        shutil.copy(shipped / ("ppo_plate" + suffix), model.with_suffix(suffix))
 t0 = time.perf_counter()
 import numpy as np
 from plate_env_agents import make_agent
 from plate_env.env.rotation import PlateRotationEnv
 from plate_env.env.protocol import ProbeContext
 t1 = time.perf_counter()
-agent = make_agent("ppo")
-if {force_sb3}:
-    agent._numpy = None
-    agent._sb3 = agent._load_sb3()
+agent = make_agent("ppo") if model is None else make_agent("ppo", path=model)
 t2 = time.perf_counter()
 env = PlateRotationEnv(physics="atlas")
 obs, _ = env.reset(seed=0)

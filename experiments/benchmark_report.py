@@ -82,7 +82,7 @@ def main() -> None:
         gap.append(f"| {a['label']} | {st(s['median_error'])} | {st(top['median_error'])} | {st(s['no_estimate'])} | "
                    f"{st(top['no_estimate'])} | {s['probes_mean']:.1f} | {top['probes_mean']:.1f} |")
     cli_rows = {a["label"]: a for a in cli["agents"]}
-    from same_numbers import diffs
+    from common import diffs
 
     lb_rows = {a["label"]: a for a in lb["agents"]}
     cli_equal = {k: not diffs(v, lb_rows[k]) for k, v in cli_rows.items()}
@@ -170,5 +170,4 @@ seeds, each probe answered by the tile-link atlas (the PPO policies were trained
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, str(Path(__file__).parent))
     main()

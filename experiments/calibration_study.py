@@ -23,11 +23,11 @@ import sys
 import time
 from pathlib import Path
 
+import common
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
-import forward_models as fmod  # noqa: E402
-
+from plate_env.build.eval_sets import EvalSet
+from plate_env.build.forward_models import FAMILIES
 from plate_env.identify.forward import ForwardModel  # noqa: E402
 from plate_env.identify.lab_calibration import (  # noqa: E402
     SHAPE_SCALES,
@@ -37,16 +37,17 @@ from plate_env.identify.lab_calibration import (  # noqa: E402
     member_readings,
     predict,
 )
+from plate_env.run.executor import add_executor_argument
 
 RESULTS = Path("experiments/results")
 CACHE = Path("experiments/cache")
 KS = (1, 2, 3, 5)
 SOURCES = ("pointmass", "rigid", "pybullet")
-MEMBER_FILES = [f for fam in SOURCES for f in fmod.FAMILIES[fam]]
+MEMBER_FILES = [f for fam in SOURCES for f in FAMILIES[fam]]
 
 
 @dataclasses.dataclass(frozen=True)
-class LabEvalSet(fmod.EvalSet):
+class LabEvalSet(EvalSet):
     """A simulated lab (regime "lab-level nuisance"): point-mass objects that all share ONE draw of the unknown
     joint and contact values from ``plate_env.physics.nuisance.PRIOR`` (``default_rng(seed + 2)``), the references
     and the test discs alike; objects and placements as :class:`plate_env.build.eval_sets.EvalSet`."""
@@ -74,15 +75,15 @@ def all_members() -> tuple[ForwardModel, list[str]]:
     """Every member of every family (the ``lab`` forward model's members at 13.6 g) and each one's family."""
     members, fams = [], []
     for fam in SOURCES:
-        for f in fmod.FAMILIES[fam]:
-            members.append(fmod.member(f))
+        for f in FAMILIES[fam]:
+            members.append(common.member(f))
             fams.append(fam)
     return ForwardModel("all", tuple(members)), fams
 
 
 def source_data(fam: str, n: int | None, executor) -> tuple[list[float], list]:
-    es = fmod.DATA[fam] if n is None else dataclasses.replace(fmod.DATA[fam], n=n)
-    return fmod.data_of(fam, executor, es)
+    es = common.DATA[fam] if n is None else dataclasses.replace(common.DATA[fam], n=n)
+    return common.data_of(fam, executor, es)
 
 
 #: Each source's physics family (its members are left out of the forward model when it is the lab). ``pmlab``: the
@@ -137,7 +138,7 @@ def features_of(tables) -> np.ndarray:
 def load_labs(src: str, args, fm: ForwardModel) -> list[Lab]:
     if src == "pmlab":
         sets = [(f"pmlab{es.seed}", es) for es in lab_sets(args.n_labs, args.lab_n)]
-        got = [(name, fmod.data_of("pointmass", args.executor, es)) for name, es in sets]
+        got = [(name, common.data_of("pointmass", args.executor, es)) for name, es in sets]
     else:
         sizes = {"pointmass": args.n_pointmass, "rigid": args.n_rigid, "pybullet": args.n_pybullet}
         got = [(src, source_data(src, sizes[src], args.executor))]
@@ -393,9 +394,9 @@ def stage_study(args) -> None:
                      "seed": args.seed, "ks": list(KS), "log_sd": args.log_sd,
                      "sources": {s: {"objects": int(sum(len(lab.truth) for lab in data[s])), "labs": len(data[s]),
                                      "family": SOURCE_FAMILY[s],
-                                     "eval_set": ({"source": fmod.DATA[s].source, "seed": fmod.DATA[s].seed,
-                                                   "nuisance": "per disc" if fmod.DATA[s].nuisance else "none"}
-                                                  if s in fmod.DATA else
+                                     "eval_set": ({"source": common.DATA[s].source, "seed": common.DATA[s].seed,
+                                                   "nuisance": "per disc" if common.DATA[s].nuisance else "none"}
+                                                  if s in common.DATA else
                                                   {"source": "tilelink_pointmass",
                                                    "seed": [es.seed for es in lab_sets(args.n_labs, args.lab_n)],
                                                    "n_per_lab": args.lab_n, "nuisance": "one draw per lab"})}
@@ -675,7 +676,7 @@ def main() -> None:
     ap.add_argument("--n-pybullet", type=int, default=None)
     ap.add_argument("--n-labs", type=int, default=len(LAB_SEEDS), help="simulated labs of the pmlab source")
     ap.add_argument("--lab-n", type=int, default=LAB_N, help="discs per simulated lab")
-    fmod.add_executor_argument(ap)
+    add_executor_argument(ap)
     args = ap.parse_args()
     if args.stage == "md":
         write_md(json.loads((RESULTS / "calibration_study.json").read_text()))

@@ -3,7 +3,7 @@
 Rebuilds, into a temporary directory, the artifacts whose tests compare against committed numbers (the forward-model
 registry, the paper calibration, the Eq. (10) lines from the committed sweeps, one tile-link calibration sweep) and
 prints, per artifact, how many numbers differ and the largest relative difference. The tests' tolerance
-(tests/cross_cpu.py CROSS_CPU_RTOL) is set from these numbers.
+(plate_env.build.compare.CROSS_CPU_RTOL) is set from these numbers.
 
     python experiments/cross_cpu.py            # about a minute
 """
@@ -15,17 +15,14 @@ import dataclasses
 import io
 import json
 import platform
-import sys
 import tempfile
 from importlib import resources
 from pathlib import Path
 
+from plate_env.build.compare import differences
+from plate_env.cli import main
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-
-from cross_cpu import differences  # noqa: E402
-
-from plate_env.cli import main  # noqa: E402
 
 CACHE = ROOT / "experiments" / "cache"
 

@@ -105,8 +105,8 @@ def _run(specs: list[ProbeSpec], configs: list[rigid.RigidTileConfig], edits: li
         prm[b, rk.R_NITER] = n
         if edit is not None:
             edit(prm[b:b + 1], dt)
-    geom = rk._params(specs[0].obj, configs[0]).geom
-    rest = np.stack([rk._params(s.obj, c).geom.rest for s, c in zip(specs, configs, strict=True)])
+    geom = rigid.build_params(specs[0].obj, configs[0]).geom
+    rest = np.stack([rigid.build_params(s.obj, c).geom.rest for s, c in zip(specs, configs, strict=True)])
     out = rk.run_rigid_param_arrays(prm, rest, geom)
     return [(result_from_arrays(s, out, b, dt).omega_b_deg_s, Status(int(out["status"][b])))
             for b, s in enumerate(specs)]

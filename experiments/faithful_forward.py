@@ -20,7 +20,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from forward_models import HEAD, member, row
+from common import CACHE, HEAD, member, row
 
 from plate_env.bench.scoring import discrepancies, score
 from plate_env.build.eq10 import LAB_SETS, lab_backend_of
@@ -40,7 +40,8 @@ def forward(sigma_eps: float = 0.0, nu: float = math.inf) -> ForwardModel:
 
 
 def sweeps(es: EvalSet, backend_of, executor) -> tuple[list[float], list]:
-    return [o.omega_n for o in es.objects()], run_eval_set(es, backend_of, executor, progress=True)[es.a_p_deg[0]]
+    tables = run_eval_set(es, backend_of, executor, progress=True, cache_dir=CACHE)
+    return [o.omega_n for o in es.objects()], tables[es.a_p_deg[0]]
 
 
 def main() -> None:

@@ -149,10 +149,8 @@ def from_table_sweeps(cache_dir: Path) -> tuple[dict, list[str]]:
     """The bar on validate_paper.py's cached 3 deg sweeps of 10pi and 33pi (every model, every placement, 0.5 s +
     1.0 s windows, slip limit 10 mm): ``default`` (stable probes only) and ``kept`` (unstable probes' omega_B over
     the periods before the slip, plotted as if stable). Nothing is simulated."""
-    import sys
 
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    import validate_paper as vp
+    import common
 
     out: dict = {}
     md = ["## The table's own sweeps (validate_paper.py caches)", "",
@@ -160,12 +158,12 @@ def from_table_sweeps(cache_dir: Path) -> tuple[dict, list[str]]:
           "`kept` unstable probes' pre-slip omega_B kept (those that slipped before a measured period have none). "
           "Cells: ratio (probes in the window). ✓ meets the bar.", "",
           "| model | object | default, per placement | kept, per placement |", "|---|---|---|---|"]
-    for model in vp.MODELS:
-        got = vp.cached_sweeps(model, cache_dir)
+    for model in common.MODELS:
+        got = common.cached_sweeps(model, cache_dir)
         for (w, al), (f0, b) in OBJECTS.items():
-            sw = next(x for x in vp.plan(model) if x.omega_pi == w and x.alpha_deg == al and x.a_p_deg == 3.0)
+            sw = next(x for x in common.plan(model) if x.omega_pi == w and x.alpha_deg == al and x.a_p_deg == 3.0)
             cells = {"default": [], "kept": []}
-            for p in range(vp.PLACEMENTS[model]):
+            for p in range(common.PLACEMENTS[model]):
                 if (sw, p) not in got:
                     continue
                 res = got[(sw, p)]

@@ -22,17 +22,30 @@ import dataclasses
 import json
 import math
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
+from common import (
+    CACHE,
+    CALIBRATION,
+    DATA,
+    HEAD,
+    POINTMASS,
+    TEST,
+    TEST_MORE,
+    data_of,
+    episodes,
+    member,
+    row,
+    sets_by_amplitude,
+)
 
-from plate_env.bench.scoring import Scores, discrepancies, score
-from plate_env.build.eq10 import LAB_SETS, lab_backend_of, lab_fits, lab_line
+from plate_env.bench.scoring import discrepancies, score
+from plate_env.build.eq10 import lab_fits, lab_line
 from plate_env.build.eval_sets import EvalSet, run_eval_set
 from plate_env.build.forward_models import FAMILIES
 from plate_env.core.probe_table import ProbeTable
-from plate_env.identify.forward import ForwardModel, Member, load_forward_model
+from plate_env.identify.forward import ForwardModel, load_forward_model
 from plate_env.identify.inference import (
     family_discrepancy,
     fit_discrepancy,
@@ -43,31 +56,6 @@ from plate_env.run.executor import BackendSpec, add_executor_argument
 
 RESULTS = Path("experiments/results")
 REGISTRY = Path("plate_env/data/forward_models.json")
-POINTMASS = BackendSpec.of("tilelink", model="pointmass")
-#: Calibration and test sets inside the point-mass model (10-40 Hz, 1 Hz, at 3 and 12 deg).
-CALIBRATION = EvalSet("tilelink_pointmass", 120, 300, (3.0, 12.0))
-TEST = EvalSet("tilelink_pointmass", 120, 200, (3.0, 12.0))
-#: A second test set of the same size: coverage of 120 objects moves +-0.04 (68 %) and +-0.02 (95 %) by sampling.
-TEST_MORE = EvalSet("tilelink_pointmass", 120, 210, (3.0, 12.0))
-
-
-def sets_by_amplitude(data: dict, es: EvalSet) -> dict[str, list[ProbeTable]]:
-    """The sweeps per object at each amplitude and at all amplitudes together ("3", "12", "3+12")."""
-    out = {f"{a:g}": data[a] for a in es.a_p_deg}
-    if len(es.a_p_deg) > 1:
-        out["+".join(f"{a:g}" for a in es.a_p_deg)] = [ProbeTable.concat(*ts)
-                                                       for ts in zip(*(data[a] for a in es.a_p_deg), strict=True)]
-    return out
-
-
-def row(label: str, s: Scores) -> str:
-    return (f"| {label} | {s.n} | {s.median_error.fmt(100, 1, ' %')} | {s.p90_error.fmt(100, 1, ' %')} | "
-            f"{s.coverage68.fmt(1, 2)} | {s.coverage95.fmt(1, 2)} | {s.width95.fmt(100, 0, ' %')} | "
-            f"{s.no_estimate.fmt(1, 2)} |")
-
-
-HEAD = ["| data, forward model | objects | median error | p90 error | 68 % coverage | 95 % coverage | "
-        "median 95 % width / omega_n | no estimate |", "|---|---|---|---|---|---|---|---|"]
 
 
 #: Appended to a stage's result files (``_check_off`` with --check-off).
@@ -99,14 +87,14 @@ def stage_within(args) -> None:
     if args.candidate:  # a candidate nominal atlas, scored on the sweeps only (not shipped)
         base = ForwardModel(f"candidate {args.candidate}", (member(args.candidate),))
         stage, args.episodes = f"within_{Path(args.candidate).stem}", 0
-    cal = sets_by_amplitude(run_eval_set(CALIBRATION, lambda _: POINTMASS, args.executor), CALIBRATION)
+    cal = sets_by_amplitude(run_eval_set(CALIBRATION, lambda _: POINTMASS, args.executor, cache_dir=CACHE), CALIBRATION)
     truth_cal = [o.omega_n for o in CALIBRATION.objects()]
     zero = dataclasses.replace(base, sigma_eps=0.0)
     cal_ests = estimates(zero, cal["3+12"]) + estimates(zero, cal["3"])
     eps_nu, sigma_eps = exact_fit(truth_cal, cal_ests)
     approx = fit_discrepancy(*discrepancies(truth_cal, cal_ests))
     fm = dataclasses.replace(base, sigma_eps=sigma_eps, eps_nu=eps_nu)
-    test = sets_by_amplitude(run_eval_set(TEST, lambda _: POINTMASS, args.executor), TEST)
+    test = sets_by_amplitude(run_eval_set(TEST, lambda _: POINTMASS, args.executor, cache_dir=CACHE), TEST)
     truth = [o.omega_n for o in TEST.objects()]
     nominal = fm.members[0]
     lines = ["# Forward models inside the point-mass model", "",
@@ -131,7 +119,8 @@ def stage_within(args) -> None:
         numbers["fit"][amps] = s.to_dict()
     if not args.candidate:
         # the same on a second test set, both pooled, and the calibration set in sample: how far 120 objects move
-        more = sets_by_amplitude(run_eval_set(TEST_MORE, lambda _: POINTMASS, args.executor), TEST_MORE)
+        more = sets_by_amplitude(run_eval_set(TEST_MORE, lambda _: POINTMASS, args.executor, cache_dir=CACHE),
+                                 TEST_MORE)
         rng_more = np.random.default_rng(1)  # its own bootstrap draws: the rows above stay as they were
         truth_more = [o.omega_n for o in TEST_MORE.objects()]
         extra, numbers["fit_more"], numbers["fit_pooled"], numbers["fit_calibration_in_sample"] = [], {}, {}, {}
@@ -203,52 +192,8 @@ def exact_fit(truth, ests, **kw) -> tuple[float, float]:
     return fit_discrepancy_exact(*zip(*ok, strict=True), **kw)
 
 
-def episodes(args, fm: ForwardModel, seed: int) -> list[dict]:
-    """``args.episodes`` bayes episodes on live tilelink, objects from the prior with ``seed`` (resumable: finished
-    episodes, with their probes, are kept in experiments/cache)."""
-    import gymnasium as gym
-
-    from plate_env.build import eval_sets as bm
-    from plate_env.env.episode import run_episode
-    from plate_env.run.sweeps import open_for_append, read_records
-    from plate_env_agents import make_agent
-
-    cache = Path(f"experiments/cache/forward_models_bayes_s{seed}.jsonl")
-    done = {d["i"]: d for d in read_records(cache) if "i" in d}
-    objs = bm.prior_objects(args.episodes, np.random.default_rng(seed))
-    if all(i in done for i in range(len(objs))):
-        return [done[i] for i in range(len(objs))]
-    env = gym.make("PlateRotation-v0", physics="tilelink", max_probes=30)
-    with open_for_append(cache) as fh:
-        for i, o in enumerate(objs):
-            if i in done:
-                continue
-            t0 = time.perf_counter()
-            res = run_episode(env, make_agent("bayes", forward=fm), seed=1000 + i,
-                              options={"omega_n": o.omega_n, "alpha": o.alpha, "mass": o.mass})
-            d = {"i": i, "omega_n": o.omega_n, "probes": res.n_probes, "sim_s": res.sim_s,
-                 "wall_s": time.perf_counter() - t0, "estimate": res.estimate.to_dict(),
-                 "table": res.probes.to_rows()}
-            fh.write((json.dumps(d) + "\n").encode())
-            fh.flush()
-            done[i] = d
-            print(f"episode {i}: {o.omega_n / math.pi:.1f}pi -> {d['estimate']['omega_n_pi']:.2f}pi "
-                  f"({res.n_probes} probes)", file=sys.stderr, flush=True)
-    env.close()
-    return [done[i] for i in range(len(objs))]
-
-
 # --------------------------------------------------------------------------------------------------- families
 # NUISANCE_MEMBERS, FAMILIES, MASS_ATLASES: plate_env.build.forward_models (the registry's builder).
-
-
-def member(name: str) -> Member:
-    """A shipped atlas as a member with its held-out model error (provenance). No blur: full sweeps are calibrated
-    without it (the within stage); the bayes agent adds its own design blur (agents/bayes.py DESIGN_BLUR)."""
-    from plate_env.surrogate.atlas import load_atlas_file
-
-    atlas = load_atlas_file(name)
-    return Member(atlas, float(atlas.provenance["sigma_model_deg_s"]))
 
 
 def family_model(families: list[str], sigma_eps: float = 0.0, nu: float = math.inf,
@@ -266,19 +211,8 @@ def described(fm: ForwardModel, table: ProbeTable) -> ProbeTable:
                                   for f, a in zip(table.f_p_hz, table.a_p_deg, strict=True)], dtype=bool))
 
 
-#: Data of each family: point-mass objects each with its own draw of the unknown joint/contact values, the
-#: paper-faithful rigid tiles (rigid_limit), the PyBullet sheet (which folds below ~5pi: objects from 5pi-33pi):
-#: the sets the shipped lab Eq. (10) line is pooled over (plate_env.build.eq10).
-DATA = LAB_SETS
-backend_of = lab_backend_of
 #: A second point-mass set with nuisance draws, to estimate the family's discrepancy apart from the test set.
 NUISANCE_CALIBRATION = EvalSet("tilelink_pointmass", 120, 410, (3.0,), nuisance=True)
-
-
-def data_of(family: str, executor, es: EvalSet | None = None) -> tuple[list[float], list[ProbeTable]]:
-    es = es or DATA[family]
-    tables = run_eval_set(es, backend_of(family), executor)[es.a_p_deg[0]]
-    return [o.omega_n for o in es.objects()], tables
 
 
 # --------------------------------------------------------------------------------------------------- nuisance
@@ -332,7 +266,7 @@ def stage_sensitivity(args) -> None:
              "95 % coverage (no sigma_eps) | no estimate |",
              "|---|---|---|---|---|---|"]
     numbers: dict = {}
-    for name in nz._FIELDS:
+    for name in nz.FIELDS:
         band = getattr(nz.PRIOR, name)
         for end, value in (("low", band.lo), ("high", band.hi)):
             nu = dataclasses.replace(nz.NOMINAL, **{name: value})

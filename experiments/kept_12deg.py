@@ -21,26 +21,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
-from dataclasses import replace
 from pathlib import Path
 
+import common
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import reproduce_paper as rp  # noqa: E402
-import validate_paper as vp  # noqa: E402
+from common import kept
 
 SCRIPT = "experiments/kept_12deg.py"
-OBJECTS_PI = (*rp.FIG8_OMEGAS_PI[12.0], *vp.SEC5_STIFF_PI)
-BAR_HZ = vp.FIG10_RANGE[12.0]
+OBJECTS_PI = (*common.FIG8_OMEGAS_PI[12.0], *common.SEC5_STIFF_PI)
+BAR_HZ = common.FIG10_RANGE[12.0]
 READINGS = ("default", "kept")
-
-
-def kept(results: list) -> list:
-    """``results`` with each slipped probe that measured at least one period read as stable."""
-    return [replace(r, unstable=False, reason=None) if r.unstable and r.reason == "slipped" and r.periods_measured > 0
-            else r for r in results]
 
 
 def median_f0(fits: list) -> float | None:
@@ -52,7 +42,7 @@ def median_f0(fits: list) -> float | None:
 def bar(medians: dict[float, float | None]) -> dict:
     """The item-3 bar on the soft objects' (omega_n <= 10pi) median f0: all fitted, all in 11-14 Hz, and the
     least-squares slope of f0 on omega_n positive."""
-    soft = {w: medians.get(w) for w in rp.FIG8_OMEGAS_PI[12.0]}
+    soft = {w: medians.get(w) for w in common.FIG8_OMEGAS_PI[12.0]}
     have = {w: f for w, f in soft.items() if f is not None}
     slope = float(np.polyfit(list(have), list(have.values()), 1)[0]) if len(have) >= 2 else None
     in_range = all(BAR_HZ[0] <= f <= BAR_HZ[1] for f in have.values())
@@ -61,16 +51,17 @@ def bar(medians: dict[float, float | None]) -> dict:
 
 
 def model_table(model: str, cache_dir: Path) -> dict | None:
-    got = vp.cached_sweeps(model, cache_dir)
+    got = common.cached_sweeps(model, cache_dir)
     out: dict = {"objects": {}}
     for reading in READINGS:
         medians = {}
         for w in OBJECTS_PI:
-            sw = next(s for s in vp.plan(model) if s.omega_pi == w and s.alpha_deg == vp.CHEESE and s.a_p_deg == 12.0)
-            runs = [got[(sw, p)] for p in range(vp.PLACEMENTS[model]) if (sw, p) in got]
+            sw = next(s for s in common.plan(model)
+                      if s.omega_pi == w and s.alpha_deg == common.CHEESE and s.a_p_deg == 12.0)
+            runs = [got[(sw, p)] for p in range(common.PLACEMENTS[model]) if (sw, p) in got]
             if not runs:
                 return None
-            fits = [vp.fit_sweep(kept(r) if reading == "kept" else r) for r in runs]
+            fits = [common.fit_sweep(kept(r) if reading == "kept" else r) for r in runs]
             medians[w] = median_f0(fits)
             out["objects"].setdefault(f"{w:g}", {})[reading] = [
                 {"f0_hz": f.f0, "omega_max_deg_s": f.omega_max, "r2": f.r2} if f.ok else {"why": f.reason}
@@ -121,8 +112,8 @@ def main() -> None:
     ap.add_argument("--cache-dir", default="experiments/cache")
     ap.add_argument("--out-dir", default="experiments/results")
     args = ap.parse_args()
-    res = {"command": f"python {SCRIPT}", "commit": vp.git_commit(), "bar_hz": list(BAR_HZ),
-           "models": {m: model_table(m, Path(args.cache_dir)) for m in vp.MODELS}}
+    res = {"command": f"python {SCRIPT}", "commit": common.git_commit(), "bar_hz": list(BAR_HZ),
+           "models": {m: model_table(m, Path(args.cache_dir)) for m in common.MODELS}}
     out = Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     (out / "kept_12deg.json").write_text(json.dumps(res, indent=1, default=float, allow_nan=False) + "\n")

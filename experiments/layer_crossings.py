@@ -5,7 +5,7 @@
 
 Each path runs in a fresh process under ``sys.setprofile``. Every Python call into a module of the project is
 mapped to its layer (tests/test_code_health.py ``LAYERS``; a module of the flat layout to the layer its file moved
-to, ``plate_env.MOVED_MODULES``) together with the nearest project frame that called it (frames of numpy, gymnasium
+to, :data:`MOVED_MODULES`) together with the nearest project frame that called it (frames of numpy, gymnasium
 and the like are looked through). A *crossing back up* is a call whose callee's layer is above its caller's: a
 lower layer calling into a higher one (a callback, a lazy import of an upper module, a function in the wrong
 file). Reported: the distinct crossings (caller function -> callee function) and how many calls took them.
@@ -13,7 +13,7 @@ file). Reported: the distinct crossings (caller function -> callee function) and
 The paths: ``gym.make("PlateRotation-v0", physics="atlas")`` (the backend's construction included),
 ``reset(seed=0)`` and steps drawn from the action space seeded with 0 (never the stop action) until the probe
 budget ends the episode and the env estimates; ``plate-env fit sweep.csv`` (the atlas method, the ``lab`` forward
-model) on experiments/bench_speed.py's tile-link sweep (SWEEP_CSV). Writes experiments/results/layer_crossings.md.
+model) on the tile-link sweep of common.SWEEP_CSV. Writes experiments/results/layer_crossings.md.
 """
 
 from __future__ import annotations
@@ -27,15 +27,23 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_speed import SWEEP_CSV  # noqa: E402
+from common import SWEEP_CSV
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 OUT = HERE / "results" / "layer_crossings.md"
 PATHS = ("episode", "fit")
-#: The environment variable through which the driver (this checkout's plate_env) hands plate_env.MOVED_MODULES to
-#: a child that may run the flat layout.
+#: The flat layout's module paths (before the layering) -> the module that holds each now, so that a crossing in a
+#: commit of the flat layout counts in the layer its file moved to (``"probes:probe_table"``: renamed too).
+_MOVED = {"core": ("objects", "motion", "units", "checks", "probes:probe_table", "physics.base:probe"),
+          "surrogate": ("atlas",), "physics": ("measure", "camera", "nuisance"),
+          "identify": ("fitting", "calibration", "inference", "estimate", "forward"), "run": ("executor", "sweeps"),
+          "env": ("vector", "sb3", "render", "episode", "protocol"), "bench": ("suites", "scoring", "reporting"),
+          "build": ("atlas_grid", "benchmarks:eval_sets")}
+MOVED_MODULES = {f"plate_env.{old}": f"plate_env.{layer}.{new or old}" for layer, names in _MOVED.items()
+                 for old, _, new in (n.partition(":") for n in names)}
+MOVED_MODULES["plate_env.benchmark"] = "plate_env.bench"
+#: The environment variable through which the driver hands MOVED_MODULES to a child that may run the flat layout.
 MOVED_VAR = "LAYER_CROSSINGS_MOVED"
 IMPORT_SYSTEM = ("importlib._bootstrap", "_frozen_importlib", "importlib._bootstrap_external",
                  "_frozen_importlib_external")
@@ -126,8 +134,6 @@ def trace(which: str) -> dict:
 
 
 def run_child(which: str, tree: Path | None) -> dict:
-    from plate_env import MOVED_MODULES
-
     env = dict(os.environ, **{MOVED_VAR: json.dumps(MOVED_MODULES)})
     if tree is not None:
         env["PYTHONPATH"] = str(tree) + os.pathsep + env.get("PYTHONPATH", "")

@@ -39,8 +39,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+from common import CACHE
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+from plate_env.build.forward_models import FAMILIES
 
 RESULTS = Path("experiments/results")
 F_HZ = np.arange(10.0, 40.01, 1.0)
@@ -334,13 +335,13 @@ def main() -> None:
     import torch
 
     torch.set_num_threads(1)
-    import forward_models as fmx
+    import common
 
     from plate_env.build.eval_sets import run_eval_set
     from plate_env.identify.forward import ForwardModel, load_forward_model
     from plate_env.surrogate.atlas import load_atlas_file
     rng = np.random.default_rng(args.seed)
-    names = fmx.FAMILIES["pointmass"]
+    names = FAMILIES["pointmass"]
     atlases = [load_atlas_file(n) for n in names]
     physics_s = check_physics(atlases, names, rng)
     numbers: dict = {"n_train": args.n, "n_samples": N_SAMPLES, "atlas_physics_s_per_probe": physics_s}
@@ -349,8 +350,8 @@ def main() -> None:
 
     # ---- within model: the forward_models TEST set at 3 deg
     srng = np.random.default_rng(0)
-    test = run_eval_set(fmx.TEST, lambda _: fmx.POINTMASS)[A_P_DEG]
-    truth = [o.omega_n for o in fmx.TEST.objects()]
+    test = run_eval_set(common.TEST, lambda _: common.POINTMASS, cache_dir=CACHE)[A_P_DEG]
+    truth = [o.omega_n for o in common.TEST.objects()]
     if args.limit:
         test, truth = test[:args.limit], truth[:args.limit]
     fm = load_forward_model("tilelink/pointmass")
@@ -367,10 +368,10 @@ def main() -> None:
     nu = json.loads((RESULTS / "forward_models_nuisance.json").read_text())
     bma_key = next(k for k in nu if k.startswith("nuisance family"))
     sigma_bma = float(nu[bma_key]["sigma_eps"])
-    truth_n, test_n = fmx.data_of("pointmass", None)
+    truth_n, test_n = common.data_of("pointmass", None)
     if args.limit:
         test_n, truth_n = test_n[:args.limit], truth_n[:args.limit]
-    bma = ForwardModel(bma_key, tuple(fmx.member(f) for f in names), sigma_eps=sigma_bma,
+    bma = ForwardModel(bma_key, tuple(common.member(f) for f in names), sigma_eps=sigma_bma,
                        eps_nu=float(nu[bma_key].get("eps_nu", math.inf)))
     ests_n = {"bma": atlas_estimates(bma, test_n), "npe_family": npe_estimates(nets["family"], test_n, 3),
               "npe_nominal": npe_estimates(nets["nominal"], test_n, 4)}
@@ -404,11 +405,11 @@ def main() -> None:
         f"Per object: {N_SAMPLES} posterior samples, median omega_n, equal-tailed 68 %/95 % intervals. Scores: "
         "plate_env.bench.scoring.score, 95 % bootstrap intervals over objects in brackets. Wall time per object: the "
         "median over objects (atlas: identify_atlas; NPE: encoding + sampling; training not included).", "",
-        f"## Within the model: live tilelink point mass, test set of experiments/forward_models.py ({fmx.TEST.n} "
-        f"objects, seed {fmx.TEST.seed}, 3 deg sweeps)", "", *HEAD, *within_rows, "", txt_w, "",
+        f"## Within the model: live tilelink point mass, test set of experiments/forward_models.py ({common.TEST.n} "
+        f"objects, seed {common.TEST.seed}, 3 deg sweeps)", "", *HEAD, *within_rows, "", txt_w, "",
         *[f"- {t}" for t in notes_w], "",
-        f"## Unknown joint/contact values: nuisance test set ({fmx.DATA['pointmass'].n} objects, seed "
-        f"{fmx.DATA['pointmass'].seed}, each with its own draw)", "", *HEAD, *nuis_rows, "", txt_n, "",
+        f"## Unknown joint/contact values: nuisance test set ({common.DATA['pointmass'].n} objects, seed "
+        f"{common.DATA['pointmass'].seed}, each with its own draw)", "", *HEAD, *nuis_rows, "", txt_n, "",
         *[f"- {t}" for t in notes_n], "", *emu_lines,
         f"(The BMA row is recomputed here with the shipped sigma_eps; experiments/results/forward_models_nuisance.md "
         f"reports median {100 * nu[bma_key]['median_error']['value']:.1f} %, p90 "

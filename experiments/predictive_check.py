@@ -25,10 +25,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).parent))
-
-from forward_models import POINTMASS, TEST, episodes, sets_by_amplitude  # noqa: E402
+from common import CACHE, POINTMASS, TEST, episodes, sets_by_amplitude
 
 from plate_env.build.eval_sets import run_eval_set  # noqa: E402
 from plate_env.core.probe_table import ProbeTable  # noqa: E402
@@ -53,7 +50,7 @@ def main() -> None:
     add_executor_argument(ap)
     args = ap.parse_args()
     es = dataclasses.replace(TEST, n=args.objects)
-    sets = sets_by_amplitude(run_eval_set(es, lambda _: POINTMASS, args.executor), es)
+    sets = sets_by_amplitude(run_eval_set(es, lambda _: POINTMASS, args.executor, cache_dir=CACHE), es)
     truth = [o.omega_n for o in es.objects()]
     fm = load_forward_model("tilelink/pointmass")
     command = shlex.join(["python", "experiments/predictive_check.py", *sys.argv[1:]])

@@ -25,19 +25,17 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from dataclasses import replace
 from pathlib import Path
+
+import common
+from common import kept
 
 from plate_env.cli import CliError
 from plate_env.cli import parse_freqs as cli_parse_freqs
 from plate_env.physics.pybullet_sheet.scene import SheetConfig
 from plate_env.run.executor import BackendSpec
 from plate_env.run.sweeps import backend_tag, load_cache, run_cached, spec_key
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import validate_paper as vp  # noqa: E402
-from kept_12deg import kept  # noqa: E402
 
 SCRIPT = "experiments/pybullet_hump.py"
 BETA = 0.53
@@ -109,7 +107,7 @@ def main() -> None:
     try:
         grid = parse_freqs(args.freqs)
         if grid is not None:
-            vp.Sweep(10.0, vp.CHEESE, 3.0, 1).specs("pybullet", 0, grid)  # refuse a frequency off the grid
+            common.Sweep(10.0, common.CHEESE, 3.0, 1).specs("pybullet", 0, grid)  # refuse a frequency off the grid
     except ValueError as e:
         ap.error(str(e))
     span = "12-34 Hz (2 Hz)" if grid is None else f"{args.freqs.replace(':', '-', 1).replace(':', ' Hz (')} Hz)"
@@ -123,28 +121,28 @@ def main() -> None:
           "omega_B by f_p (u: unstable) |", "|---|---|---|---|---|---|---|---|---|"]
     for name in names:
         physics, k = variant(name)
-        table_cache = vp.cache_path(Path(args.cache_dir), "pybullet")
+        table_cache = common.cache_path(Path(args.cache_dir), "pybullet")
         cache = table_cache if name == "static" and grid is None else Path(args.cache_dir) / "pybullet_hump.jsonl"
         for w in omegas:
-            sw = vp.Sweep(w, vp.CHEESE, 3.0, 1)
+            sw = common.Sweep(w, common.CHEESE, 3.0, 1)
             specs = sw.specs("pybullet", 0, grid)
             if k != 1.0:
-                a2 = math.atan(k * math.tan(math.radians(vp.CHEESE)))
+                a2 = math.atan(k * math.tan(math.radians(common.CHEESE)))
                 specs = [replace(s, obj=replace(s.obj, alpha=a2)) for s in specs]
             if args.no_simulate:
-                from plate_env.run.sweeps import _from_record
+                from plate_env.run.sweeps import result_from_record
                 done = load_cache(cache)
                 tag = backend_tag(physics)
                 recs = [done.get(spec_key(tag, s)) for s in specs]
                 if not all(recs):
                     md.append(f"| {name} | {w:g}pi | not run | | | | | | |")
                     continue
-                res = [_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
+                res = [result_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
             else:
                 if cache != table_cache:
                     copy_records(physics, specs, table_cache, cache)
                 res = run_cached(physics, specs, cache, chunk=12, progress=False)
-            fit = vp.fit_sweep(kept(res) if args.kept else res)
+            fit = common.fit_sweep(kept(res) if args.kept else res)
             curve = " ".join(f"{r.spec.motion.freq_hz:g}:{abs(r.omega_b_deg_s):.0f}{'u' if r.unstable else ''}"
                              for r in res)
             n_un = sum(r.unstable for r in res)

@@ -27,6 +27,17 @@ import math
 from pathlib import Path
 
 import numpy as np
+from common import (
+    ALPHA_CHEESE,
+    FIG8_ALPHAS_DEG,
+    FIG8_OMEGAS_PI,
+    PAPER_EQ10,
+    PAPER_FIG7,
+    PAPER_FIG11,
+    PAPER_R2,
+    PAPER_TABLE1,
+    linreg,
+)
 
 import plate_env as pe
 from plate_env.build import eval_sets as bm
@@ -42,23 +53,6 @@ SCRIPT = "experiments/reproduce_paper.py"
 FREQS_HZ = bm.SWEEP_F_HZ
 #: Where the probes run (``--executor``): "local" (per backend), or one pool / Ray executor for the whole run.
 EXECUTOR = "local"
-ALPHA_CHEESE = 36.9
-#: Fig. 7 fits in the paper: (omega_n [pi rad/s], alpha [deg]) -> (f0 [Hz], b [Hz], omega_max [deg/s], R^2).
-PAPER_FIG7 = {(10.0, 36.9): (25.1, 5.1, 598.7, 0.99), (33.0, 36.9): (28.2, 5.8, 746.9, 0.99),
-              (10.0, 56.3): (24.6, 5.8, 520.9, 0.98)}
-#: Table 1 of the paper: A_p [deg] -> [(omega_n [pi rad/s], f_n [Hz], omega_Brmax [deg/s], f_B [Hz])].
-PAPER_TABLE1 = {3.0: [(3.5, 1.75, 491.5, 1.36), (10.0, 5.00, 614.9, 1.71), (23.0, 11.5, 722.8, 2.01),
-                      (33.0, 16.5, 796.1, 2.21)],
-                12.0: [(1.4, 0.70, 278.1, 0.77), (3.5, 1.75, 275.8, 0.77), (6.5, 3.25, 334.2, 0.93),
-                       (10.0, 5.00, 382.4, 1.06)]}
-#: Eq. (10) coefficients (p1 [rad/s per Hz], q1 [rad/s]) and regression R^2 of Figs. 9 and 10, per A_p [deg].
-PAPER_EQ10 = {3.0: (5.30, -121.62), 12.0: (5.65, -64.51)}
-PAPER_R2 = {3.0: {"omega_max": 0.93, "f0": 0.99}, 12.0: {"omega_max": 0.83, "f0": 0.96}}
-#: Fig. 11: A_p -> (R^2, slope, intercept [pi rad/s]).
-PAPER_FIG11 = {3.0: (0.99, 0.99, 0.25), 12.0: (0.96, 0.96, 0.24)}
-#: Objects of Figs. 8-10 per amplitude (the paper's Table 1 objects) and the friction angles swept.
-FIG8_OMEGAS_PI = {3.0: (3.5, 10.0, 23.0, 33.0), 12.0: (1.4, 3.5, 6.5, 10.0)}
-FIG8_ALPHAS_DEG = (30.0, 36.9, 45.0, 56.3)
 
 
 def sweep(physics, cache: Path, obj: pe.ObjectSpec, a_p_deg: float, freqs=FREQS_HZ, **kw) -> list[ProbeResult]:
@@ -99,16 +93,6 @@ def fit_row(fit: LorentzFit) -> str:
     if not fit.ok:
         return f"cannot fit: {fit.reason} | | | |"
     return f"{fit.f0:.1f} +- {fit.stderr[1]:.1f} | {fit.b:.1f} | {fit.omega_max:.1f} | {fit.r2:.2f} |"
-
-
-def linreg(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
-    """Slope, intercept and R^2 of the least-squares line y = slope x + intercept."""
-    if len(x) < 3:
-        return math.nan, math.nan, math.nan
-    slope, icpt = np.polyfit(x, y, 1)
-    ss = float(np.sum((y - y.mean()) ** 2))
-    r2 = 1.0 - float(np.sum((y - slope * x - icpt) ** 2)) / ss if ss > 0 else math.nan
-    return float(slope), float(icpt), r2
 
 
 def figs_5_and_7(physics, tag: str, out_dir: Path, cache: Path) -> list[str]:

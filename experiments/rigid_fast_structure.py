@@ -67,7 +67,7 @@ def exact_solve(dt: float = 1e-4) -> dict:
     from scipy.sparse.csgraph import reverse_cuthill_mckee
 
     obj = pe.ObjectSpec.from_paper(10.0, 36.9)
-    p = rk._params(obj, rigid.RIGID_FAST_CONFIG)
+    p = rigid.build_params(obj, rigid.RIGID_FAST_CONFIG)
     jac = rigid.joint_jacobian(p.geom)
     minv = 1.0 / np.diag(rigid.mass_matrix(p.geom, p.tile_mass))
     gam = np.tile(1.0 / (dt * (dt * p.row_k + p.row_c)), len(p.geom.links))
@@ -99,7 +99,7 @@ def exact_solve(dt: float = 1e-4) -> dict:
 def null_space() -> dict:
     """Dimension and density of the held rows' rest null space, in plane and out of plane."""
     obj = pe.ObjectSpec.from_paper(10.0, 36.9)
-    p = rk._params(obj, rigid.RIGID_FAST_CONFIG)
+    p = rigid.build_params(obj, rigid.RIGID_FAST_CONFIG)
     jac = rigid.joint_jacobian(p.geom)
     nj = len(p.geom.links)
     held = jac[[5 * j + r for j in range(nj) for r in (1, 2, 4)]]

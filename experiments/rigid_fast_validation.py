@@ -22,11 +22,11 @@ import argparse
 import json
 import math
 import os
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from common import rtf
 
 import plate_env as pe
 from plate_env.core.probe import ProbeSpec
@@ -34,8 +34,6 @@ from plate_env.identify.fitting import fit_lorentzian
 from plate_env.physics.tilelink.rigid import RIGID_FAST_CONFIG, RigidTileConfig
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-from bench_physics import rtf  # noqa: E402  (the point mass's speed harness)
 
 REFERENCE = HERE / "results" / "rigid_reference.json"
 OUT = HERE / "results" / "rigid_fast"
@@ -130,10 +128,14 @@ def speed(physics, pointmass, repeats: int) -> dict:
 
 
 def structure() -> dict:
-    """Numbers that decide the routes not built as kernels (see rigid_fast_structure)."""
-    from rigid_fast_structure import measure
+    """Numbers that decide the routes not built as kernels: ``python experiments/rigid_fast_structure.py`` run in its
+    own process (it prints them as JSON)."""
+    import subprocess
+    import sys
 
-    return measure()
+    done = subprocess.run([sys.executable, str(HERE / "rigid_fast_structure.py")], capture_output=True, text=True,
+                          check=True)
+    return json.loads(done.stdout)
 
 
 def _fit_cell(d: dict) -> str:

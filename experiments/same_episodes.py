@@ -19,9 +19,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_speed import attr, overlay, tree_path  # noqa: E402
-from same_numbers import diffs  # noqa: E402
+from common import attr, diffs, overlay, tree_path
 
 
 def episodes(n: int) -> dict:

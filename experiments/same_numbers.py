@@ -13,19 +13,7 @@ from __future__ import annotations
 import json
 import sys
 
-#: Fields that are wall-clock measurements (differ between runs by nature).
-WALL = ("seconds_per_decision",)
-
-
-def diffs(a, b, path: str = "") -> list[str]:
-    if isinstance(a, dict) and isinstance(b, dict):
-        out = [] if set(a) == set(b) else [f"{path}: keys {sorted(set(a) ^ set(b))}"]
-        return out + [d for k in sorted(set(a) & set(b)) if k not in WALL for d in diffs(a[k], b[k], f"{path}.{k}")]
-    if isinstance(a, list) and isinstance(b, list):
-        if len(a) != len(b):
-            return [f"{path}: {len(a)} against {len(b)} items"]
-        return [d for i, (x, y) in enumerate(zip(a, b, strict=True)) for d in diffs(x, y, f"{path}[{i}]")]
-    return [] if a == b or (a != a and b != b) else [f"{path}: {a!r} != {b!r}"]
+from common import diffs
 
 
 def main() -> None:

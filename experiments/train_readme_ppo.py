@@ -24,7 +24,6 @@ def main() -> None:
     import stable_baselines3
     import torch
 
-    torch.set_num_threads(1)  # the machine is shared
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
     # --- the README's snippet ---
@@ -32,12 +31,14 @@ def main() -> None:
 
     from plate_env.env.sb3 import make_sb3_vec_env
 
-    model = PPO("MlpPolicy", make_sb3_vec_env(n_envs=8, physics="atlas", seed=0), seed=0, device="cpu")
+    torch.set_num_threads(1)
+    model = PPO("MlpPolicy", make_sb3_vec_env(n_envs=8, physics="atlas", seed=0), seed=0, device="cpu", verbose=1)
     model.learn(args.timesteps)
     model.save(args.out)
     # ---
     wall = time.perf_counter() - t0
-    info = {"snippet": "PPO('MlpPolicy', make_sb3_vec_env(n_envs=8, physics='atlas', seed=0), seed=0, device='cpu')"
+    info = {"snippet": "PPO('MlpPolicy', make_sb3_vec_env(n_envs=8, physics='atlas', seed=0), seed=0, device='cpu', "
+                       "verbose=1)"
                        f".learn({args.timesteps})", "timesteps": int(model.num_timesteps), "wall_s": round(wall, 1),
             "load_avg_start": load0, "load_avg_end": os.getloadavg()[0], "torch_threads": 1,
             "versions": {"python": platform.python_version(), "stable_baselines3": stable_baselines3.__version__,

@@ -11,7 +11,7 @@ every number carries its spread over placements. Probes are cached in
 ``experiments/cache/validate_paper_<model>.jsonl`` (``plate_env.sweeps.run_cached``): a re-run simulates only what
 is missing, and ``--no-simulate`` never simulates.
 
-The paper's numbers (``reproduce_paper.py`` holds them once): Fig. 3 (omega_B = 344 deg/s at 12 Hz, 12 deg, 10pi,
+The paper's numbers (``common.py`` holds them once): Fig. 3 (omega_B = 344 deg/s at 12 Hz, 12 deg, 10pi,
 36.9 deg), Fig. 7 (f0, b, omega_Brmax, R^2 of three first-hump fits at 3 deg), Table 1 (omega_Brmax of eight objects),
 Eq. (10) (p1, q1 with omega_n in pi rad/s, and its R^2 = Fig. 10's), Fig. 9's R^2 (omega_Brmax ~ omega_n), Fig. 10's
 f0 ranges, and Section 5's "at 12 deg only omega_n < 12pi".
@@ -30,123 +30,43 @@ import argparse
 import datetime as _dt
 import json
 import math
-import subprocess
-import sys
-from dataclasses import dataclass
 from pathlib import Path
 
+import common
 import numpy as np
+from common import (
+    ALPHAS,
+    CHEESE,
+    FIG3,
+    FIG10_RANGE,
+    MODELS,
+    PLACEMENTS,
+    SEC5_STIFF_PI,
+    backend,
+    cache_path,
+    cached_sweeps,
+    fit_sweep,
+    freqs,
+    git_commit,
+    observed,
+    plan,
+    windows,
+)
 
 import plate_env as pe
 from plate_env.build import eval_sets as bm
-from plate_env.core.probe import ProbeResult, ProbeSpec
-from plate_env.identify.fitting import fit_results
-from plate_env.run.executor import BackendSpec
-from plate_env.run.sweeps import _from_record, backend_tag, load_cache, run_cached, spec_key
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import reproduce_paper as rp  # noqa: E402  (the paper's numbers, encoded once)
+from plate_env.core.probe import ProbeSpec
+from plate_env.run.sweeps import backend_tag, load_cache, result_from_record, run_cached, spec_key
 
 SCRIPT = "experiments/validate_paper.py"
-MODELS = ("pointmass", "rigid", "rigid_limit", "pybullet")
-#: Seeded placements per sweep, per model (the rigid limit and PyBullet cost ~1 and ~16 wall s a probe).
-PLACEMENTS = {"pointmass": 4, "rigid": 3, "rigid_limit": 2, "pybullet": 2}
-ALPHAS = rp.FIG8_ALPHAS_DEG
-CHEESE = rp.ALPHA_CHEESE
-#: Section 5's check: objects stiffer than 12pi at 12 deg (the paper: they become unstable or fold).
-SEC5_STIFF_PI = (14.0, 23.0, 33.0)
-FIG3 = {"f_hz": 12.0, "a_p_deg": 12.0, "omega_pi": 10.0, "alpha_deg": 36.9, "omega_b_deg_s": 344.0}
-FIG10_RANGE = {3.0: (23.0, 30.0), 12.0: (11.0, 14.0)}
 K = 2.0 * math.sqrt(2.0)  # the verdict's multiple of u
-
-
-def canonical_freqs(a_p_deg: float) -> tuple[float, ...]:
-    """Every plate frequency (Hz) a sweep may use: 10-40 Hz at 3 deg, 8-30 Hz at 12 deg (the paper's humps sit at
-    11-14 Hz; above ~24 Hz every tile-link probe slips, reproduce_paper's Fig. 5(a)), 1 Hz apart. Placements are
-    drawn over this list, so a model that probes a subset sees the same placement at each frequency."""
-    return tuple(np.arange(10.0, 40.01, 1.0)) if a_p_deg == 3.0 else tuple(np.arange(8.0, 30.01, 1.0))
-
-
-def freqs(model: str, a_p_deg: float) -> tuple[float, ...]:
-    """Plate frequencies (Hz) of one sweep: the canonical list, or a subset for the dear models (the rigid limit
-    16-36 Hz / 8-18 Hz, ~3 wall s a probe on an idle core; PyBullet every 2 Hz over 12-34 Hz / 8-20 Hz, ~16 s)."""
-    if model == "pybullet":
-        return tuple(np.arange(12.0, 34.01, 2.0)) if a_p_deg == 3.0 else tuple(np.arange(8.0, 20.01, 2.0))
-    if model == "rigid_limit":
-        return tuple(np.arange(16.0, 36.01, 1.0)) if a_p_deg == 3.0 else tuple(np.arange(8.0, 18.01, 1.0))
-    return canonical_freqs(a_p_deg)
-
-
-def windows(model: str) -> dict:
-    """Probe windows: the project's defaults (0.5 s + 1.0 s), PyBullet its atlas's shorter ones (0.3 s + 0.6 s)."""
-    if model == "pybullet":
-        return {"settle_s": bm.PYBULLET_SETTLE_S, "measure_s": bm.PYBULLET_MEASURE_S}
-    return {}
-
-
-def backend(model: str) -> BackendSpec:
-    if model == "pybullet":
-        return BackendSpec.of("pybullet", n_workers=1)
-    return BackendSpec.of("tilelink", model=model)
-
-
-@dataclass(frozen=True)
-class Sweep:
-    """One object's sweep at one amplitude; ``stage`` orders the simulation (1 first)."""
-
-    omega_pi: float
-    alpha_deg: float
-    a_p_deg: float
-    stage: int
-
-    @property
-    def obj(self) -> pe.ObjectSpec:
-        return pe.ObjectSpec.from_paper(self.omega_pi, self.alpha_deg)
-
-    def specs(self, model: str, placement: int, freqs_hz: tuple[float, ...] | None = None) -> list[ProbeSpec]:
-        """The sweep at one seeded placement: each probe placed by ``ProbeSpec.perturbed`` from a generator seeded
-        by (placement, object, amplitude), so every model sees the same placements. ``freqs_hz`` (a subset of
-        :func:`canonical_freqs`) replaces the model's frequencies; a probe at a shared frequency is the same."""
-        rng = np.random.default_rng([placement, round(self.omega_pi * 10), round(self.alpha_deg * 10),
-                                     round(self.a_p_deg * 10)])
-        every = bm.placed_sweeps([self.obj], canonical_freqs(self.a_p_deg), self.a_p_deg, rng, **windows(model))
-        keep = set(freqs(model, self.a_p_deg) if freqs_hz is None else freqs_hz)
-        if not keep <= set(canonical_freqs(self.a_p_deg)):
-            raise ValueError(f"frequencies {sorted(keep - set(canonical_freqs(self.a_p_deg)))} Hz are not on the "
-                             f"{self.a_p_deg:g} deg grid (whole Hz, {canonical_freqs(self.a_p_deg)[0]:g}-"
-                             f"{canonical_freqs(self.a_p_deg)[-1]:g})")
-        return [sp for sp in every if sp.motion.freq_hz in keep]
 
 
 def centred_12deg_specs(model: str) -> list[ProbeSpec]:
     """The 12 deg sweeps of Table 1 and Section 5 (alpha 36.9 deg) with the disc centred (the paper's start; the
     seeded placements put it 0.2 mm off, and at 12 deg most tile-link probes then slip): item 3's evidence."""
-    return [sp for w in (*rp.FIG8_OMEGAS_PI[12.0], *SEC5_STIFF_PI)
+    return [sp for w in (*common.FIG8_OMEGAS_PI[12.0], *SEC5_STIFF_PI)
             for sp in bm.sweep_specs(pe.ObjectSpec.from_paper(w, CHEESE), freqs(model, 12.0), 12.0, **windows(model))]
-
-
-def plan(model: str) -> list[Sweep]:
-    """Every sweep the table needs, in stage order: 1 Fig. 7 and the Fig. 3 object; 2 the rest of Table 1 and
-    Section 5 at alpha 36.9 deg; 3 the other friction angles of Figs. 8-10 (Eq. 10, Figs. 9-10). PyBullet's stage 1
-    leaves Fig. 7(b) and (c) (33pi; 10pi at 56.3 deg) to stage 2 (its probes cost ~16 s)."""
-    late = 2 if model == "pybullet" else 1
-    s: list[Sweep] = [Sweep(10.0, CHEESE, 12.0, 1), Sweep(10.0, CHEESE, 3.0, 1), Sweep(33.0, CHEESE, 3.0, late),
-                      Sweep(10.0, 56.3, 3.0, late)]
-    for a in (3.0, 12.0):
-        for w in rp.FIG8_OMEGAS_PI[a]:
-            if not any(x.omega_pi == w and x.alpha_deg == CHEESE and x.a_p_deg == a for x in s):
-                s.append(Sweep(w, CHEESE, a, 2))
-    s += [Sweep(w, CHEESE, 12.0, 2) for w in SEC5_STIFF_PI]
-    for a in (3.0, 12.0):
-        for w in rp.FIG8_OMEGAS_PI[a]:
-            for al in ALPHAS:
-                if not any(x.omega_pi == w and x.alpha_deg == al and x.a_p_deg == a for x in s):
-                    s.append(Sweep(w, al, a, 3))
-    return s
-
-
-def cache_path(cache_dir: Path, model: str) -> Path:
-    return cache_dir / f"validate_paper_{model}.jsonl"
 
 
 def parse_only(text: str | None) -> set[tuple[float, float, float]] | None:
@@ -194,10 +114,10 @@ def centred_12deg_rows(model: str, cache_dir: Path) -> dict | None:
     recs = [done.get(spec_key(tag, s)) for s in specs]
     if not all(recs):
         return None
-    res = [_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
+    res = [result_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
     n = len(freqs(model, 12.0))
     out = {}
-    for i, w in enumerate((*rp.FIG8_OMEGAS_PI[12.0], *SEC5_STIFF_PI)):
+    for i, w in enumerate((*common.FIG8_OMEGAS_PI[12.0], *SEC5_STIFF_PI)):
         part = res[i * n:(i + 1) * n]
         fit = fit_sweep(part)
         stable = [r for r in part if not r.unstable]
@@ -214,18 +134,6 @@ def _now() -> str:
 
 
 # --------------------------------------------------------------------------- reading the caches
-def cached_sweeps(model: str, cache_dir: Path) -> dict[tuple[Sweep, int], list[ProbeResult]]:
-    """The sweeps (sweep, placement) -> results found complete in the cache; nothing is simulated."""
-    tag = backend_tag(backend(model))
-    done = load_cache(cache_path(cache_dir, model))
-    out = {}
-    for sw in plan(model):
-        for p in range(PLACEMENTS[model]):
-            specs = sw.specs(model, p)
-            recs = [done.get(spec_key(tag, s)) for s in specs]
-            if all(r is not None for r in recs):
-                out[(sw, p)] = [_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
-    return out
 
 
 def _stats(values: list[float], stderrs: list[float] | None = None) -> dict:
@@ -240,29 +148,6 @@ def _stats(values: list[float], stderrs: list[float] | None = None) -> dict:
     u = math.sqrt(sd ** 2 + (float(np.median(se)) ** 2 if se else 0.0))
     return {"value": float(np.median(vals)), "n": len(vals), "of": n_total, "sd": sd, "u": u,
             "min": float(min(vals)), "max": float(max(vals)), "values": values}
-
-
-def observed(fit, f_hz) -> bool:
-    """A fit the table uses: ok, and f0 inside the frequencies of the probes it used, widened by half their
-    spacing (a Lorentzian whose top lies further out extrapolates a hump it never saw; such fits count as no
-    estimate)."""
-    if not fit.ok:
-        return False
-    f = np.unique(np.asarray(f_hz, float)[fit.used])
-    if not f.size:
-        return False
-    half = 0.5 * float(np.min(np.diff(f))) if f.size > 1 else 0.0
-    return bool(f.min() - half <= fit.f0 <= f.max() + half)
-
-
-def fit_sweep(results: list[ProbeResult]):
-    """The first-hump fit of a sweep, with ``ok`` False (reason given) when its f0 was not observed."""
-    from dataclasses import replace
-
-    fit = fit_results(results)
-    if fit.ok and not observed(fit, [r.spec.motion.freq_hz for r in results]):
-        return replace(fit, ok=False, reason=f"f0 {fit.f0:.1f} Hz outside the fitted probes")
-    return fit
 
 
 def verdict(stat: dict, paper: float) -> str:
@@ -284,7 +169,7 @@ def row_verdict(stat: dict, paper: float, planned: int) -> str:
 
 
 def linreg(x, y) -> tuple[float, float, float]:
-    return rp.linreg(np.asarray(x, float), np.asarray(y, float))
+    return common.linreg(np.asarray(x, float), np.asarray(y, float))
 
 
 #: The regression values of Eq. (10), Fig. 9 and Fig. 10 per placement.
@@ -351,12 +236,12 @@ def model_rows(model: str, cache_dir: Path) -> dict:
         st["placements_run"] = len(probes)
         rows["fig3_omega_B"] = st
     # Fig. 7 and Table 1 (alpha 36.9 deg; Table 1 also the range over the four friction angles).
-    for (w, al), (_f0, _b, _wm, _r2) in rp.PAPER_FIG7.items():
+    for (w, al), (_f0, _b, _wm, _r2) in common.PAPER_FIG7.items():
         for attr in ("f0", "b", "omega_max", "r2"):
             st = fit_stat(w, al, 3.0, attr)
             if st is not None:
                 rows[f"fig7_{w:g}pi_{al:g}_{attr}"] = st
-    for a, objs in rp.PAPER_TABLE1.items():
+    for a, objs in common.PAPER_TABLE1.items():
         for w, _fn, _wm, _fb in objs:
             st = fit_stat(w, CHEESE, a, "omega_max")
             if st is not None:
@@ -365,7 +250,7 @@ def model_rows(model: str, cache_dir: Path) -> dict:
                 rows[f"table1_{a:g}deg_{w:g}pi"] = st
     # Eq. (10), Figs. 9 and 10: regressions over the 16 objects (4 omega_n x 4 alpha) per placement.
     for a in (3.0, 12.0):
-        sws = [sweep_of(w, al, a) for w in rp.FIG8_OMEGAS_PI[a] for al in ALPHAS]
+        sws = [sweep_of(w, al, a) for w in common.FIG8_OMEGAS_PI[a] for al in ALPHAS]
         per_p = []
         for p in range(n_pl):
             if not all((s, p) in fits for s in sws):
@@ -382,7 +267,7 @@ def model_rows(model: str, cache_dir: Path) -> dict:
                 rows[f"eq10_{a:g}deg_{k}"] = st
     # Section 5: which objects give a first-hump fit at 12 deg (alpha 36.9 deg), in a majority of placements.
     usable, missing = {}, []
-    for w in (*rp.FIG8_OMEGAS_PI[12.0], *SEC5_STIFF_PI):
+    for w in (*common.FIG8_OMEGAS_PI[12.0], *SEC5_STIFF_PI):
         sw = sweep_of(w, CHEESE, 12.0)
         have = [p for p in range(n_pl) if (sw, p) in fits]
         if not have:
@@ -472,22 +357,22 @@ def paper_rows() -> list[dict]:
     out = [{"key": "fig3_omega_B", "label": "Fig. 3: omega_B [deg/s], 12 Hz, 12 deg, 10pi, 36.9 deg",
             "paper": FIG3["omega_b_deg_s"]}]
     names = {"f0": "f0 [Hz]", "b": "b [Hz]", "omega_max": "omega_Brmax [deg/s]", "r2": "R^2"}
-    for (w, al), vals in rp.PAPER_FIG7.items():
+    for (w, al), vals in common.PAPER_FIG7.items():
         for attr, v in zip(("f0", "b", "omega_max", "r2"), vals, strict=True):
             out.append({"key": f"fig7_{w:g}pi_{al:g}_{attr}", "label": f"Fig. 7: {w:g}pi, {al:g} deg, {names[attr]}",
                         "paper": v})
-    for a, objs in rp.PAPER_TABLE1.items():
+    for a, objs in common.PAPER_TABLE1.items():
         for w, _fn, wm, _fb in objs:
             out.append({"key": f"table1_{a:g}deg_{w:g}pi",
                         "label": f"Table 1: omega_Brmax [deg/s], {a:g} deg, {w:g}pi (ours at 36.9 deg)", "paper": wm})
     for a in (3.0, 12.0):
-        p1, q1 = rp.PAPER_EQ10[a]
+        p1, q1 = common.PAPER_EQ10[a]
         out += [{"key": f"eq10_{a:g}deg_p1", "label": f"Eq. (10) {a:g} deg: p1 [pi rad/s per Hz]", "paper": p1},
                 {"key": f"eq10_{a:g}deg_q1", "label": f"Eq. (10) {a:g} deg: q1 [pi rad/s]", "paper": q1},
                 {"key": f"eq10_{a:g}deg_r2_f0", "label": f"Eq. (10) / Fig. 10 {a:g} deg: R^2 (f0 ~ omega_n)",
-                 "paper": rp.PAPER_R2[a]["f0"]},
+                 "paper": common.PAPER_R2[a]["f0"]},
                 {"key": f"eq10_{a:g}deg_r2_max", "label": f"Fig. 9 {a:g} deg: R^2 (omega_Brmax ~ omega_n)",
-                 "paper": rp.PAPER_R2[a]["omega_max"]}]
+                 "paper": common.PAPER_R2[a]["omega_max"]}]
     return out
 
 
@@ -515,20 +400,10 @@ def sec5_verdict(rows: dict) -> dict:
     s = rows.get("sec5_12deg_usable")
     if not s or s["not_run"]:
         return {"verdict": "no estimate", **({"detail": s} if s else {})}
-    soft_ok = all(s["objects"][f"{w:g}"]["usable"] for w in rp.FIG8_OMEGAS_PI[12.0])
+    soft_ok = all(s["objects"][f"{w:g}"]["usable"] for w in common.FIG8_OMEGAS_PI[12.0])
     stiff_lost = not any(s["objects"][f"{w:g}"]["usable"] for w in SEC5_STIFF_PI)
     usable = [k for k, v in s["objects"].items() if v["usable"]]
     return {"usable_pi": usable, "verdict": "agrees" if soft_ok and stiff_lost else "disagrees", "detail": s}
-
-
-def git_commit() -> str:
-    try:
-        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True)
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
-                               text=True, check=True).stdout.strip()
-        return out.stdout.strip() + ("+dirty" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def build(cache_dir: Path) -> dict:
@@ -650,7 +525,7 @@ def markdown(res: dict) -> str:
            "highest stable f_p. The paper: f0 11-14 Hz, omega_Brmax 278-382 deg/s, objects above 12pi lost.", "",
            "| omega_n [pi rad/s] | " + " | ".join(MODELS) + " |", "|---|" + "---|" * len(MODELS)]
     c12 = {m: res["centred_12deg"].get(m) for m in MODELS}
-    for w in (*rp.FIG8_OMEGAS_PI[12.0], *SEC5_STIFF_PI):
+    for w in (*common.FIG8_OMEGAS_PI[12.0], *SEC5_STIFF_PI):
         cells = []
         for m in MODELS:
             d = (c12[m] or {}).get(f"{w:g}")

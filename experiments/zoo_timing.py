@@ -26,8 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ppo_timing import commit, load  # noqa: E402
+from common import commit, load
 
 RESULTS = Path(__file__).parent / "results"
 COMMAND = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", "PlateRotation-v0", "--gym-packages",

@@ -173,13 +173,18 @@ def _spec(args: argparse.Namespace, obj: ObjectSpec, freq: float) -> ProbeSpec:
 
 
 def _add_object(p: argparse.ArgumentParser, true: str = "") -> None:
-    p.add_argument("--object", default=None, help="preset object: cheese, dumpling, cheese_lead")
+    from plate_env.core.objects import PRESETS
+
+    custom = ObjectSpec(name="custom")  # what an option not given takes (the preset's value with --object)
+    p.add_argument("--object", default=None, help=f"preset object: {', '.join(PRESETS)} (default: none, a custom "
+                   "disc of the values below)")
     p.add_argument("--omega-n", default=None, type=_omega_n_arg, help=f"{true}bending natural frequency, rad/s or "
-                   "e.g. 10pi")
+                   f"e.g. 10pi (default: the preset's, else {format_omega_pi(custom.omega_n)})")
     p.add_argument("--alpha", type=_arg(checks.real, 0.0, 90.0, open_lo=True, open_hi=True, unit="deg"),
-                   default=None, help=f"{true}friction angle, degrees")
+                   default=None, help=f"{true}friction angle, degrees (default: the preset's, else "
+                   f"{math.degrees(custom.alpha):.3g})")
     p.add_argument("--mass-g", type=_arg(checks.real, *MASS_RANGE_G, unit="g"), default=None,
-                   help="object mass, grams")
+                   help=f"object mass, grams (default: the preset's, else {custom.mass * 1e3:.4g})")
 
 
 def _add_dt(p: argparse.ArgumentParser) -> None:
@@ -237,14 +242,16 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--max-probes", type=_arg(checks.integer, *MAX_PROBES_RANGE), default=DEFAULT_MAX_PROBES,
                    help="probe budget")
     i.add_argument("--target", type=_arg(checks.real, 0.0, 1.0, open_lo=True, open_hi=True), default=None,
-                   help="bayes only: stop at this relative posterior std of omega_n")
+                   help="bayes only: stop at this relative posterior std of omega_n (a fraction; default: none, "
+                   "the probe budget alone stops it)")
     _add_dt(i)
     i.add_argument("--plot", default=None, help="write a PNG of the probes, fit and estimate (after the results)")
     i.add_argument("--json", action="store_true", help="print one JSON document")
     _add_bench(sub)
     f = sub.add_parser("fit", help="fit a lab sweep (CSV) and estimate omega_n")
     f.add_argument("csv", help="CSV with columns f_p_hz, omega_b_deg_s[, stderr_deg_s, a_p_deg, unstable]")
-    f.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees")
+    f.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees (default: "
+                   "the CSV's a_p_deg column)")
     _add_known_inputs(f, "atlas method: ")
     f.add_argument("--method", default="atlas", choices=METHODS,
                    help="atlas: a forward model's posterior (default); lorentz: the paper's Eqs. 9-10")
@@ -320,11 +327,11 @@ def _add_bench(sub) -> None:
                    "suite .json file; several: every agent on every suite, and a table of agents against suites")
     b.add_argument("--agent", action="extend", nargs="+", required=True,
                    help="one or more agents: bayes, grid, coarse_to_fine, ppo (options: grid:n=30,method=atlas), "
-                        "path/to/file.py:MyAgent, sb3:model.zip (sb3:a2c:model.zip)")
+                        "path/to/file.py:MyAgent, sb3:model.zip (sb3:td3:model.zip: ppo, a2c, sac, td3, ddpg)")
     b.add_argument("--budgets", default=None, help="probing budgets to score, simulated s, comma list (default: the "
                    "suite's; each at most its largest)")
     b.add_argument("--limit", type=_arg(checks.integer, 1, 100_000), default=None,
-                   help="only the first N objects (a quick look, not the suite's result)")
+                   help="only the first N objects (a quick look, not the suite's result; default: all)")
     b.add_argument("--cache", default=None, help=f"JSON-lines file of finished episodes, a rerun resumes (default "
                    f"{BENCH_CACHE_DIR}/<suite>.jsonl)")
     b.add_argument("--no-cache", action="store_true", help="keep no episodes on disk")
@@ -564,7 +571,9 @@ def _fit_report(est, table) -> list[str]:
         if not fit.ok:
             out.append(f"    cannot fit: {fit.reason}")
             continue
-        out.append(f"    data points = {fit.n_used} used, {fit.n_unstable} unstable excluded")
+        left = "; ".join(f"{n} {why}" for why, n in fit.left_out) or "none"
+        out.append(f"    data points = {fit.n_used} used of {fit.n_used + sum(n for _, n in fit.left_out)}; left out: "
+                   f"{left}")
         out.append(f"    R-squared   = {fit.r2:.4f}")
         for name, val, err, unit in (("omega_max", fit.omega_max, fit.stderr[0], "deg/s"),
                                      ("f0", fit.f0, fit.stderr[1], "Hz"), ("b", fit.b, fit.stderr[2], "Hz")):
@@ -624,8 +633,12 @@ def _add_known_inputs(p: argparse.ArgumentParser, what: str, mass_default: str =
 
 def _add_calibrate(sub) -> None:
     c = sub.add_parser("calibrate", help="learn a lab calibration from reference discs of known omega_n")
-    c.add_argument("refs", help="CSV: the fit columns plus object and omega_n_rad_s (optional mass_g per object)")
-    c.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees")
+    c.add_argument("refs", nargs="+", help="the reference discs: SWEEP.csv=OMEGA (one disc's sweep as `sweep --csv` "
+                   "writes it, its known omega_n in rad/s or e.g. 10pi; named after the file) or REFS.csv (several "
+                   "discs: the fit columns plus object and omega_n_rad_s, optional mass_g per object); several files "
+                   "are joined")
+    c.add_argument("--amp", type=float, default=None, help="plate amplitude A_p of the rows, degrees (default: "
+                   "the CSV's a_p_deg column)")
     _add_known_inputs(c, "", mass_default="the file's mass_g, else ")
     c.add_argument("--forward", default="lab", help="the forward model whose members read the sweeps")
     c.add_argument("--out", required=True, help="the calibration file to write (CAL.json)")
@@ -638,7 +651,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     if args.forward not in forward_model_names():
         raise CliError(f"--forward {args.forward!r}: choose one of {forward_model_names()}")
     output_path(args.out, "--out")  # refused before the references are read, not after the calibration
-    objects, omega_n, tables, masses = lcf.read_reference_csv(args.refs, a_p_deg=args.amp, max_rows=MAX_FIT_ROWS)
+    objects, omega_n, tables, masses = lcf.read_references(args.refs, a_p_deg=args.amp, max_rows=MAX_FIT_ROWS)
     lcf.check_references(objects, omega_n)
     given = {m for m in masses if m is not None}
     if len(given) > 1:
@@ -734,8 +747,10 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     if args.method == "atlas" and len(table) >= FIT_PROGRESS_ROWS:
         print(f"fit: done in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
     if args.json:
-        print(json.dumps({"file": str(args.csv), "physics": args.physics, "model": model, "calibrated": False,
-                          **est.to_dict()}), flush=True)
+        # what read the data, once: the atlas method's forward model ("forward"), or the Lorentz method's Eq. (10)
+        # calibration ("physics", "model"; "forward" null); never the other method's unused options (issue 40 item 5)
+        used = {} if args.method == "atlas" else {"physics": args.physics, "model": model}
+        print(json.dumps({"file": str(args.csv), **used, "calibrated": False, **est.to_dict()}), flush=True)
     else:
         for line in _fit_report(est, table):
             print(line)
@@ -744,6 +759,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
             print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s "
                   f"({format_omega_pi(est.omega_n)}) by {est.method} on {source}")
             print(_intervals(est))
+            if est.note:
+                print(f"note: {est.note}")
             if est.alpha is not None:
                 print(f"alpha_hat   = {math.degrees(est.alpha):.1f} +- {math.degrees(est.alpha_stderr):.1f} deg")
             if est.method == "atlas" and est.forward == "lab":
@@ -813,7 +830,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     if plot is not None:
         from plate_env.plotting import plot_fit
 
-        plot_fit(res.probes, est, str(plot), plot_fm)
+        plot_fit(res.probes, est, str(plot), plot_fm, omega_n_true=obj.omega_n)  # the truth printed above
         _say_plot(args, plot)
     return 0 if est.ok else 1
 
@@ -891,15 +908,18 @@ def _cmd_build(args: argparse.Namespace) -> int:
     the command line imports (the seam to the agents)."""
     if args.artifact != "policy":
         return run_build(args, args.argv[1:])
-    from plate_env.build.provenance import build_record
+    from plate_env.build.provenance import build_record, record_in_manifest
     from plate_env.core.files import check_output
     from plate_env_agents.train import train_policy
 
     for path in (Path(args.out), Path(args.out).with_suffix(".npz"), Path(args.out).with_suffix(".json")):
         check_output(path, "--out")  # before the training (an hour at the default steps), not at its save
-    meta = train_policy(args.out, build_record(args.argv[1:]), hyperparams=args.hyperparams, env_id=args.env_id,
+    record = build_record(args.argv[1:])
+    meta = train_policy(args.out, record, hyperparams=args.hyperparams, env_id=args.env_id,
                         seed=args.seed, timesteps=args.timesteps, eval_freq=args.eval_freq,
                         eval_episodes=args.eval_episodes, eval_seed=args.eval_seed, threads=args.threads)
+    for path in (Path(args.out), Path(args.out).with_suffix(".npz"), Path(args.out).with_suffix(".json")):
+        record_in_manifest(path, record)  # a shipped policy's files get their manifest entries
     out, ev = Path(args.out), meta["eval"]
     kept = (f"best eval reward {ev['best_reward']:.4f} at {ev['best_at_timesteps']} steps" if ev["curve"] else
             "no evaluation ran: the last model")

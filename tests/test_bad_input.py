@@ -14,6 +14,7 @@ import pytest
 import plate_env as pe
 from plate_env.core.probe import ProbeSpec
 from plate_env.env.rotation import PlateRotationEnv
+from plate_env.physics.interface import PhysicsBackend
 from plate_env.surrogate.atlas import load_atlas
 
 PROBE = np.array([0.0, -1.0, 0.0, -1.0], np.float32)
@@ -246,7 +247,7 @@ def test_cli_warns_when_dt_is_above_the_measured_stability_limit(capsys):
         pe.make_physics("tilelink", model="rigid", dt=3e-4)
 
 
-class Interrupting:
+class Interrupting(PhysicsBackend):
     """Wraps a backend and raises KeyboardInterrupt (Ctrl-C) in its ``interrupt_at``-th run call."""
 
     def __init__(self, inner, interrupt_at: int) -> None:

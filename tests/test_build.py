@@ -130,11 +130,12 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_build_forward_models_writes_the_shipped_registry(tmp_path):
     """The same registry as the shipped file: every key, member, text and layout exactly; the fitted numbers within
     the cross-CPU tolerance (they are recomputed from the results through fits whose last bits depend on the CPU)."""
+    from plate_env.build.provenance import inputs_dir
+
     out = tmp_path / "fm.json"
-    within, lomo = (ROOT / "experiments" / "results" / f"forward_models_{s}.json" for s in ("within", "lomo"))
-    faithful = ROOT / "experiments" / "results" / "faithful_forward.json"
-    argv = ["forward-models", "--within", str(within), "--lomo", str(lomo), "--faithful", str(faithful),
-            "--out", str(out)]
+    within, lomo = (inputs_dir() / f"forward_models_{s}.json" for s in ("within", "lomo"))
+    faithful = inputs_dir() / "faithful_forward.json"
+    argv = ["forward-models", "--out", str(out)]  # the inputs frozen in the package by default
     assert main(["build", *argv]) == 0
     shipped = (resources.files("plate_env") / "data" / "forward_models.json").read_text()
     assert_close(json.loads(out.read_text()), json.loads(shipped))
@@ -202,11 +203,12 @@ def _shipped_design_discrepancy() -> bytes:
 
 
 def test_build_design_discrepancy_writes_the_shipped_file_byte_for_byte_and_bayes_reads_it(tmp_path):
+    from plate_env.build.provenance import inputs_dir
     from plate_env_agents import bayes
 
-    within = ROOT / "experiments" / "results" / "forward_models_within.json"
+    within = inputs_dir() / "forward_models_within.json"  # frozen in the package, the default input
     out = tmp_path / "d.json"
-    argv = ["design-discrepancy", "--within", str(within), "--out", str(out)]
+    argv = ["design-discrepancy", "--out", str(out)]
     assert main(["build", *argv]) == 0
     assert out.read_bytes() == _shipped_design_discrepancy()
     _record_ok(json.loads(Path(f"{out}.provenance.json").read_text()), argv)

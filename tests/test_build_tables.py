@@ -158,9 +158,12 @@ def test_build_calibration_eq10_refuses_incomplete_lab_sweeps_before_any_probe(t
     err = capsys.readouterr().err
     assert "eval_pybullet_pybullet_A3_s600.jsonl lacks 216" in err and "does not simulate" in err
     assert not out.exists() and not (tmp_path / "sweeps").exists()
-    argv, out = _eq10(tmp_path, tmp_path / "sweeps")
-    assert main(["build", *argv[:3], *argv[5:]]) == 2  # no --lab-sweeps
-    assert "needs --lab-sweeps" in capsys.readouterr().err and not out.exists()
+    # without --lab-sweeps the builder reads the sweeps frozen in the package: complete
+    from plate_env.build.eq10 import LAB_SETS, LAB_SIMULATED, missing_lab_probes
+    from plate_env.build.provenance import inputs_dir
+
+    assert {f: missing_lab_probes(f, inputs_dir()) for f in LAB_SETS if f not in LAB_SIMULATED} == {
+        "rigid": 0, "pybullet": 0}
     assert main(["build", "calibration", "paper", "--lab-sweeps", str(lab), "--out", str(out)]) == 2
     assert "eq10's options" in capsys.readouterr().err and not out.exists()
 

@@ -126,12 +126,17 @@ def test_pybullet_calibration_is_read_back_and_keyed_by_object(tmp_path, monkeyp
 
     monkeypatch.setenv("PLATE_ENV_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(calibrate, "_ringdown_k", fake)
-    run = calibrate.calibrated_k.__wrapped__  # past the per-process cache: the disk's
+    inner = calibrate._calibrated_k.__wrapped__  # past the per-process cache: the disk's
+
+    def run(obj, config, tol=0.02, max_iter=8):  # calibrated_k's key: the object without its friction angle
+        return inner(dataclasses.replace(obj, alpha=calibrate.RINGDOWN_ALPHA), config, tol, max_iter)
+
     a, b = ObjectSpec(omega_n=40.0, alpha=0.7), ObjectSpec(omega_n=41.0, alpha=0.7)
     first = run(a, SheetConfig())
     assert run(a, SheetConfig()) == first == (41.0, 40.0 * 1.001) and calls == [40.0]
     assert run(b, SheetConfig()) == (42.0, 41.0 * 1.001) and calls == [40.0, 41.0]
     assert run(a, SheetConfig(), tol=0.01) and calls == [40.0, 41.0, 40.0]
+    assert run(dataclasses.replace(a, alpha=0.3), SheetConfig()) == first and len(calls) == 3  # alpha: no key
 
 
 def _store_fails_on_second_file(monkeypatch, exc: BaseException) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import subprocess
 import sys
 from collections.abc import Sequence
@@ -274,3 +275,98 @@ def test_a_sweep_csv_writes_the_settings_as_typed(tmp_path):
     rows = list(csv.DictReader(out.open()))
     assert {r["a_p_deg"] for r in rows} == {"3.0"}
     assert [r["f_p_hz"] for r in rows][:4] == ["10.0", "10.1", "10.2", "10.3"]
+
+
+#: A path-like token of a help text: directories and a file or directory name (``experiments/leaderboard.py``).
+_HELP_PATH = re.compile(r"(?<![\w/.<>-])((?:[A-Za-z_][\w.-]*/)+[\w.-]+)")
+#: Tokens with a slash that are not paths: a physics/model name, units, a placeholder (``path/to/file.py``).
+_NOT_A_PATH = ("rad/s", "joint/contact", "path/to/", "tilelink/", "pybullet/", "object/", "lab/", "CACHE_DIR/")
+
+
+def test_no_help_text_names_a_path_that_does_not_exist():
+    """Issue 40 item 5: ``bench --help`` named experiments/leaderboard.py, which does not exist. Every path a help
+    text names is a file or directory of the repository or of an installed package (plate_env, plate_env_agents)."""
+    from pathlib import Path
+
+    import plate_env_agents
+
+    repo = Path(plate_env.__file__).parent.parent
+    # an installed package's path names its own folder (plate_env_agents is the repository's agents/ folder)
+    packages = {"plate_env": Path(plate_env.__file__).parent,
+                "plate_env_agents": Path(plate_env_agents.__file__).parent}
+
+    def exists(token: str) -> bool:
+        top, _, rest = token.partition("/")
+        return (repo / token).exists() or (top in packages and (packages[top] / rest).exists())
+
+    named = set()
+    for name, p in _all_parsers():
+        text = p.format_help()
+        for token in _HELP_PATH.findall(text):
+            token = token.rstrip(".")
+            if token.startswith(_NOT_A_PATH) or "<" in token:
+                continue
+            named.add(token)
+            assert exists(token), f"{name} --help names {token!r}, which does not exist"
+    assert {"plate_env/data/grids", "plate_env_agents/hyperparams/ppo.yml"} <= named  # the scan sees paths
+
+
+def _numeric_kind(action) -> str | None:
+    """'int' or 'real' for an option whose value is a number (its ``type``), else None."""
+    from plate_env.cli import _omega_n_arg
+    from plate_env.core import checks
+
+    t = action.type
+    if t is int or t is float or t is _omega_n_arg:
+        return "int" if t is int else "real"
+    cells = [c.cell_contents for c in (getattr(t, "__closure__", None) or ())]
+    if checks.integer in cells:
+        return "int"
+    return "real" if checks.real in cells else None
+
+
+_UNIT = re.compile(r"\b(Hz|deg|degrees|mm|g|grams|s|seconds|rad/s|fraction)\b")
+
+
+def test_every_numeric_option_states_its_default_and_its_unit():
+    """Issue 40 item 5: ``identify --help`` showed no default for --object, --omega-n, --alpha, --mass-g (None:
+    the preset's value, else the custom disc's, said nowhere), nor for --target, bench --limit, fit/calibrate
+    --amp. Every numeric option's help states its default (argparse's ``(default: X)`` or its own words), and every
+    real-valued one a unit (or ``fraction``)."""
+    import argparse
+
+    checked = 0
+    for name, p in _all_parsers():
+        text = " ".join(p.format_help().split())
+        for a in p._actions:
+            kind = _numeric_kind(a)
+            if kind is None or not a.option_strings or a.required:
+                continue
+            flag = a.option_strings[-1]
+            block = text.split(f"{flag} {a.metavar or a.dest.upper()} ", 2)[-1][:500]
+            own = block.split(" --", 1)[0]  # up to the next option's flags
+            assert "default" in own, f"{name} {flag}: no default in its help: {own!r}"
+            if kind == "real":
+                assert _UNIT.search(own), f"{name} {flag}: a number without its unit: {own!r}"
+            checked += 1
+            assert not isinstance(a, argparse._StoreTrueAction)
+    assert checked > 40
+    # the words are true: an option not given takes the custom disc's value (plate_env.core.objects.ObjectSpec)
+    from plate_env.core.objects import ObjectSpec
+
+    ident = " ".join(next(p for n, p in _all_parsers() if n == "plate-env identify").format_help().split())
+    assert f"else {ObjectSpec().omega_n / math.pi:g}pi" in ident and f"else {ObjectSpec().mass * 1e3:g})" in ident
+
+
+def test_fit_json_names_what_read_the_data_once(capsys):
+    """Issue 40 item 5: ``fit --forward tilelink/pointmass --json`` reported ``"physics": "lab", "model": "lab"``
+    (the Lorentz method's unused defaults) beside ``"forward"``."""
+    from pathlib import Path
+
+    csv = str(Path(__file__).parent.parent / "examples" / "cheese_sweep.csv")
+    assert main(["fit", csv, "--amp", "3", "--forward", "tilelink/pointmass", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["forward"] == "tilelink/pointmass" and "physics" not in out and "model" not in out
+    assert main(["fit", csv, "--amp", "3", "--method", "lorentz", "--physics", "tilelink", "--json"]) in (0, 1)
+    out = json.loads(capsys.readouterr().out)
+    assert (out["physics"], out["model"], out["forward"]) == ("tilelink", "pointmass", None)

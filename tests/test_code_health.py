@@ -193,18 +193,6 @@ def test_the_layer_check_finds_a_planted_upward_import():
                                      "plate_env.env.rotation -> plate_env_agents.bayes (env -> agents)"]
 
 
-def test_the_project_imports_no_old_module_path():
-    """The flat layout's paths still import for users (plate_env.MOVED_MODULES, with a warning); the project's own
-    code, tests and experiments use the new ones."""
-    from plate_env import MOVED_MODULES as moved
-
-    assert len(moved) > 20 and all(layer_of(new) is not None for new in moved.values())
-    old = []
-    for name, (path, tree) in _sources(PACKAGE, "agents", "experiments", "tests", "examples").items():
-        old += sorted({f"{path.relative_to(ROOT)}: {m}" for m in _imports(name, path, tree) if m in moved})
-    assert old == []
-
-
 def test_the_core_does_not_import_the_agents():
     importers = {name for name, (path, tree) in _sources(PACKAGE).items()
                  if any(m.split(".")[0] in (AGENTS_PACKAGE, "agents") for m in _imports(name, path, tree))}

@@ -14,11 +14,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import plate_env  # noqa: F401 - registers the environment
+from plate_env.env.render import H, W
 from plate_env.env.rotation import PlateRotationEnv
 
 FAST = {"tilelink": dict(max_probes=4), "atlas": dict(max_probes=6),
-        "pybullet": dict(max_probes=2, settle_s=0.1, measure_range_s=(0.1, 0.2), method="lorentz",
-                         physics_options=dict(n_workers=1))}
+        # pybullet: the contract, not the physics: short probes, and a fixed sheet stiffness (k_elastic) instead of
+        # a ring-down calibration per random object (in a fresh clone each reset's object cost one: ~60 s a test)
+        "pybullet": dict(max_probes=2, settle_s=0.0, measure_range_s=(0.05, 0.1), method="lorentz",
+                         physics_options=dict(n_workers=1, k_elastic=5.0))}
 
 
 def make(physics="tilelink", **kw):
@@ -114,8 +117,8 @@ def test_stop_without_probes_is_ignored_and_stop_later_ends_with_penalty_when_no
     _, r, term, _, _ = env.step(np.array([0.0, -1.0, 0.0, 1.0], np.float32))  # stop ignored: no probe yet
     assert not term and r < 0
     _, r, term, _, info = env.step(np.array([0.0, -1.0, 0.0, 1.0], np.float32))
-    assert term and np.isnan(info["relative_error"]) and r == pytest.approx(-2.0)
-    assert not info["estimate"]["ok"] and info["estimate"]["reason"] and np.isnan(info["estimate"]["omega_n_rad_s"])
+    assert term and np.isinf(info["relative_error"]) and r == pytest.approx(-2.0)
+    assert not info["estimate"]["ok"] and info["estimate"]["reason"] and info["estimate"]["omega_n_rad_s"] == 0.0
 
 
 @pytest.mark.parametrize("physics", ["tilelink", "atlas"])
@@ -153,7 +156,7 @@ def test_rgb_array_render_and_no_render_by_default():
     env.reset(seed=0)
     env.step(np.array([0.0, -1.0, 0.0, -1.0], np.float32))
     frame = env.render()
-    assert frame.shape == (240, 480, 3) and frame.dtype == np.uint8
+    assert frame.shape == (H, W, 3) and frame.dtype == np.uint8
     assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 3
     env.close()
     plain = make("tilelink")
@@ -227,7 +230,7 @@ def test_vector_env_equals_n_single_envs(mode):
 def test_vector_infos_batch_episode_ends_with_and_without_estimates(mode):
     """Gymnasium batches each info key into one array: a key that is None in one sub-env and a number or a dict in
     another used to crash it (estimate.check.worst, estimate.bound, relative_error). Random stops make some
-    episodes end without an estimate (a single probe) and others with one; relative_error is a float64 array, NaN
+    episodes end without an estimate (a single probe) and others with one; relative_error is a float64 array, inf
     where there is no estimate."""
     vec = gym.make_vec("PlateRotation-v0", num_envs=4, vectorization_mode=mode, physics="atlas", max_probes=6)
     vec.reset(seed=3)
@@ -246,13 +249,13 @@ def test_vector_infos_batch_episode_ends_with_and_without_estimates(mode):
     vec.close()
 
 
-def test_pybullet_rgb_array_uses_tiny_renderer():
+def test_pybullet_rgb_array_draws_the_same_frame():
     pytest.importorskip("pybullet")
     env = PlateRotationEnv(physics="pybullet", render_mode="rgb_array", **FAST["pybullet"])
     env.reset(seed=0)
     env.step(np.array([-0.6, -1.0, -1.0, -1.0], np.float32))
     frame = env.render()
-    assert frame.shape == (240, 480, 3) and frame.dtype == np.uint8
+    assert frame.shape == (H, W, 3) and frame.dtype == np.uint8
     assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 10
     env.close()
     assert env._renderer is None

@@ -48,8 +48,8 @@ def episodes():
 
 def test_every_key_on_every_step_with_its_dtype(episodes):
     """Issue 41 item 5 / 38 item 1: >= 1,000 atlas steps, episodes with and without an estimate: every info (reset
-    and step) has exactly the declared keys, each of its declared type; relative_error is NaN exactly where the
-    estimate is not ok; the nested fields that came and went (bound, reason, check.worst) are always there."""
+    and step) has exactly the declared keys, each of its declared type, none NaN; relative_error is inf exactly
+    where the estimate is not ok; the nested fields that came and went (bound, reason, check.worst) are always there."""
     _, eps = episodes
     steps = sum(len(rows) for _, rows in eps)
     assert steps >= 1000
@@ -59,9 +59,10 @@ def test_every_key_on_every_step_with_its_dtype(episodes):
         for info in [first] + [r[2] for r in rows]:
             assert schema.problems(info) == [], schema.problems(info)
             assert set(schema.flatten(info)) == keys
+            assert not [k for k, v in schema.flatten(info).items() if isinstance(v, np.floating) and np.isnan(v)]
         final = rows[-1][2]
         ok = bool(final["estimate"]["ok"])
-        assert math.isnan(final["relative_error"]) != ok
+        assert math.isinf(final["relative_error"]) != ok
         assert final["estimate"]["reason"] == "" if ok else final["estimate"]["reason"]
         with_est, without = with_est + ok, without + (not ok)
     assert with_est >= 20 and without >= 5, (with_est, without)
@@ -98,7 +99,7 @@ def test_names_carry_one_unit_each():
 
 
 def test_the_hidden_object_only_on_the_terminating_step(episodes):
-    """Issue 38 item 2: before the terminating step no info holds the hidden object (the truth keys are NaN and no
+    """Issue 38 item 2: before the terminating step no info holds the hidden object (the truth keys are 0 and no
     other number equals omega_n, alpha or the mass in any unit); the terminating step holds it exactly."""
     env, eps = episodes
     for first, rows in eps:
@@ -108,7 +109,7 @@ def test_the_hidden_object_only_on_the_terminating_step(episodes):
         for info in [first] + [r[2] for r in rows[:-1]]:
             flat = schema.flatten(info)
             assert not info["truth_revealed"]
-            assert all(math.isnan(flat[k]) for k in schema.HIDDEN_KEYS)
+            assert all(flat[k] == 0.0 for k in schema.HIDDEN_KEYS)
             assert not secret & {float(v) for v in flat.values() if isinstance(v, np.floating)}
         assert final["truth_revealed"] and all(np.isfinite(truth))
         assert final["last_probe"]["omega_n_rad_s"] == truth[0]
@@ -183,12 +184,11 @@ def test_the_schema_is_declared_once_and_rendered_in_the_docs():
 
 
 def test_gymnasium_checker_and_equal_infos_for_equal_seeds():
-    """A "nothing" is a NaN that equals another nothing, so Gymnasium's check_env (which compares step infos with
-    ==) passes and two runs of the same seeds give equal infos; np.isnan still sees it."""
+    """Gymnasium's check_env (which compares step infos with ==) passes and two runs of the same seeds give equal
+    infos: no value is NaN (a NaN never equals itself)."""
     from gymnasium.utils.env_checker import check_env
 
     check_env(PlateRotationEnv(physics="atlas", max_probes=4), skip_render_check=True)
-    assert schema.NOTHING == schema.NoValue() and np.isnan(schema.NOTHING) and schema.NOTHING != 1.0
     a = _random_episodes(PlateRotationEnv(physics="atlas", max_probes=4), 30, seed=9)
     b = _random_episodes(PlateRotationEnv(physics="atlas", max_probes=4), 30, seed=9)
     for (fa, ra), (fb, rb) in zip(a, b, strict=True):
@@ -221,7 +221,7 @@ def test_gymnasium_vector_infos_hold_every_key_for_every_sub_env(mode):
 
 def test_sb3_monitor_logs_relative_error_for_every_episode():
     """Issue 41 item 5: Monitor(info_keywords=("relative_error",)) raised KeyError at the first episode without an
-    estimate; now every episode logs it, NaN without an estimate."""
+    estimate; now every episode logs it, inf without an estimate."""
     pytest.importorskip("stable_baselines3")
     from stable_baselines3.common.monitor import Monitor
 
@@ -236,13 +236,14 @@ def test_sb3_monitor_logs_relative_error_for_every_episode():
             a[3] = 1.0 if rng.uniform() < 0.4 else -1.0
             _, _, term, trunc, info = env.step(a)
         errors.append(info["episode"]["relative_error"])
-    assert np.isnan(errors).any() and np.isfinite(errors).any()
+    assert np.isinf(errors).any() and np.isfinite(errors).any() and not np.isnan(errors).any()
     env.close()
 
 
-def test_tianshou_collector_batches_the_infos():
+def test_tianshou_collector_batches_the_infos_and_its_trainer_accepts_them():
     """Issue 38 item 1: tianshou's Collector over a DummyVectorEnv stacked infos into a Batch and raised "Creating
-    keys is not supported by item assignment" when a key appeared on some steps only."""
+    keys is not supported by item assignment" when a key appeared on some steps only; and its trainers refuse a
+    buffer holding a NaN anywhere, info included ("Encountered NaNs in buffer"), so no info value may be NaN."""
     pytest.importorskip("tianshou")
     from tianshou.algorithm.algorithm_base import RandomActionPolicy
     from tianshou.data import Collector, VectorReplayBuffer
@@ -254,8 +255,11 @@ def test_tianshou_collector_batches_the_infos():
     stats = collector.collect(n_step=800)
     assert stats.n_collected_episodes >= 20
     buf = collector.buffer
-    err = buf.info.relative_error[:len(buf)]
-    assert err.dtype == np.float64 and np.isnan(err).any() and np.isfinite(err).any()
+    assert not buf.hasnull()  # the check tianshou's OnPolicyTrainer/OffPolicyTrainer make after every collect
+    data = buf[:]  # every stored step (a VectorReplayBuffer's arrays hold empty slots between its sub-buffers)
+    err, done = data.info.relative_error, data.done
+    assert err.dtype == np.float64 and np.isinf(err[done]).any() and np.isfinite(err[done]).any()
+    assert np.isinf(err[~done]).all()  # no estimate before the terminating step
     envs.close()
 
 

@@ -80,7 +80,7 @@ def test_relative_error_and_report():
                              "omega_n_stderr_rad_s": 0.5, "omega_n_pi": 11.0 / math.pi,
                              "omega_n_ci68_rad_s": [10.5, 11.5], "omega_n_ci95_rad_s": [10.0, 12.0],
                              "alpha_deg": pytest.approx(40.0), "alpha_stderr_deg": pytest.approx(2.0),
-                             "n_probes": 7, "n_unstable": 2, "bound": None, "fits": {}, "check": None}
+                             "n_probes": 7, "n_unstable": 2, "bound": None, "fits": {}, "check": None, "note": None}
     none = Estimate(ok=False, method="lorentz", reason="no probes").to_dict()
     assert none["alpha_deg"] is None and none["reason"] == "no probes" and none["ok"] is False
     bound = Estimate(ok=False, method="atlas", reason="above", bound=("above", 130.0)).to_dict()

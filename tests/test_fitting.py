@@ -93,7 +93,8 @@ def test_prediction_and_report_of_a_clockwise_sweep():
                                                                                   25.0, 4.0), rtol=1e-8)
     assert fit.to_dict() == {"ok": True, "reason": None, "omega_max_deg_s": fit.omega_max, "f0_hz": fit.f0,
                              "b_hz": fit.b, "omega_max_stderr_deg_s": fit.stderr[0], "f0_stderr_hz": fit.stderr[1],
-                             "b_stderr_hz": fit.stderr[2], "r2": fit.r2, "n_used": 22, "n_unstable": 0}
+                             "b_stderr_hz": fit.stderr[2], "r2": fit.r2, "n_used": 22, "n_unstable": 0,
+                             "left_out": {}}
     assert fit.f0_stderr == fit.stderr[1]
 
 

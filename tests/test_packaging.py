@@ -81,25 +81,23 @@ def test_a_regular_wheel_holds_the_agents_under_their_namespace(tmp_path):
     assert done.stdout.split() == ["True", "True", "numpy"]  # the installed copy, its package data, no source tree
 
 
-def test_the_old_benchmark_path_imports_the_bench_layer_with_a_warning():
-    """``from plate_env.benchmark import evaluate`` (the README's path before the layers) still works, warning with
-    the new path; a module path that never existed is still an ImportError."""
-    code = ("import warnings\n"
-            "warnings.simplefilter('error', DeprecationWarning)\n"
+def test_the_old_benchmark_path_fails_naming_the_new_one():
+    """``from plate_env.benchmark import evaluate`` (the README's path before the layers) fails with a message that
+    names plate_env.bench; the other flat paths, never released, are plain ImportErrors; no import hook is left in
+    sys.meta_path (issue 35)."""
+    code = ("import sys, plate_env\n"
+            "print(sorted(type(f).__module__ for f in sys.meta_path if type(f).__module__.startswith('plate_env')))\n"
             "try:\n"
             "    from plate_env.benchmark import evaluate\n"
-            "except DeprecationWarning as w:\n"
-            "    print('warned:', w)\n"
-            "warnings.simplefilter('ignore', DeprecationWarning)\n"
-            "from plate_env.benchmark import evaluate\n"
-            "import plate_env.bench, plate_env.benchmark\n"
-            "print(evaluate is plate_env.bench.evaluate, plate_env.benchmark is plate_env.bench,\n"
-            "      plate_env.bench.__spec__.name)\n"
+            "except ImportError as e:\n"
+            "    print('refused:', e)\n"
+            "from plate_env.bench import evaluate\n"
             "try:\n"
-            "    import plate_env.no_such_module\n"
+            "    import plate_env.objects\n"
             "except ModuleNotFoundError:\n"
             "    print('missing')\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.splitlines() == ["warned: plate_env.benchmark moved to plate_env.bench: import plate_env.bench "
-                                        "instead", "True True plate_env.bench", "missing"]
+    lines = done.stdout.splitlines()
+    assert lines[0] == "[]" and lines[2] == "missing"
+    assert lines[1].startswith("refused: plate_env.benchmark moved to plate_env.bench")

@@ -62,6 +62,26 @@ def test_built_omega_n_within_5_percent(omega_pi: float) -> None:
     assert abs(w / obj.omega_n - 1) < 0.05
 
 
+def test_the_stiffness_calibration_ignores_friction_and_is_shared_across_alpha(monkeypatch) -> None:
+    """The ring-down touches nothing, so alpha cannot change it (the same omega_n to the last bit at alpha 26 and 64
+    deg), and objects differing in alpha only share one calibration: an env's random objects and an atlas's alpha
+    axis ran one ring-down series per alpha before."""
+    from plate_env.physics.pybullet_sheet import calibrate
+
+    cfg = SheetConfig()
+    a, b = pe.ObjectSpec.from_paper(12.0, 26.0), pe.ObjectSpec.from_paper(12.0, 64.0)
+    client = Client()
+    try:
+        k = calibrate.k_for_omega_n(a, cfg)
+        assert ringdown_omega_n(client, a, k, cfg) == ringdown_omega_n(client, b, k, cfg)
+    finally:
+        client.close()
+    calls = []
+    monkeypatch.setattr(calibrate, "_calibrated_k", lambda obj, *rest: calls.append(obj) or (1.0, obj.omega_n))
+    assert calibrate.calibrated_k(a, cfg) == calibrate.calibrated_k(b, cfg)
+    assert calls[0] == calls[1] and calls[0].alpha == calibrate.RINGDOWN_ALPHA
+
+
 def test_rotation_sign_follows_b_p() -> None:
     phys = PyBulletPhysics(sequence_len=1)
     obj = pe.ObjectSpec.from_paper(10.0, 36.9)

@@ -6,8 +6,9 @@
   option exist and take the values shown), the scripts and files it names exist, and ``pip`` extras exist;
 * shell lines are copy-pasteable: no ``a|b`` alternatives or ``[...]`` placeholders outside quotes;
 * the test command is the one ``.ci/run`` runs, verbatim;
-* every table between ``<!-- table: NAME -->`` markers, in the README and in docs/, equals its rendering from
-  experiments/results/ (experiments/readme_tables.py), and an edited number is caught.
+* (experiments/test_readme_tables.py: every table between ``<!-- table: NAME -->`` markers, in the README and in
+  docs/, equals its rendering from experiments/results/ by experiments/readme_tables.py, and an edited number is
+  caught.)
 """
 
 from __future__ import annotations
@@ -27,8 +28,6 @@ from plate_env.cli import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
-sys.path.insert(0, str(ROOT / "experiments"))
-import readme_tables  # noqa: E402
 
 FENCE = re.compile(r"(?P<mark><!-- readme-test: slow -->\n)?```(?P<lang>\w+)\n(?P<body>.*?)```", re.S)
 
@@ -147,48 +146,6 @@ def test_main_command_is_the_identify_job():
     assert main.startswith("pip install") and "plate-env identify" in main
 
 
-# ---------------------------------------------------------------------------------------------- tables
-def test_tables_match_their_result_files():
-    pages = readme_tables.pages()
-    assert ROOT / "README.md" in pages
-    stale = {str(p.relative_to(ROOT)): readme_tables.stale(p.read_text()) for p in pages}
-    stale = {k: v for k, v in stale.items() if v}
-    assert not stale, f"tables differ from experiments/results (run python experiments/readme_tables.py): {stale}"
-
-
-def test_readme_shows_generated_tables():
-    names = [m["name"] for m in readme_tables.MARKER.finditer(README)]
-    assert {"forward_models_choice", "forward_models_within", "leaderboard_tilelink-v0"} <= set(names)
-    unknown = [m["name"] for p in readme_tables.pages() for m in readme_tables.MARKER.finditer(p.read_text())
-               if m["name"] not in readme_tables.TABLES]
-    assert not unknown
-
-
-def test_an_edited_number_is_caught():
-    """Change one digit inside each marked table of the README and of every docs page: the check names that table
-    and no other."""
-    checked = set()
-    for page in readme_tables.pages():
-        page_text = page.read_text()
-        for m in readme_tables.MARKER.finditer(page_text):
-            body = m["body"]
-            digit = re.search(r"\d\.\d", body) or re.search(r"(?<=\| )\d", body)  # a decimal, else a count cell
-            assert digit, (page.name, m["name"])
-            i = digit.start()
-            edited = body[:i] + str((int(body[i]) + 1) % 10) + body[i + 1:]
-            text = page_text[:m.start("body")] + edited + page_text[m.end("body"):]
-            assert readme_tables.stale(text) == [m["name"]], (page.name, m["name"])
-            checked.add(m["name"])
-    assert {"leaderboard_tilelink-v0", "leaderboard_atlas-v0", "rigid_fast_routes", "bench_models"} <= checked
-
-
-def test_generator_renders_every_table():
-    for name in readme_tables.TABLES:
-        assert "|---|" in readme_tables.render(name), name
-    with pytest.raises(KeyError):
-        readme_tables.render("no_such_table")
-
-
 def test_docs_python_blocks_compile():
     """The docs pages' Python examples are at least valid Python (the README's are run above)."""
     pages = sorted((ROOT / "docs").rglob("*.md"))
@@ -225,7 +182,7 @@ def test_named_modules_exist_at_their_current_paths():
     (docs/layout.md names the old paths on purpose)."""
     import warnings
 
-    pages = [p for p in readme_tables.pages() if p.name != "layout.md"]
+    pages = [p for p in [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))] if p.name != "layout.md"]
     names = sorted({m[1] for p in pages for m in re.finditer(r"`(plate_env(?:_agents)?(?:\.\w+)+)", p.read_text())})
     assert len(names) > 10
     bad = []

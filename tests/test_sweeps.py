@@ -10,16 +10,18 @@ import pytest
 
 import plate_env as pe
 from plate_env.core.probe import ProbeResult, ProbeSpec
+from plate_env.physics.interface import PhysicsBackend
 from plate_env.physics.tilelink.params import DEFAULT_RECORD_INTERVAL_S, P_RECEVERY
 from plate_env.run.sweeps import backend_tag, load_cache, run_cached
 
 
-class FakeTileLink:
+class FakeTileLink(PhysicsBackend):
     """Stands in for a tile-link backend: records what it is asked to run; omega_B tells the record interval."""
 
     name = "tilelink"
     model = "pointmass"
     dt = 2e-4
+    SETTINGS = ("model", "dt", "record_interval_s")
 
     def __init__(self, record_interval_s: float) -> None:
         self.record_interval_s = record_interval_s
@@ -66,7 +68,7 @@ def test_tilelink_record_interval_is_a_backend_option():
             pe.make_physics("tilelink", record_interval_s=bad)
 
 
-class InterruptingPhysics:
+class InterruptingPhysics(PhysicsBackend):
     """Wraps a backend, counts the probes it simulates and raises KeyboardInterrupt on call ``interrupt_at``."""
 
     def __init__(self, inner, interrupt_at: int | None = None) -> None:

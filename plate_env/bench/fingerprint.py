@@ -93,11 +93,13 @@ def outcome_modules(physics: str) -> list[str]:
 @functools.lru_cache(maxsize=8)
 def code_fingerprint(physics: str) -> str:
     """SHA-256 over the code that decides an episode's outcome on ``physics`` (:func:`outcome_modules`, docstrings
-    left out) and the data files (atlases, calibrations, forward models). Computed once per process and physics."""
+    left out) and the data files (atlases, calibrations, forward models; not their manifest, which lists them).
+    Computed once per process and physics."""
     root = Path(__file__).resolve().parents[1]
     modules = _modules(root)
     files = [modules[m] for m in outcome_modules(physics)]
-    data = sorted(p for ext in ("json", "npz") for p in (root / "data").glob(f"*.{ext}"))
+    data = sorted(p for ext in ("json", "npz") for p in (root / "data").glob(f"*.{ext}")
+                  if p.name != "MANIFEST.json")  # the list of the files, not an input of any outcome
     h = hashlib.sha256()
     for p in files + data:
         h.update(str(p.relative_to(root)).encode())

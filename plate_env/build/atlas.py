@@ -177,13 +177,13 @@ def _provenance(job: AtlasJob, grid: AtlasGrid, backend: BackendSpec, physics) -
     return {"grid": job.grid_label(), "f_p_hz": _f_range(grid.f_hz), "a_p_deg": grid.a_p_deg,
             "omega_n_pi": grid.omega_n_pi, "alpha_deg": grid.alpha_deg, "repeats": job.repeats, "seed": job.seed,
             "b_p_mm": grid.b_p_mm, "mass_g": grid.mass_g, "diameter_mm": grid.diameter_mm,
-            "dt_s": getattr(physics, "dt", None), "ramp_s": 0.2, "settle_s": grid.settle_s,
+            "dt_s": physics.dt, "ramp_s": 0.2, "settle_s": grid.settle_s,
             "measure_s": grid.measure_s,
             "backend": {"name": backend.name, "options": {k: repr(v) for k, v in backend.options}},
             "placement": (f"yaw U(0, pi/2), offset N(0, {PLACEMENT_STD_M * 1e3:g} mm) per axis"
                           if job.physics != "pybullet" else
                           "centred (ProbeSpec initial_yaw 0, initial_offset (0, 0)); sweeps per object, ascending f_p, "
-                          f"sequence_len {getattr(physics, 'sequence_len', None)}"),
+                          f"sequence_len {physics.sequence_len}"),
             "plate_env": package_version(), "date": datetime.date.today().isoformat(),
             **({"select": {k: list(v) for k, v in job.select.items()}} if job.select else {}),
             "built_by": job.record, "machine": machine()}

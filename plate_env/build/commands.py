@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Sequence
+from pathlib import Path
 
 from plate_env.run.executor import add_executor_argument
 
@@ -51,12 +52,12 @@ def add_build_parser(sub) -> None:
     a.add_argument("--report", default=None, help="also write the build's markdown report here")
     f = kinds.add_parser("forward-models", help="write the forward-model registry (plate_env/data/forward_models.json) "
                          "from the measured numbers of experiments/forward_models.py's within and lomo stages")
-    f.add_argument("--within", required=True, help="the within stage's numbers (experiments/results/"
-                   "forward_models_within.json)")
-    f.add_argument("--lomo", required=True, help="the lomo stage's numbers (experiments/results/"
-                   "forward_models_lomo.json)")
-    f.add_argument("--faithful", required=True, help="the faithful forward model's numbers (experiments/"
-                   "results/faithful_forward.json)")
+    f.add_argument("--within", default=None, help="the within stage's numbers (default: the frozen input "
+                   "plate_env/data/inputs/forward_models_within.json)")
+    f.add_argument("--lomo", default=None, help="the lomo stage's numbers (default: the frozen input "
+                   "plate_env/data/inputs/forward_models_lomo.json)")
+    f.add_argument("--faithful", default=None, help="the faithful forward model's numbers (default: the frozen "
+                   "input plate_env/data/inputs/faithful_forward.json)")
     f.add_argument("--out", required=True, help="the registry to write; the build record goes to "
                    "OUT.provenance.json")
     c = kinds.add_parser("calibration", help="write a shipped calibration: paper (plate_env/data/"
@@ -68,17 +69,18 @@ def add_build_parser(sub) -> None:
     c.add_argument("--sweeps", default=None, help="eq10: where the simulated sweeps are cached, resumable (the "
                    "tile-link lines' 2,232 probes and the lab line's 3,720 point-mass probes, about 2 minutes here; "
                    "default: the user cache directory's sweeps/)")
-    c.add_argument("--lab-sweeps", default=None, help="eq10, required: the directory holding the lab line's "
+    c.add_argument("--lab-sweeps", default=None, help="eq10: the directory holding the lab line's "
                    "rigid-limit and PyBullet sweeps (eval_tilelink_rigid_limit_A3_s100.jsonl, "
-                   "eval_pybullet_pybullet_A3_s600.jsonl; a checkout's experiments/cache). They are inputs, never "
+                   "eval_pybullet_pybullet_A3_s600.jsonl; default: the frozen inputs, plate_env/data/inputs). "
+                   "They are inputs, never "
                    "simulated by the builder: about a quarter of an hour and hours of simulation here, and their "
                    "last bits depend on the CPU")
     add_executor_argument(c)
     d = kinds.add_parser("design-discrepancy", help="write the bayes agent's design discrepancy "
                          "(plate_env_agents/models/bayes_design_discrepancy.json) from the fit of "
                          "experiments/forward_models.py's within stage")
-    d.add_argument("--within", required=True, help="the within stage's numbers (experiments/results/"
-                   "forward_models_within.json)")
+    d.add_argument("--within", default=None, help="the within stage's numbers (default: the frozen input "
+                   "plate_env/data/inputs/forward_models_within.json)")
     d.add_argument("--out", required=True, help="the file to write; the build record goes to OUT.provenance.json")
     t = kinds.add_parser("pybullet-table", help="measure the PyBullet sheet's stiffness -> omega_n table "
                          "(plate_env/data/pybullet_calibration.json): 11 ring-downs of the default sheet, about "
@@ -163,8 +165,6 @@ def atlas_job(args: argparse.Namespace, record: dict):
 
 def _sweeps_dir(given: str | None):
     """``--sweeps``, else the user cache directory's ``sweeps/`` (ValueError when the cache is off)."""
-    from pathlib import Path
-
     from plate_env.core.cache import cache_dir
 
     if given is not None:
@@ -176,29 +176,37 @@ def _sweeps_dir(given: str | None):
 
 
 def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
-    """Run ``plate-env build``; ``argv`` are the arguments after ``build`` (recorded in the artifact)."""
-    from plate_env.build.provenance import build_record
+    """Run ``plate-env build``; ``argv`` are the arguments after ``build`` (recorded in the artifact). A file
+    written to a shipped file's place gets its manifest entry
+    (:func:`plate_env.build.provenance.record_in_manifest`)."""
+    from plate_env.build.provenance import build_record, inputs_dir, package_root, record_in_manifest
 
     record = build_record(argv)
+    for name in ("within", "lomo", "faithful"):  # an input not given: the one frozen in plate_env/data/inputs
+        if getattr(args, name, "") is None:
+            stem = "faithful_forward" if name == "faithful" else f"forward_models_{name}"
+            setattr(args, name, inputs_dir() / f"{stem}.json")
     if args.artifact == "suite":
         from plate_env.build.suites import build_suite
 
         done = build_suite(args.name, args.out, record)
+        record_in_manifest(args.out, record)
         print(f"wrote {args.out} (suite {args.name}, sha256 {done['sha256']}) and {args.out}.provenance.json")
         return 0
     if args.artifact == "forward-models":
         from plate_env.build.forward_models import build_forward_models
 
         reg = build_forward_models(args.within, args.lomo, args.faithful, args.out, record)
+        record_in_manifest(args.out, record, {"within": args.within, "lomo": args.lomo, "faithful": args.faithful})
         print(f"wrote {args.out} ({', '.join(reg)}) and {args.out}.provenance.json")
         return 0
     if args.artifact == "calibration" and args.name == "eq10":
-        from plate_env.build.eq10 import build_eq10
+        from plate_env.build.eq10 import LAB_AMP_DEG, LAB_SETS, LAB_SIMULATED, build_eq10
 
-        if args.lab_sweeps is None:
-            raise ValueError("calibration eq10 needs --lab-sweeps DIR: the lab line's rigid-limit and PyBullet sweeps "
-                             "(a checkout's experiments/cache)")
-        cals = build_eq10(args.out, record, _sweeps_dir(args.sweeps), args.lab_sweeps, args.executor)
+        lab = args.lab_sweeps if args.lab_sweeps is not None else inputs_dir()
+        cals = build_eq10(args.out, record, _sweeps_dir(args.sweeps), lab, args.executor)
+        record_in_manifest(args.out, record, {f: LAB_SETS[f].cache(LAB_AMP_DEG, lab) for f in LAB_SETS
+                                              if f not in LAB_SIMULATED})
         print("\n".join(f"{c.physics}/{c.model}/{c.a_p_deg:g}: p1 = {c.p1_pi:.2f}, q1 = {c.q1_pi:.1f} pi rad/s, "
                         f"R^2 {c.r2:.2f}, {c.n} sweeps" for c in cals))
         print(f"wrote {args.out} and {args.out}.provenance.json")
@@ -209,6 +217,7 @@ def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
         if args.sweeps is not None or args.lab_sweeps is not None:
             raise ValueError(f"calibration {args.name}: --sweeps and --lab-sweeps are eq10's options")
         body = build_calibration(args.name, args.out, record)
+        record_in_manifest(args.out, record)
         print(f"wrote {args.out} (calibration {args.name}, content sha256 {body['content_sha256']}) and "
               f"{args.out}.provenance.json")
         return 0
@@ -216,20 +225,27 @@ def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
         from plate_env.build.design_discrepancy import build_design_discrepancy
 
         content = build_design_discrepancy(args.within, args.out, record)
+        record_in_manifest(args.out, record, {"within": args.within})
         print(f"wrote {args.out} ({content['design_discrepancy']}) and {args.out}.provenance.json")
         return 0
     if args.artifact == "pybullet-table":
         from plate_env.build.pybullet_table import build_pybullet_table
 
         table = build_pybullet_table(args.out, record)
+        record_in_manifest(args.out, record)
         print(f"wrote {args.out} ({len(table['k_elastic'])} stiffnesses) and {args.out}.provenance.json")
         return 0
     if args.artifact == "policy":
         raise ValueError("plate-env build policy runs from the command line (plate_env.cli), which may import the "
                          "agents")
-    from plate_env.build.atlas import build_atlas
+    from plate_env.build.atlas import GRIDS, build_atlas
 
-    atlas, out, lines = build_atlas(atlas_job(args, record))
+    job = atlas_job(args, record)
+    atlas, out, lines = build_atlas(job)
+    grid = job.grid_label()
+    shipped = package_root("plate_env") / "data" / "grids" / f"{grid}.json"
+    grid_file = None if grid in GRIDS else shipped if shipped.is_file() else Path(grid)
+    record_in_manifest(out, record, {"grid": grid_file} if grid_file is not None else None)
     print("\n".join(lines))
     print(f"wrote {out} ({atlas.mean.size} nodes)")
     return 0

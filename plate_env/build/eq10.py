@@ -171,7 +171,7 @@ def build_eq10(out: str | Path, record: dict, sweeps_dir: str | Path, lab_sweeps
                              "them (a checkout's experiments/cache holds them)")
     sweeps_dir.mkdir(parents=True, exist_ok=True)
     physics = TILELINK.build()
-    dt = getattr(physics, "dt", None)
+    dt = physics.dt
     physics.close()
     cals = []
     for amp in TILELINK_AMPS_DEG:

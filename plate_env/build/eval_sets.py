@@ -125,15 +125,14 @@ class EvalSet:
         return placed_sweeps(self.objects(), self.f_hz, a_p_deg, np.random.default_rng(self.seed + 1),
                              settle_s=self.settle_s, measure_s=self.measure_s)
 
-    def cache(self, a_p_deg: float, root: str | Path = "experiments/cache") -> str:
-        """The set's sweep cache at one amplitude, in directory ``root`` (a checkout's ``experiments/cache`` by
-        default)."""
+    def cache(self, a_p_deg: float, root: str | Path) -> str:
+        """The set's sweep cache at one amplitude, in directory ``root``."""
         tag = "evalnuis" if self.nuisance else "eval"
         return f"{Path(root).as_posix()}/{tag}_{self.source}_A{a_p_deg:g}_s{self.seed}.jsonl"
 
 
 def run_eval_set(es: EvalSet, backend_of, executor=None, progress: bool = False,
-                 cache_dir: str | Path = "experiments/cache") -> dict:
+                 *, cache_dir: str | Path) -> dict:
     """``{A_p: [ProbeTable per object]}`` for an :class:`EvalSet`, run resumably (its cache files in ``cache_dir``).
 
     ``backend_of(nuisance)`` gives the :class:`plate_env.run.executor.BackendSpec` for an object's nuisance draw (None

@@ -1,7 +1,7 @@
 """The Gymnasium ids this package registers and the one function that registers them.
 
-Imports nothing heavy (no gymnasium at import time): :mod:`plate_env` reads :data:`ENV_IDS` and calls
-:func:`register` once gymnasium is imported, and the benchmark's suites read :data:`FAITHFUL_IDS` from here."""
+:mod:`plate_env` calls :func:`register` when it is imported; the benchmark's suites read :data:`FAITHFUL_IDS` from
+here."""
 
 from __future__ import annotations
 

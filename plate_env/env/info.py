@@ -3,12 +3,17 @@
 :data:`FIELDS` lists every key (dotted for nested dicts), its dtype, unit, the steps on which it holds a value and
 its meaning. Every key is in every ``info`` (``reset`` and every ``step``), with the same dtype, whatever happens:
 batching libraries (Gymnasium's vector envs, tianshou's ``Batch``, Stable-Baselines3's ``Monitor(info_keywords=)``)
-need keys that do not come and go. A key without a value holds "nothing": :data:`NOTHING` (a NaN) for numbers, ``""``
-for strings, and a bool flag says whether there is a value (``estimate.ok``, ``last_probe.ok``, ``truth_revealed``).
+need keys that do not come and go. A key without a value holds its field's ``empty`` value and a bool flag says
+whether there is a value (``estimate.ok``, ``estimate.check.ok``, ``last_probe.ok``, ``truth_revealed``): ``""``
+for strings, 0 for numbers (the fill value Gymnasium's vector envs use for an absent info entry), and ``inf`` for
+``relative_error`` (no estimate is no bounded error; a 0 there would read as a perfect answer in a log). No value is
+ever NaN: tianshou's trainers refuse a replay buffer holding a NaN anywhere, info included ("Encountered NaNs in
+buffer", ``experiments/tianshou_ppo.py``), and a NaN never equals itself, so Gymnasium's ``check_env`` would find
+two runs of the same seeds unequal.
 
-The hidden object (``*_true_*`` and ``last_probe``'s ``omega_n_rad_s``, ``alpha_deg``, ``mass_g``) is NaN until the
-step that terminates the episode (the env's ``reveal_truth=True`` shows it on every step, for diagnostics only): an
-agent that reads the info (tianshou passes it to the policy) learns nothing it could not measure.
+The hidden object (``*_true_*`` and ``last_probe``'s ``omega_n_rad_s``, ``alpha_deg``, ``mass_g``) is empty (0) until
+the step that terminates the episode (the env's ``reveal_truth=True`` shows it on every step, for diagnostics only):
+an agent that reads the info (tianshou passes it to the policy) learns nothing it could not measure.
 
 :func:`build` makes an info from the values the env has; :func:`problems` checks one against :data:`FIELDS`;
 :func:`markdown` renders the table that the env's docstring and docs/env.md show.
@@ -22,35 +27,6 @@ from typing import Any
 
 import numpy as np
 
-
-class NoValue(np.float64):
-    """A NaN float64 meaning "no value here". It equals another NaN, so that two infos of the same seeds and
-    actions compare equal (Gymnasium's ``check_env`` compares step infos with ``==``, and a plain NaN is unequal to
-    itself); everything else (``np.isnan``, arithmetic, batching into float64 arrays, JSON's ``NaN``) is NaN's."""
-
-    __slots__ = ()
-
-    def __new__(cls) -> NoValue:
-        return super().__new__(cls, math.nan)
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, (float, np.floating)) and math.isnan(other)
-
-    def __ne__(self, other: object) -> bool:
-        return not self.__eq__(other)
-
-    __hash__ = np.float64.__hash__
-
-    def __reduce__(self):
-        return (NoValue, ())
-
-    def __repr__(self) -> str:
-        return "nan"
-
-
-#: The value of a float64 field without a value.
-NOTHING = NoValue()
-
 #: When a field holds a value (the words :func:`markdown` shows).
 EVERY, PROBED, FINAL, ESTIMATE, CHECKED = ("every step", "after the first probe", "terminating step",
                                            "terminating step with an estimate", "terminating step, method atlas")
@@ -60,13 +36,16 @@ HIDDEN = "terminating step (hidden before it)"
 @dataclass(frozen=True)
 class Field:
     """One info key: ``key`` (dotted for nested dicts), ``dtype`` (``float64``, ``int64``, ``bool``, ``str``),
-    ``unit`` (``-`` for none), ``when`` it holds a value (it is present on every step), ``meaning``."""
+    ``unit`` (``-`` for none), ``when`` it holds a value (it is present on every step), ``meaning``, and the
+    ``empty`` value it holds otherwise."""
 
     key: str
     dtype: str
     unit: str
     when: str
     meaning: str
+    #: The value the key holds when it has none (see the module docstring); None: the dtype's (0, False, "").
+    empty: float | None = None
 
 
 _F, _I, _B, _S = "float64", "int64", "bool", "str"
@@ -80,7 +59,8 @@ FIELDS: tuple[Field, ...] = (
     Field("probes", _I, "-", EVERY, "probes run so far"),
     Field("sim_s", _F, "s", EVERY, "simulated seconds the probes took so far"),
     Field("wall_s", _F, "s", FINAL, "the episode's wall-clock seconds (the one non-deterministic number)"),
-    Field("relative_error", _F, "-", ESTIMATE, "abs(omega_n_hat - omega_n) / omega_n (uncapped; the reward caps it)"),
+    Field("relative_error", _F, "-", ESTIMATE, "abs(omega_n_hat - omega_n) / omega_n (uncapped; the reward caps it); "
+          "inf without an estimate", empty=math.inf),
     Field("estimate.ok", _B, "-", EVERY, "an estimate was made (False before the terminating step)"),
     Field("estimate.method", _S, "-", FINAL, "the estimate's method (atlas or lorentz)"),
     Field("estimate.reason", _S, "-", FINAL, "why there is no estimate (empty with one)"),
@@ -125,19 +105,25 @@ FIELDS: tuple[Field, ...] = (
     Field("last_probe.mass_g", _F, "g", HIDDEN, "the hidden object's mass"),
 )
 
-#: The keys whose value is the hidden object (NaN until the terminating step unless ``reveal_truth``).
+#: The keys whose value is the hidden object (empty until the terminating step unless ``reveal_truth``).
 HIDDEN_KEYS = tuple(f.key for f in FIELDS if f.when == HIDDEN)
 _PATHS = tuple((f.key.split("."), f.dtype) for f in FIELDS)
 _KEYS = frozenset(f.key for f in FIELDS)
 _CAST = {_F: np.float64, _I: np.int64, _B: np.bool_, _S: str}
-_EMPTY = {_F: NOTHING, _I: np.int64(0), _B: np.bool_(False), _S: ""}
+_EMPTY = {_F: np.float64(0.0), _I: np.int64(0), _B: np.bool_(False), _S: ""}
 
 
-def _value(v: Any, dtype: str):
+def empty_value(f: Field):
+    """The value ``f`` holds without a value: its ``empty``, else its dtype's (0.0, 0, False, "")."""
+    return _EMPTY[f.dtype] if f.empty is None else _CAST[f.dtype](f.empty)
+
+
+def _value(v: Any, f: Field):
+    """``v`` cast to ``f``'s dtype; None, or a NaN (a number that is no value), gives ``f``'s empty value."""
     if v is None:
-        return _EMPTY[dtype]
-    out = _CAST[dtype](v)
-    return NOTHING if dtype == _F and math.isnan(out) else out
+        return empty_value(f)
+    out = _CAST[f.dtype](v)
+    return empty_value(f) if f.dtype == _F and math.isnan(out) else out
 
 
 def build(values: dict[str, Any]) -> dict[str, Any]:
@@ -147,11 +133,11 @@ def build(values: dict[str, Any]) -> dict[str, Any]:
     if unknown:
         raise KeyError(f"info keys {sorted(unknown)} are not declared in plate_env.env.info.FIELDS")
     info: dict[str, Any] = {}
-    for (path, dtype), f in zip(_PATHS, FIELDS, strict=True):
+    for (path, _), f in zip(_PATHS, FIELDS, strict=True):
         d = info
         for p in path[:-1]:
             d = d.setdefault(p, {})
-        d[path[-1]] = _value(values.get(f.key), dtype)
+        d[path[-1]] = _value(values.get(f.key), f)
     return info
 
 
@@ -180,8 +166,14 @@ def problems(info: dict[str, Any]) -> list[str]:
     return out
 
 
+def _shown(v, code: str) -> str:
+    return f'{code}""{code}' if isinstance(v, str) else str(v).lower() if isinstance(v, np.bool_) else f"{v:g}"
+
+
 def markdown(code: str = "`") -> str:
-    """The table of :data:`FIELDS` (key, dtype, unit, holds a value on, meaning); keys quoted with ``code``."""
-    rows = ["| key | dtype | unit | holds a value on | meaning |", "|---|---|---|---|---|"]
-    rows += [f"| {code}{f.key}{code} | {f.dtype} | {f.unit} | {f.when} | {f.meaning} |" for f in FIELDS]
+    """The table of :data:`FIELDS` (key, dtype, unit, holds a value on, empty value, meaning); keys quoted with
+    ``code``."""
+    rows = ["| key | dtype | unit | holds a value on | otherwise | meaning |", "|---|---|---|---|---|---|"]
+    rows += [f"| {code}{f.key}{code} | {f.dtype} | {f.unit} | {f.when} | {_shown(empty_value(f), code)} | "
+             f"{f.meaning} |" for f in FIELDS]
     return "\n".join(rows)

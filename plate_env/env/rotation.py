@@ -28,6 +28,7 @@ from plate_env.core.probe_table import ProbeTable
 from plate_env.core.setup import B_P_RANGE_M, DEFAULT_MAX_PROBES, FREQ_RANGE_HZ, MAX_PROBES_RANGE, PAPER_SETUP
 from plate_env.env import info as info_schema
 from plate_env.env.codec import ACTION_SIZE, Codec
+from plate_env.env.render import FPS, FRAMES_PER_PROBE
 from plate_env.identify.estimate import METHODS, Estimate
 from plate_env.physics import PHYSICS_NAMES, make_physics
 from plate_env.physics.camera import camera_omega_b
@@ -108,16 +109,23 @@ class PlateRotationEnv(gym.Env):
 
     Terminated when the action says stop (after the first probe), when ``max_probes`` probes have run, or when the
     probes have taken ``max_sim_s`` simulated seconds (the probe that crosses it still runs). Never truncated by the
-    env itself (an outer ``TimeLimit`` may truncate; the info of a truncated step is a non-final one).
+    env itself. An outer ``TimeLimit`` shorter than the episode (``max_episode_steps`` <= ``max_probes``) truncates
+    without the env knowing: the truncated step is a non-final one (its reward is that probe's cost, its info has
+    no estimate and no truth), so the error is never charged and the return holds the probe costs only. Learners
+    that bootstrap truncated steps, as Gymnasium's contract says (SB3 through ``TimeLimit.truncated``), still value
+    the error to come; to end episodes with the error charged, bound them with ``max_probes`` or ``max_sim_s``.
+    After a truncation ``env.unwrapped.estimate()`` is the estimate of the probes so far (what a stop would have
+    charged). The registered ids' TimeLimit is the largest ``max_probes`` accepted: it never cuts an episode short.
 
     ## Info
 
     One schema, declared in :mod:`plate_env.env.info` (``FIELDS``): every key below is in every ``info``, of
     ``reset`` and of every ``step``, with the same numpy dtype (float64, int64, bool) or str, so that Gymnasium's
     vector envs, tianshou's ``Batch`` and SB3's ``Monitor(info_keywords=("relative_error",))`` can batch and log it.
-    A field without a value holds NaN (numbers) or ``""`` (strings), and a flag says whether there is one
+    A field without a value holds its empty value (0 for numbers, ``inf`` for ``relative_error``, ``""`` for
+    strings; never NaN, which tianshou's trainers refuse in a buffer) and a flag says whether there is one
     (``estimate.ok``, ``estimate.check.ok``, ``last_probe.ok``, ``truth_revealed``). The hidden object (``*_true_*``
-    and ``last_probe``'s ``omega_n_rad_s``, ``alpha_deg``, ``mass_g``) is NaN until the terminating step, so a policy
+    and ``last_probe``'s ``omega_n_rad_s``, ``alpha_deg``, ``mass_g``) is empty until the terminating step, so a policy
     that reads the info learns nothing it could not measure; ``reveal_truth=True`` shows it on every step (for
     diagnostics; never for training). ``last_probe.omega_b_deg_s`` is the observation's omega_B (the camera's
     measurement, 0 for an unstable probe: it has no rotation rate). The estimate's posterior members and
@@ -151,7 +159,8 @@ class PlateRotationEnv(gym.Env):
     | ``calibration`` | None | a lab calibration (CAL.json, ``"paper"``): the estimate reads the probes through it |
     | ``error_cap`` | 1 | largest error charged |
     | ``no_estimate_penalty`` | 1 | reward when no estimate can be made |
-    | ``render_mode`` | None | ``rgb_array`` or ``human`` |
+    | ``render_mode`` | None | ``rgb_array`` (a frame per step), ``rgb_array_list`` or ``human`` (a probe
+    animated in ``FRAMES_PER_PROBE`` frames); see Rendering |
     | ``reveal_truth`` | False | the hidden object in every step's info (diagnostics only; see Info) |
 
     ``physics_options``: e.g. ``{"model": "rigid"}`` or ``{"dt": 2e-4}`` for tilelink; for the atlas
@@ -163,6 +172,16 @@ class PlateRotationEnv(gym.Env):
     ``reset(seed=..., options={...})`` with keys ``omega_n`` (rad/s), ``alpha`` (rad), ``mass`` (kg) fixes the hidden
     object (the other quantities are still drawn). Unknown keys, non-numbers and objects the physics cannot answer
     are refused (ValueError naming the option).
+
+    ## Rendering
+
+    ``render_mode="rgb_array"``: :meth:`render` draws the state after the last step, one frame per probe
+    (``metadata["render_fps"]`` 1 on such an env: Gymnasium's ``RecordVideo`` gives a second per probe).
+    ``"rgb_array_list"`` (the video) and ``"human"`` (a window): each probe played in ``FRAMES_PER_PROBE`` frames
+    at ``render_fps`` (a second a probe) from its motion and measured omega_B, not re-simulated, plus a second at the
+    end. Each frame shows the probe (f_p, A_p, window, omega_B or UNSTABLE), the disc's yaw and trail, the plate's
+    tilt with the disc on it, the probes' omega_B(f_p), the current estimate with its intervals and, where the info
+    shows it, the truth (:mod:`plate_env.env.render`). Without a render mode nothing is drawn or estimated for it.
 
     ## Vector Environments
 
@@ -193,7 +212,7 @@ class PlateRotationEnv(gym.Env):
     training (``experiments/results/env_ids_speed.md``: steps per second of each).
     """
 
-    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
+    metadata = {"render_modes": ["rgb_array", "rgb_array_list", "human"], "render_fps": FPS}
 
     def __init__(self, physics: str = "tilelink", physics_options: dict | None = None, method: str = "atlas",
                  omega_n_range_pi: tuple[float, float] = ObjectPrior.omega_n_range_pi,
@@ -254,6 +273,8 @@ class PlateRotationEnv(gym.Env):
         self.error_cap = error_cap
         self.no_estimate_penalty = no_estimate_penalty
         self.render_mode = render_mode
+        if render_mode == "rgb_array":  # one frame per probe: a probe lasts a second of video in every mode
+            self.metadata = {**self.metadata, "render_fps": FPS / FRAMES_PER_PROBE}
         self.reveal_truth = bool(reveal_truth)
         lo, hi = omega_n_range_pi
         masses = (MASS_KG * (1.0 - mass_variation), MASS_KG * (1.0 + mass_variation))
@@ -272,8 +293,7 @@ class PlateRotationEnv(gym.Env):
         self._done = True
         self._last: ProbeResult | None = None
         self._closed = False
-        self._window = None
-        self._renderer = None
+        self._renderer = None  # plate_env.env.render.Renderer, made on the first frame (never without render_mode)
         self._posterior = None  # the episode's PosteriorState (method atlas), or why there is none; built lazily
         self._forward: dict = {}  # the shipped forward model per known inputs (loaded once per env)
         self._obs_rows = np.zeros(self.codec.obs_dim, dtype=np.float32)  # the probes' rows, each written once
@@ -303,6 +323,8 @@ class PlateRotationEnv(gym.Env):
         self._done = False
         self._last = None
         self._posterior = None
+        if self.render_mode in ("rgb_array_list", "human"):
+            self._frames().reset(self._scene())
         return self._obs(), self._info()
 
     def decode_action(self, action) -> tuple[bool, ProbeSpec | None]:
@@ -395,8 +417,8 @@ class PlateRotationEnv(gym.Env):
             jit.episode_ended()  # a process that runs many episodes loads the compiled kernels (plate_env.core.jit)
         else:
             info = self._info()
-        if self.render_mode == "human":
-            self.render()
+        if self.render_mode in ("rgb_array_list", "human"):
+            self._frames().step(self._scene(), probed=result is not None, over=terminated)
         return self._obs(), float(reward), bool(terminated), False, info
 
     # ------------------------------------------------------------------ checks
@@ -529,24 +551,35 @@ class PlateRotationEnv(gym.Env):
 
     # ------------------------------------------------------------------ render / close
     def render(self):
+        """The frame of the state after the last step (``rgb_array``), the frames collected since the last call
+        (``rgb_array_list``: one after reset, ``FRAMES_PER_PROBE`` per probe, ``FPS`` more held at the end), or
+        None (``human``: shown as they come; ``render_mode=None``: nothing is drawn)."""
         if self.render_mode is None:
             return None
-        if self.physics_name == "pybullet":
-            from plate_env.env.render import PyBulletRenderer
+        return self._frames().render(self._scene())
 
-            if self._renderer is None:
-                self._renderer = PyBulletRenderer()
-            frame = self._renderer.draw(self._last, self._obj)
-        else:
-            from plate_env.env.render import draw_scene
+    def _frames(self):
+        """The renderer (:class:`plate_env.env.render.Renderer`), made on first use."""
+        if self._renderer is None:
+            from plate_env.env.render import Renderer
 
-            frame = draw_scene(self._last, self._obj)
-        if self.render_mode == "rgb_array":
-            return frame
-        from plate_env.env.render import show
+            self._renderer = Renderer(self.render_mode)
+        return self._renderer
 
-        self._window = show(frame, self._window)
-        return None
+    def _scene(self):
+        """What a frame shows (:class:`plate_env.env.render.Scene`): the probes as measured, the current estimate
+        (the one the final step's info holds, on the same probes), the truth where the info shows it."""
+        from plate_env.env.render import Scene
+
+        est = self.estimate() if self._rows else None
+        values = None
+        if est is not None and est.ok:
+            values = tuple(x / math.pi for x in (est.omega_n, *est.omega_n_ci68, *est.omega_n_ci95))
+        truth = self._obj.omega_n / math.pi if self._obj is not None and (self._done or self.reveal_truth) else None
+        return Scene(rows=tuple(self._rows), max_probes=self.max_probes, f_band_hz=self.f_band_hz,
+                     omega_n_range_pi=self.omega_n_range_pi, sim_s=self._sim_s, estimate=values,
+                     reason=est.reason if est is not None else "no probes", truth_pi=truth,
+                     done=self._done and self._obj is not None)
 
     def close(self) -> None:
         if self._closed:
@@ -556,16 +589,10 @@ class PlateRotationEnv(gym.Env):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-        if self._window is not None:
-            from plate_env.env.render import close_window
-
-            close_window(self._window)
-            self._window = None
 
     def __getstate__(self):
         state = self.__dict__.copy()
         state["physics"] = None
-        state["_window"] = None
         state["_renderer"] = None
         state["_posterior"] = None  # rebuilt from the probes when needed
         state["_forward"] = {}  # reloaded when needed
@@ -588,7 +615,7 @@ def _estimate_values(est: Estimate) -> dict[str, Any]:
     (the posterior's members, the per-amplitude fits: ``env.unwrapped.estimate()`` has them)."""
     d = est.to_dict()
     v = {f"estimate.{k}": d[k] for k in ("ok", "method", "reason", "forward", "n_probes", "n_unstable")}
-    if est.omega_n > 0:  # an answer (a rejected one, ok False, keeps its values); 0: none, NaN in the info
+    if est.omega_n > 0:  # an answer (a rejected one, ok False, keeps its values); 0: none, empty in the info
         v.update({f"estimate.{k}": d[k] for k in ("omega_n_rad_s", "omega_n_stderr_rad_s", "omega_n_pi")})
         for level in ("68", "95"):
             v[f"estimate.omega_n_ci{level}_lo_rad_s"], v[f"estimate.omega_n_ci{level}_hi_rad_s"] = \

@@ -122,7 +122,25 @@ def identify_lorentz(table: ProbeTable, physics: str = "tilelink", model: str = 
     scale = float(np.sum(wts * [o[0] for o in offsets]) / wts.sum())
     ci68, ci95, se = offset_intervals(omega, se, scale, min(o[1] for o in offsets))
     return Estimate(ok=True, method="lorentz", omega_n=omega, omega_n_stderr=se, omega_n_ci68=ci68, omega_n_ci95=ci95,
-                    alpha=alpha, alpha_stderr=alpha_se or 0.0, n_probes=len(table), n_unstable=n_un, fits=fits)
+                    alpha=alpha, alpha_stderr=alpha_se or 0.0, n_probes=len(table), n_unstable=n_un, fits=fits,
+                    note=zero_interval_note(omega, ci68, ci95, scale))
+
+
+def zero_interval_note(omega: float, ci68: tuple[float, float], ci95: tuple[float, float], scale: float) -> str | None:
+    """Why a Lorentzian estimate's interval starts at 0 rad/s (None when neither does): the Eq. (10) error is
+    additive in rad/s (the fit's, plus the ``scale`` of the offset between the models whose lines were pooled), and
+    where the interval's half-width exceeds omega_n_hat its lower end is cut at 0: it then says only omega_n > 0."""
+    cut = [(name, ci) for name, ci in (("68 %", ci68), ("95 %", ci95)) if ci[0] <= 0.0]
+    if not cut:
+        return None
+    name, ci = cut[0]
+    spread = (f"the pooled physics models' Eq. (10) lines disagree by {scale:.3g} rad/s (offset scale) at this f0"
+              if scale > 0 else "the fit and the line are uncertain")
+    return (f"the {' and '.join(n for n, _ in cut)} interval{'s start' if len(cut) > 1 else ' starts'} at 0 rad/s: "
+            f"{spread}, and the Eq. (10) error is additive in rad/s, so the {name} half-width "
+            f"({ci[1] - omega:.3g} rad/s) exceeds omega_n_hat ({omega:.3g} rad/s) and the lower end is cut at 0 (it "
+            "says only omega_n > 0). Narrower: the atlas method (fit's default), a lab calibration (plate-env "
+            "calibrate), or --physics tilelink --model NAME when the data's physics is known")
 
 
 def identify(probes: Sequence[ProbeResult] | ProbeTable, method: str = "atlas", physics: str = "tilelink",

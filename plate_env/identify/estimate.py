@@ -206,6 +206,7 @@ class Estimate:
         posterior: the model-based posterior, else None.
         check: the model-based method's posterior predictive check of the probes (None for the Lorentzian method);
             a failed check is no estimate (``ok`` False, ``reason`` says why).
+        note: a sentence on what the numbers cannot say by themselves (an interval reaching 0: why), else None.
     """
 
     ok: bool
@@ -224,6 +225,9 @@ class Estimate:
     fits: dict[float, LorentzFit] = field(default_factory=dict, compare=False, repr=False)
     posterior: Posterior | None = field(default=None, compare=False, repr=False)
     check: PredictiveCheck | None = None
+    #: why the answer reads as it does where its numbers alone would puzzle (e.g. an interval whose lower end is
+    #: cut at 0 rad/s), else None
+    note: str | None = None
 
     def __post_init__(self) -> None:
         if self.ok and not (self.omega_n_ci95[0] <= self.omega_n_ci68[0] <= self.omega_n <= self.omega_n_ci68[1]
@@ -252,6 +256,7 @@ class Estimate:
             d["members"] = members
         d["fits"] = {f"{a:g}": fit.to_dict() for a, fit in self.fits.items()}
         d["check"] = None if self.check is None else self.check.to_dict()
+        d["note"] = self.note
         return d
 
     @classmethod

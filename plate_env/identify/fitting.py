@@ -55,6 +55,9 @@ class LorentzFit:
     n_unstable: int = 0
     used: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool), compare=False, repr=False)
     sign: float = 1.0
+    #: every probe the fit did not use, counted by reason (:func:`left_out_reasons`); with ``n_used`` they add up
+    #: to the probes given
+    left_out: tuple[tuple[str, int], ...] = ()
 
     @property
     def f0_stderr(self) -> float:
@@ -66,7 +69,8 @@ class LorentzFit:
     def to_dict(self) -> dict:
         return {"ok": self.ok, "reason": self.reason, "omega_max_deg_s": self.omega_max, "f0_hz": self.f0,
                 "b_hz": self.b, "omega_max_stderr_deg_s": self.stderr[0], "f0_stderr_hz": self.stderr[1],
-                "b_stderr_hz": self.stderr[2], "r2": self.r2, "n_used": self.n_used, "n_unstable": self.n_unstable}
+                "b_stderr_hz": self.stderr[2], "r2": self.r2, "n_used": self.n_used, "n_unstable": self.n_unstable,
+                "left_out": dict(self.left_out)}
 
 
 #: An unstable run does not end the first-hump window while omega_B rose by more than this fraction per probe into it.
@@ -170,6 +174,22 @@ def first_hump_mask(f_hz: np.ndarray, omega: np.ndarray, usable: np.ndarray, dro
     return mask
 
 
+def left_out_reasons(f_hz: np.ndarray, bad: np.ndarray, usable: np.ndarray, used: np.ndarray,
+                     floor: float = DEFAULT_FLOOR) -> tuple[tuple[str, int], ...]:
+    """Every probe not in the fit window, counted by why (reasons with no probe left out). Pure.
+
+    unstable (no steady omega_B); not finite (f_p or omega_B); below the first hump (stable probes under ``floor``
+    of the hump's height: the flat low-frequency base Eq. (9) cannot follow); past the first hump (after the
+    drop or the run of unstable probes that ends it: the second hump the paper leaves out)."""
+    f_hz = np.asarray(f_hz, dtype=float)
+    outside = usable & ~used
+    low = outside & (f_hz < f_hz[used].min()) if used.any() else np.zeros_like(outside)
+    counts = (("unstable", int(bad.sum())), ("not finite", int((~bad & ~usable).sum())),
+              (f"below the first hump (under {floor:.0%} of its height, the flat base)", int(low.sum())),
+              ("past the first hump", int((outside & ~low).sum())))
+    return tuple((why, n) for why, n in counts if n)
+
+
 #: A fit whose peak omega_max exceeds the highest fitted probe by more than this factor has no peak in its data.
 MAX_PEAK_RATIO = 10.0
 
@@ -230,9 +250,11 @@ def fit_lorentzian(f_hz, omega_deg_s, stderr_deg_s=None, unstable=None, window: 
     used = (first_hump_mask(f, wa, usable, drop, floor, se if weighted else None) if window == "first_hump"
             else usable.copy())
 
+    left_out = left_out_reasons(f, bad, usable, used, floor if window == "first_hump" else 0.0)
+
     def fail(reason: str) -> LorentzFit:
         return LorentzFit(ok=False, reason=f"{reason}; {what_would_help(f, wa, usable)}", n_used=int(used.sum()),
-                          n_unstable=n_unstable, used=used, sign=sign)
+                          n_unstable=n_unstable, used=used, sign=sign, left_out=left_out)
 
     n = int(used.sum())
     if n < 4:
@@ -304,7 +326,8 @@ def fit_lorentzian(f_hz, omega_deg_s, stderr_deg_s=None, unstable=None, window: 
     if not math.isfinite(r2):
         return fail("non-finite R^2: the data overflow double precision")
     return LorentzFit(ok=True, reason=None, omega_max=omega_max, f0=f0, b=b, stderr=tuple(float(e) for e in errs),
-                      cov=cov, r2=r2, residuals=sign * res, n_used=n, n_unstable=n_unstable, used=used, sign=sign)
+                      cov=cov, r2=r2, residuals=sign * res, n_used=n, n_unstable=n_unstable, used=used, sign=sign,
+                      left_out=left_out)
 
 
 def fit_results(results, window: str = "first_hump", weighted: bool = True, drop: float = DEFAULT_DROP,

@@ -503,11 +503,32 @@ def _surprise_into(fast, total: np.ndarray, count: int, m: Member, key: tuple, r
     return z, ps
 
 
-def predicted_curve(fm: ForwardModel, est: Estimate, f_hz: np.ndarray, a_p_deg: float) -> tuple[np.ndarray, str] | None:
-    """``(omega_B [deg/s] at f_hz, member label)``: the forward model's mean response at the estimate (omega_n_hat,
-    alpha_hat) and amplitude ``a_p_deg``, from the member of highest posterior weight (the curve the estimate says
-    the data follow). None when ``est`` is not an atlas point estimate (no estimate, a bound, the Lorentz method)
-    or that member has no atlas at this amplitude. f_p outside the atlas is clipped to it (``Atlas.predict``)."""
+@dataclass(frozen=True)
+class PredictedCurve:
+    """A forward model's response at an estimate, on a frequency grid (:func:`predicted_curve`).
+
+    Attributes:
+        f_hz: the plate frequencies, Hz. mean: omega_B where the probes are stable, deg/s. p_unstable: the
+            model's probability that a probe is unstable. inside: f_hz within the member's atlas (outside it the
+            atlas is clipped, so ``mean`` there is an extrapolation, not a prediction). label: the member's label.
+    """
+
+    f_hz: np.ndarray
+    mean: np.ndarray
+    p_unstable: np.ndarray
+    inside: np.ndarray
+    label: str
+
+    def predicts_stable(self, threshold: float = 0.5) -> np.ndarray:
+        """Where the model predicts a stable probe (p_unstable below ``threshold``) inside its atlas."""
+        return self.inside & (self.p_unstable < threshold)
+
+
+def predicted_curve(fm: ForwardModel, est: Estimate, f_hz: np.ndarray, a_p_deg: float) -> PredictedCurve | None:
+    """The forward model's response (mean omega_B and p_unstable) at the estimate (omega_n_hat, alpha_hat) and
+    amplitude ``a_p_deg``, from the member of highest posterior weight (the curve the estimate says the data
+    follow). None when ``est`` is not an atlas point estimate (no estimate, a bound, the Lorentz method) or that
+    member has no atlas at this amplitude."""
     if not est.ok or est.method != "atlas" or est.alpha is None:
         return None
     post = est.posterior
@@ -515,8 +536,11 @@ def predicted_curve(fm: ForwardModel, est: Estimate, f_hz: np.ndarray, a_p_deg: 
     m = fm.members[i]
     if not np.any(np.isclose(m.atlas.a_p_deg, abs(a_p_deg), atol=1e-6)):
         return None
-    mean = m.atlas.predict(np.asarray(f_hz, float), abs(a_p_deg), est.omega_n, est.alpha)[0]
-    return np.asarray(mean, float), m.label
+    f = np.asarray(f_hz, float)
+    mean, _, pu = m.atlas.predict(f, abs(a_p_deg), est.omega_n, est.alpha)
+    inside = (f >= m.atlas.f_hz[0] - 1e-9) & (f <= m.atlas.f_hz[-1] + 1e-9)
+    return PredictedCurve(f_hz=f, mean=np.asarray(mean, float), p_unstable=np.asarray(pu, float), inside=inside,
+                          label=m.label)
 
 
 def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:

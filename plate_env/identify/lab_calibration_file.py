@@ -304,7 +304,8 @@ def read_reference_csv(path: str | Path, a_p_deg: float | None = None, max_rows:
     for col in ("object", "omega_n_rad_s"):
         if col not in header:
             raise CalibrationError(f"{path}: line 1: missing column {col!r} (each reference disc's name and its known "
-                                   f"omega_n, rad/s); header is {header}")
+                                   f"omega_n, rad/s); header is {header} (one disc's sweep: give it as "
+                                   f"{path}=OMEGA, e.g. {path}=10pi)")
     groups: dict[str, list[tuple[int, list[str]]]] = {}
     omega: dict[str, float] = {}
     mass: dict[str, float | None] = {}
@@ -337,3 +338,69 @@ def read_reference_csv(path: str | Path, a_p_deg: float | None = None, max_rows:
             raise CalibrationError(f"{exc} (object {name!r})") from None
     names = list(groups)
     return names, [omega[n] for n in names], tables, [mass[n] for n in names]
+
+
+def read_references(specs: Sequence[str], a_p_deg: float | None = None, max_rows: int | None = None
+                    ) -> tuple[list[str], list[float], list, list[float | None]]:
+    """The reference discs of ``plate-env calibrate``, from one or more arguments, each either
+
+    - ``SWEEP.csv=OMEGA``: one disc's sweep (the ``fit`` columns, as ``plate-env sweep --csv`` writes them) and its
+      known omega_n (rad/s, or ``10pi``); the disc is named after the file (``SWEEP``), or
+    - ``REFS.csv``: a references file of several discs (:func:`read_reference_csv`: columns ``object`` and
+      ``omega_n_rad_s``).
+
+    Returns (objects, omega_n rad/s, tables, masses in g or None) in the order given. CalibrationError, naming the
+    argument, before any calibration work: no argument, an omega_n that does not parse, a file given twice, a
+    references file given with ``=OMEGA`` (its column says it), a disc name that two arguments share (two files of
+    one name in different directories: rename one), and past ``max_rows`` rows over all files together."""
+    from plate_env.core.probe_table import CsvError, check_amp_option, read_csv_rows, sweep_table
+    from plate_env.core.units import parse_omega_n
+
+    if not specs:
+        raise CalibrationError("no reference files: give REFS.csv or SWEEP.csv=OMEGA (one per disc)")
+    objects: list[str] = []
+    omega_n: list[float] = []
+    tables: list = []
+    masses: list[float | None] = []
+    source: dict[str, str] = {}
+    files: dict[Path, str] = {}
+    for spec in specs:
+        path_text, sep, omega_text = str(spec).rpartition("=")
+        if not sep or Path(str(spec)).is_file():  # a file whose name holds "=" is a file
+            path_text, omega_text = str(spec), None
+        path = Path(path_text)
+        key = path.resolve()
+        if key in files:
+            raise CalibrationError(f"{spec!r}: the file {path_text!r} is given twice (also as {files[key]!r}); each "
+                                   "reference sweep once")
+        files[key] = str(spec)
+        if omega_text is None:
+            names, omega, tabs, mass = read_reference_csv(path, a_p_deg=a_p_deg, max_rows=max_rows)
+        else:
+            try:
+                w = parse_omega_n(omega_text)
+            except ValueError as exc:
+                raise CalibrationError(f"{spec!r}: {exc}") from None
+            try:
+                check_amp_option(a_p_deg)
+                header, rows = read_csv_rows(path, max_rows)
+                if {"object", "omega_n_rad_s"} & {h.strip() for h in header}:
+                    raise CalibrationError(f"{spec!r}: {path_text!r} is a references file (it has the columns object "
+                                           "and omega_n_rad_s): give it without '=OMEGA'")
+                table = sweep_table(path, header, rows, a_p_deg)
+            except CsvError as exc:
+                raise CalibrationError(str(exc)) from None
+            names, omega, tabs, mass = [path.stem], [w], [table], [None]
+        for name in names:
+            if name in source:
+                raise CalibrationError(f"reference disc {name!r} is in both {source[name]!r} and {str(spec)!r}: "
+                                       "each disc once, under one name (a sweep's name is its file's: rename one)")
+            source[name] = str(spec)
+        objects += names
+        omega_n += omega
+        tables += tabs
+        masses += mass
+    total = sum(len(t) for t in tables)
+    if max_rows is not None and total > max_rows:
+        raise CalibrationError(f"the references hold {total} rows together; at most {max_rows} are read")
+    return objects, omega_n, tables, masses

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from plate_env.core.probe import SLIPPED, ProbeRefused, ProbeResult, ProbeSpec, YawTrace, check_probes
+from plate_env.physics.interface import PhysicsBackend
 from plate_env.surrogate.atlas import Atlas, load_atlas
 
 
@@ -41,7 +42,7 @@ def known_input_atlases(source: str, model: str, atlas: Atlas) -> list[Atlas]:
     return [atlas]
 
 
-class AtlasPhysics:
+class AtlasPhysics(PhysicsBackend):
     """Probes answered from the atlas of ``source``/``model`` (e.g. tilelink/pointmass).
 
     ``instability_rho``/``instability_corr_hz`` (domain randomisation for RL training): by default every probe's
@@ -57,9 +58,7 @@ class AtlasPhysics:
         if not (0.0 <= instability_rho < 1.0 and instability_corr_hz > 0):
             raise ValueError(f"instability_rho {instability_rho!r} must be in [0, 1) and instability_corr_hz "
                              f"{instability_corr_hz!r} > 0")
-        self.name = "atlas"
-        self.source = source
-        self.model = model
+        self._source, self._model = source, model
         self.atlas = atlas if atlas is not None else load_atlas(source, model)
         # the atlases along the known inputs (e.g. the disc's mass) a probe is answered from, conditioned on its own
         self._family = [self.atlas] if atlas is not None else known_input_atlases(source, model, self.atlas)
@@ -69,11 +68,19 @@ class AtlasPhysics:
         self._grid = np.arange(0.0, 60.0, 0.25)
         self._fields: dict[bytes, np.ndarray] = {}
 
+    name = "atlas"
+    SETTINGS = ("model", "rho", "corr_hz")
+
+    @property
+    def source(self) -> str:
+        return self._source
+
+    @property
+    def model(self) -> str:
+        return self._model
+
     def __repr__(self) -> str:
         return f"AtlasPhysics(source={self.source!r}, model={self.model!r})"
-
-    def close(self) -> None:
-        """Nothing to release."""
 
     @staticmethod
     def _rng(spec: ProbeSpec) -> np.random.Generator:

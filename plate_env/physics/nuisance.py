@@ -103,19 +103,20 @@ class NuisancePrior:
 
     def draw(self, rng: np.random.Generator) -> Nuisance:
         """One draw (fields in declaration order)."""
-        return Nuisance(**{name: getattr(self, name).draw(rng) for name in _FIELDS})
+        return Nuisance(**{name: getattr(self, name).draw(rng) for name in FIELDS})
 
     def design(self, n: int, rng: np.random.Generator) -> list[Nuisance]:
         """``n`` draws on a Latin hypercube (each band cut into ``n`` strata, one draw per stratum, shuffled per
         field): a space-filling set for building forward-model members."""
         cols = {}
-        for name in _FIELDS:
+        for name in FIELDS:
             u = (rng.permutation(n) + rng.random(n)) / n
             cols[name] = [getattr(self, name).at(float(x)) for x in u]
-        return [Nuisance(**{name: cols[name][i] for name in _FIELDS}) for i in range(n)]
+        return [Nuisance(**{name: cols[name][i] for name in FIELDS}) for i in range(n)]
 
 
-_FIELDS = ("k_inplane", "zeta_inplane", "zeta_bending", "contact_k_scale", "contact_c_scale", "v_transition")
+#: The nuisance fields in declaration order (of :class:`Nuisance` and :class:`Prior`).
+FIELDS = ("k_inplane", "zeta_inplane", "zeta_bending", "contact_k_scale", "contact_c_scale", "v_transition")
 
 #: The project's stated prior.
 PRIOR = NuisancePrior()

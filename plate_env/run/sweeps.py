@@ -37,8 +37,9 @@ TAG_DEFAULTS = {"record_interval_s": 1e-3, "slip_limit": SLIP_LIMIT_M, "k_elasti
 
 def backend_tag(physics: Physics | BackendSpec) -> str:
     """A string naming the backend and its settings (part of every cache key): every setting that changes a
-    result (:data:`TAG_SETTINGS`: model, time step, mesh, joint and contact parameters, record interval) is in it
-    (those of :data:`TAG_DEFAULTS` only when they differ from it). A :class:`BackendSpec` is built
+    result (the ``settings`` of the backend's ``describe()``, in :data:`TAG_SETTINGS`' order: model, time step, mesh,
+    joint and contact parameters, record interval) is in it (those of :data:`TAG_DEFAULTS` only when they differ
+    from it); a setting :data:`TAG_SETTINGS` does not list is refused (ValueError). A :class:`BackendSpec` is built
     (cheaply: no client or kernel is touched) to read them."""
     if isinstance(physics, BackendSpec):
         built = physics.build()
@@ -46,10 +47,16 @@ def backend_tag(physics: Physics | BackendSpec) -> str:
             return backend_tag(built)
         finally:
             built.close()
-    parts = [physics.name]
+    d = physics.describe()
+    settings = d["settings"]
+    unknown = set(settings) - set(TAG_SETTINGS)
+    if unknown:  # a setting the key would not name: two backends differing in it would share cached results
+        raise ValueError(f"{d['name']} declares settings {sorted(unknown)} that plate_env.run.sweeps.TAG_SETTINGS "
+                         "does not list")
+    parts = [d["name"]]
     for attr in TAG_SETTINGS:
-        if hasattr(physics, attr) and not (attr in TAG_DEFAULTS and getattr(physics, attr) == TAG_DEFAULTS[attr]):
-            parts.append(f"{attr}={getattr(physics, attr)}")
+        if attr in settings and not (attr in TAG_DEFAULTS and settings[attr] == TAG_DEFAULTS[attr]):
+            parts.append(f"{attr}={settings[attr]}")
     return ",".join(parts)
 
 
@@ -91,7 +98,9 @@ def _to_line(key: str, r: ProbeResult) -> str:
                        "periods_measured": r.periods_measured})
 
 
-def _from_record(spec: ProbeSpec, d: dict) -> ProbeResult:
+def result_from_record(spec: ProbeSpec, d: dict) -> ProbeResult:
+    """The :class:`ProbeResult` of ``spec`` from its cache record ``d`` (a line of a sweep cache, as
+    :func:`load_cache` returns them): omega_B and its standard error in deg/s, simulated and wall time in s."""
     return ProbeResult(spec=spec, omega_b_deg_s=float(d["omega_b_deg_s"]), stderr_deg_s=float(d["stderr_deg_s"]),
                        unstable=bool(d["unstable"]), reason=d["reason"], sim_s=float(d["sim_s"]),
                        wall_s=float(d["wall_s"]), periods_measured=int(d["periods_measured"]))
@@ -258,7 +267,7 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
                 if bar is not None:
                     bar.update(len(idx))
     except KeyboardInterrupt:
-        raise SweepInterrupted([_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)
+        raise SweepInterrupted([result_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)
                                 if k in done]) from None
     finally:
         if own and executor is not None:
@@ -268,6 +277,6 @@ def run_cached(physics: Physics | BackendSpec, specs: Sequence[ProbeSpec], cache
                 fh.close()
         if bar is not None:
             bar.close()
-    out = [_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)]
+    out = [result_from_record(s, done[k]) for s, k in zip(specs, keys, strict=True)]
     assert all(math.isfinite(r.omega_b_deg_s) for r in out)
     return out

@@ -15,7 +15,7 @@ from plate_env.core.probe import (
     check_probes,
     check_step_counts,
 )
-from plate_env.physics.interface import warn_above_stable_dt
+from plate_env.physics.interface import PhysicsBackend, warn_above_stable_dt
 from plate_env.physics.pybullet_sheet.scene import Client, SheetConfig, SheetScene
 
 #: Largest time step measured stable over the whole omega_n range, s (33pi runs away at 8e-4 s).
@@ -63,7 +63,7 @@ def _worker_unit(args: tuple) -> list[ProbeResult]:
     return run_unit(_WORKER_CLIENT, *args)
 
 
-class PyBulletPhysics:
+class PyBulletPhysics(PhysicsBackend):
     """A two-layer tetrahedral mass-spring sheet on a driven plate in PyBullet's deformable world.
 
     Probes are split into *units*: runs of consecutive probes with the same object and the same placement
@@ -87,6 +87,7 @@ class PyBulletPhysics:
     """
 
     name = "pybullet"
+    SETTINGS = ("dt", "config", "k_elastic", "stderr_tol_deg_s")
 
     def __init__(self, dt: float = 4e-4, n_layer: int = 91, thickness: float = 0.002, n_workers: int = 1,
                  sequence_len: int = 8, stderr_tol_deg_s: float | None = None, slip_limit: float = SLIP_LIMIT_M,

@@ -22,6 +22,7 @@ measured (k, omega_n) pairs and is interpolated linearly in (log k, log omega_n)
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from dataclasses import asdict
@@ -140,9 +141,16 @@ def k_for_omega_n(obj: ObjectSpec, config: SheetConfig) -> float:
     return float(math.exp(np.interp(target, lw, lk)))
 
 
-@lru_cache(maxsize=256)
+#: The friction angle every calibration is keyed and run with (rad): the ring-down hangs and releases the sheet with
+#: no plate and no self-collision, so nothing touches it and its friction (``obj.alpha``) cannot change the result.
+RINGDOWN_ALPHA = math.radians(45.0)
+
+
 def calibrated_k(obj: ObjectSpec, config: SheetConfig, tol: float = 0.02, max_iter: int = 8) -> tuple[float, float]:
     """``(k_elastic N/m, measured omega_n rad/s)`` for ``obj.omega_n``: table start, then ring-down refinement.
+
+    The disc's friction angle is no input (:data:`RINGDOWN_ALPHA`): objects that differ in alpha only share one
+    calibration (an env's random objects, an atlas's alpha axis), instead of one ring-down series each.
 
     The ring-down estimate wiggles by up to ~10 % around the sqrt(k) law between table points, so the table
     value is checked by a ring-down at that k and corrected with ``k *= (target / measured)^2`` until the
@@ -151,6 +159,11 @@ def calibrated_k(obj: ObjectSpec, config: SheetConfig, tol: float = 0.02, max_it
     the pybullet version and this package's PyBullet source: a new process reads it instead of running the
     ring-downs again. Returns the best pair seen.
     """
+    return _calibrated_k(dataclasses.replace(obj, alpha=RINGDOWN_ALPHA), config, tol, max_iter)
+
+
+@lru_cache(maxsize=256)
+def _calibrated_k(obj: ObjectSpec, config: SheetConfig, tol: float, max_iter: int) -> tuple[float, float]:
     import pybullet
 
     from plate_env.core.cache import cached_arrays, content_key

@@ -19,7 +19,7 @@ from plate_env.core.probe import (
     check_probes,
     check_step_counts,
 )
-from plate_env.physics.interface import warn_above_stable_dt
+from plate_env.physics.interface import PhysicsBackend, warn_above_stable_dt
 from plate_env.physics.measure import measure_omega_b
 from plate_env.physics.tilelink.contact import PAPER_CONTACT, ContactLaw
 from plate_env.physics.tilelink.params import (
@@ -93,7 +93,7 @@ def _ainv(obj: ObjectSpec, config: PointMassConfig, dt: float) -> np.ndarray:
         return implicit_damping_matrix(_pointmass_params(obj, config), dt)
 
 
-class TileLinkPhysics:
+class TileLinkPhysics(PhysicsBackend):
     """The paper's tile-link model.
 
     Args:
@@ -135,8 +135,7 @@ class TileLinkPhysics:
             raise ValueError(f"record_interval_s = {record_interval_s!r} s is outside the allowed range (0, 0.1]")
         limit, source = STABLE_DT[model]
         warn_above_stable_dt(float(dt), limit, f"the {model} model", source)
-        self.name = "tilelink"
-        self.model = model
+        self._model = model
         self.kernel = kernel
         self.dt = float(dt)
         self.slip_limit = float(slip_limit)
@@ -149,11 +148,15 @@ class TileLinkPhysics:
             raise TypeError(f"contact must be a ContactLaw, got {type(contact).__name__}")
         self.contact = contact
 
+    name = "tilelink"
+    SETTINGS = ("model", "dt", "config", "rigid_config", "contact", "record_interval_s", "slip_limit", "kernel")
+
+    @property
+    def model(self) -> str:
+        return self._model
+
     def __repr__(self) -> str:
         return f"TileLinkPhysics(model={self.model!r}, dt={self.dt:g})"
-
-    def close(self) -> None:
-        """Nothing to release (kept for the backend interface)."""
 
     # ------------------------------------------------------------------ arrays
     def _param_vector(self, spec: ProbeSpec) -> np.ndarray:

@@ -1,22 +1,22 @@
-"""The validation table's rules (experiments/validate_paper.py, experiments/falling_side.py): verdicts, the
-placement statistics, the observed-f0 rule and the falling-side bar, on planted numbers."""
+"""The validation table's rules (experiments/validate_paper.py, experiments/falling_side.py and the helpers they share
+in experiments/common.py): verdicts, the placement statistics, the observed-f0 rule and the falling-side bar, on
+planted numbers. A test of the experiments' own code, beside it (pytest collects experiments/ too), so that the
+package's tests in tests/ import no script."""
 
 from __future__ import annotations
 
 import math
-import sys
-from pathlib import Path
 
+import common
+import falling_side as fs
+import kept_12deg as k12
 import numpy as np
 import pytest
+import validate_paper as vp
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
-import falling_side as fs  # noqa: E402
-import kept_12deg as k12  # noqa: E402
-import validate_paper as vp  # noqa: E402
-
-import plate_env as pe  # noqa: E402
-from plate_env.identify.fitting import LorentzFit, fit_lorentzian, lorentzian  # noqa: E402
+import plate_env as pe
+from plate_env.identify.fitting import LorentzFit, fit_lorentzian, lorentzian
+from plate_env.run.sweeps import backend_tag, load_cache, spec_key
 
 
 def test_stats_median_spread_and_uncertainty():
@@ -39,14 +39,14 @@ def test_verdict_follows_the_stated_rule():
 def test_a_fit_whose_top_lies_outside_its_probes_is_not_used():
     f = np.arange(10.0, 30.0)
     good = fit_lorentzian(f, lorentzian(f, 500.0, 22.0, 4.0))
-    assert vp.observed(good, f)
+    assert common.observed(good, f)
     rising = fit_lorentzian(f, lorentzian(f, 500.0, 45.0, 10.0))  # only the rising edge was probed
     assert rising.ok and rising.f0 > 30.0
-    assert not vp.observed(rising, f)
+    assert not common.observed(rising, f)
 
 
 def test_placements_are_seeded_and_shared_between_models():
-    sw = vp.Sweep(10.0, 36.9, 3.0, 1)
+    sw = common.Sweep(10.0, 36.9, 3.0, 1)
     a, b = sw.specs("rigid", 1), sw.specs("rigid", 1)
     assert [s.initial_offset for s in a] == [s.initial_offset for s in b]
     assert [s.initial_offset for s in a] != [s.initial_offset for s in sw.specs("rigid", 0)]
@@ -68,9 +68,9 @@ def test_falling_side_bar_on_planted_curves():
 def test_observed_allows_half_a_probe_spacing_beyond_the_fitted_probes():
     f = np.arange(20.0, 30.0)
     used = f <= 25.0
-    assert vp.observed(LorentzFit(ok=True, reason=None, f0=25.4, used=used), f)
-    assert not vp.observed(LorentzFit(ok=True, reason=None, f0=25.6, used=used), f)
-    assert not vp.observed(LorentzFit(ok=False, reason="x", f0=22.0, used=used), f)
+    assert common.observed(LorentzFit(ok=True, reason=None, f0=25.4, used=used), f)
+    assert not common.observed(LorentzFit(ok=True, reason=None, f0=25.6, used=used), f)
+    assert not common.observed(LorentzFit(ok=False, reason="x", f0=22.0, used=used), f)
 
 
 def test_falling_side_peak_is_the_hump_not_the_climb_above_the_window():
@@ -95,13 +95,13 @@ def _planted_rows(monkeypatch, tmp_path, fitted: dict[tuple[float, float], float
         return LorentzFit(ok=True, reason=None, omega_max=300.0 + sw.alpha_deg, f0=f0, b=2.0)
 
     got = {}
-    for sw in vp.plan("rigid_limit"):
-        for p in range(vp.PLACEMENTS["rigid_limit"]):
+    for sw in common.plan("rigid_limit"):
+        for p in range(common.PLACEMENTS["rigid_limit"]):
             if p == drop_placement and sw.stage == 3:  # a simulation cut off before this placement's stage 3
                 continue
             got[(sw, p)] = [SimpleNamespace(spec=SimpleNamespace(motion=SimpleNamespace(freq_hz=f)), unstable=False,
                                             omega_b_deg_s=300.0, stderr_deg_s=1.0, reason=None, planted=fit_of(sw))
-                            for f in vp.freqs("rigid_limit", sw.a_p_deg)]
+                            for f in common.freqs("rigid_limit", sw.a_p_deg)]
     monkeypatch.setattr(vp, "cached_sweeps", lambda model, cache_dir: got)
     monkeypatch.setattr(vp, "fit_sweep", lambda results: results[0].planted)
     return vp.model_rows("rigid_limit", tmp_path)["rows"]
@@ -148,7 +148,7 @@ def test_a_soft_disc_at_12_deg_is_reported_as_folded_or_slipped(model, reason):
     (first placement) folds in the rigid-tile model and slips in the point mass, within ~0.5 s of a 1.7 s probe. The
     probe says so (unstable, with that reason, ended early) instead of returning a silent omega_B, and the table's
     Fig. 3 cell does not use it."""
-    spec = next(s for s in vp.Sweep(1.4, 36.9, 12.0, 2).specs(model, 0) if s.motion.freq_hz == 12.0)
+    spec = next(s for s in common.Sweep(1.4, 36.9, 12.0, 2).specs(model, 0) if s.motion.freq_hz == 12.0)
     res = pe.make_physics("tilelink", model=model).run([spec])[0]
     assert res.unstable and res.reason == reason, (res.unstable, res.reason, res.omega_b_deg_s)
     assert res.sim_s < spec.motion.ramp_s + spec.settle_s + spec.measure_s
@@ -177,10 +177,10 @@ def test_a_cut_off_row_is_not_run_while_its_missing_placements_could_change_it(m
 def test_kept_12deg_keeps_only_slipped_probes_that_measured_a_period():
     from plate_env.core.probe import ProbeResult
 
-    spec = vp.Sweep(10.0, 36.9, 12.0, 2).specs("rigid", 0)[0]
+    spec = common.Sweep(10.0, 36.9, 12.0, 2).specs("rigid", 0)[0]
     mk = lambda un, why, n: ProbeResult(spec=spec, omega_b_deg_s=300.0, stderr_deg_s=1.0, unstable=un,  # noqa: E731
                                         reason=why, sim_s=1.0, wall_s=0.1, periods_measured=n)
-    out = k12.kept([mk(True, "slipped", 3), mk(True, "slipped", 0), mk(True, "folded", 5), mk(False, None, 12)])
+    out = common.kept([mk(True, "slipped", 3), mk(True, "slipped", 0), mk(True, "folded", 5), mk(False, None, 12)])
     assert [r.unstable for r in out] == [False, True, True, False]
 
 
@@ -203,18 +203,18 @@ def test_pybullet_hump_finer_sweep_copies_the_tables_probes_and_refuses_off_grid
     with pytest.raises(ValueError, match="LO:HI:STEP"):
         ph.parse_freqs("12-24")
     with pytest.raises(ValueError, match="not on the 3 deg grid"):
-        vp.Sweep(10.0, 36.9, 3.0, 1).specs("pybullet", 0, (12.5,))
+        common.Sweep(10.0, 36.9, 3.0, 1).specs("pybullet", 0, (12.5,))
     physics, _ = ph.variant("static")
-    fine = vp.Sweep(10.0, 36.9, 3.0, 1).specs("pybullet", 0, (12.0, 13.0, 14.0))
-    table = vp.Sweep(10.0, 36.9, 3.0, 1).specs("pybullet", 0)
+    fine = common.Sweep(10.0, 36.9, 3.0, 1).specs("pybullet", 0, (12.0, 13.0, 14.0))
+    table = common.Sweep(10.0, 36.9, 3.0, 1).specs("pybullet", 0)
     assert fine[0] == table[0] and fine[2] == table[1]  # the shared frequencies are the table's own probes
-    tag = vp.backend_tag(physics)
+    tag = backend_tag(physics)
     source, cache = tmp_path / "table.jsonl", tmp_path / "hump.jsonl"
-    source.write_text("".join(json.dumps({"key": vp.spec_key(tag, s), "omega_b_deg_s": 1.0, "stderr_deg_s": 0.1,
+    source.write_text("".join(json.dumps({"key": spec_key(tag, s), "omega_b_deg_s": 1.0, "stderr_deg_s": 0.1,
                                           "unstable": False, "reason": None, "sim_s": 1.0, "wall_s": 1.0,
                                           "periods_measured": 5}) + "\n" for s in table[:2]))
     before = source.read_text()
     assert ph.copy_records(physics, fine, source, cache) == 2
     assert ph.copy_records(physics, fine, source, cache) == 0  # already there
     assert source.read_text() == before
-    assert set(vp.load_cache(cache)) == {vp.spec_key(tag, fine[0]), vp.spec_key(tag, fine[2])}
+    assert set(load_cache(cache)) == {spec_key(tag, fine[0]), spec_key(tag, fine[2])}

@@ -1,0 +1,428 @@
+"""The helpers that several experiment scripts share, in one module (and only here: no script imports another).
+
+A script imports it as ``import common`` / ``from common import ...``: Python puts the directory of the script it runs
+first on ``sys.path``, so no path set-up is needed. Everything here uses the public API of ``plate_env`` and
+``plate_env_agents`` only. Each section names the scripts it serves and the script it came from.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+import plate_env as pe
+from plate_env.bench.scoring import Scores
+from plate_env.build import eval_sets as bm
+from plate_env.build.eq10 import LAB_SETS, lab_backend_of
+from plate_env.build.eval_sets import EvalSet, run_eval_set
+from plate_env.core.probe import ProbeResult, ProbeSpec
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.fitting import fit_results
+from plate_env.identify.forward import ForwardModel, Member
+from plate_env.run.executor import BackendSpec
+from plate_env.run.sweeps import backend_tag, load_cache, result_from_record, spec_key
+
+#: The experiments folder and the checkout holding it.
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+#: Where the scripts keep their resumable probe caches (relative to the checkout, where the scripts run).
+CACHE = "experiments/cache"
+
+
+# ---- Comparing two result JSONs; from same_numbers.py
+#: Fields that are wall-clock measurements (differ between runs by nature).
+WALL = ("seconds_per_decision",)
+
+
+def diffs(a, b, path: str = "") -> list[str]:
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = [] if set(a) == set(b) else [f"{path}: keys {sorted(set(a) ^ set(b))}"]
+        return out + [d for k in sorted(set(a) & set(b)) if k not in WALL for d in diffs(a[k], b[k], f"{path}.{k}")]
+    if isinstance(a, list) and isinstance(b, list):
+        if len(a) != len(b):
+            return [f"{path}: {len(a)} against {len(b)} items"]
+        return [d for i, (x, y) in enumerate(zip(a, b, strict=True)) for d in diffs(x, y, f"{path}[{i}]")]
+    return [] if a == b or (a != a and b != b) else [f"{path}: {a!r} != {b!r}"]
+
+
+# ---- Source trees under test (bench_speed, bench_fit_startup, same_episodes, layer_crossings); from bench_speed.py
+def attr(module: str, old_module: str, name: str):
+    """``module.name``, or ``old_module.name`` in a tree before the layered layout (issue 24): the measurements run
+    on earlier commits too (``--ref``), so the old path is tried by name only where the new one does not exist."""
+    import importlib
+
+    try:
+        return getattr(importlib.import_module(module), name)
+    except ImportError:
+        return getattr(importlib.import_module(old_module), name)
+
+
+#: A lab sweep at A_p = 3 deg inside every shipped forward model's atlas (10-26 Hz: the PyBullet atlas's band).
+#: A tile-link point-mass sweep of the README's object (omega_n 17 pi rad/s, alpha 45 deg), rounded to 4 decimals:
+#: ``plate-env sweep --physics tilelink --omega-n 17pi --alpha 45 --freqs 10:26:2 --csv sweep.csv``. Every shipped
+#: forward model gives an estimate from it (the fit timed is the one a user waits for, not a rejection).
+SWEEP_CSV = "f_p_hz,a_p_deg,omega_b_deg_s,stderr_deg_s,unstable\n" + "\n".join(
+    f"{f},{a},{w},{s},{u}" for f, a, w, s, u in [
+        (10, 3, 12.0143, 0.0067, 0), (12, 3, 70.3582, 0.0252, 0), (14, 3, 87.0871, 0.3142, 0),
+        (16, 3, 113.6140, 1.3952, 0), (18, 3, 183.7253, 1.0915, 0), (20, 3, 0.0000, 0.0000, 1),
+        (22, 3, 417.7760, 2.2727, 0), (24, 3, 510.5472, 3.0620, 0), (26, 3, 555.6221, 3.4492, 0)]) + "\n"
+
+
+SWEEP_POINTS = "9 points at A_p = 3 deg, 10-26 Hz (tile-link point mass, 17 pi rad/s, 45 deg)"
+
+
+def tree_path(ref: str | None, tmp: Path) -> Path:
+    """The source tree under test: this checkout (None) or ``git archive ref`` unpacked under ``tmp``."""
+    if ref is None:
+        return ROOT
+    sha = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", ref], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    dest = Path(tempfile.gettempdir()) / f"plate_env_bench_ref_{sha}"
+    if not (dest / "plate_env").is_dir():
+        dest.mkdir(parents=True, exist_ok=True)
+        arch = subprocess.run(["git", "-C", str(ROOT), "archive", sha], capture_output=True, check=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(dest)], input=arch, check=True)
+    return dest
+
+
+def overlay(tree: Path, tmp: Path) -> Path:
+    """A directory whose ``plate_env`` and ``plate_env_agents`` are the tree's (first on PYTHONPATH: it wins over
+    the editable install)."""
+    d = tmp / tree.name.replace("/", "_")
+    d.mkdir(exist_ok=True)
+    for name, src in (("plate_env", tree / "plate_env"), ("plate_env_agents", tree / "agents")):
+        link = d / name
+        if not link.exists():
+            link.symlink_to(src)
+    return d
+
+
+# ---- The paper's published numbers (encoded once); from reproduce_paper.py
+ALPHA_CHEESE = 36.9
+
+
+#: Fig. 7 fits in the paper: (omega_n [pi rad/s], alpha [deg]) -> (f0 [Hz], b [Hz], omega_max [deg/s], R^2).
+PAPER_FIG7 = {(10.0, 36.9): (25.1, 5.1, 598.7, 0.99), (33.0, 36.9): (28.2, 5.8, 746.9, 0.99),
+              (10.0, 56.3): (24.6, 5.8, 520.9, 0.98)}
+
+
+#: Table 1 of the paper: A_p [deg] -> [(omega_n [pi rad/s], f_n [Hz], omega_Brmax [deg/s], f_B [Hz])].
+PAPER_TABLE1 = {3.0: [(3.5, 1.75, 491.5, 1.36), (10.0, 5.00, 614.9, 1.71), (23.0, 11.5, 722.8, 2.01),
+                      (33.0, 16.5, 796.1, 2.21)],
+                12.0: [(1.4, 0.70, 278.1, 0.77), (3.5, 1.75, 275.8, 0.77), (6.5, 3.25, 334.2, 0.93),
+                       (10.0, 5.00, 382.4, 1.06)]}
+
+
+#: Eq. (10) coefficients (p1 [rad/s per Hz], q1 [rad/s]) and regression R^2 of Figs. 9 and 10, per A_p [deg].
+PAPER_EQ10 = {3.0: (5.30, -121.62), 12.0: (5.65, -64.51)}
+
+
+PAPER_R2 = {3.0: {"omega_max": 0.93, "f0": 0.99}, 12.0: {"omega_max": 0.83, "f0": 0.96}}
+
+
+#: Fig. 11: A_p -> (R^2, slope, intercept [pi rad/s]).
+PAPER_FIG11 = {3.0: (0.99, 0.99, 0.25), 12.0: (0.96, 0.96, 0.24)}
+
+
+#: Objects of Figs. 8-10 per amplitude (the paper's Table 1 objects) and the friction angles swept.
+FIG8_OMEGAS_PI = {3.0: (3.5, 10.0, 23.0, 33.0), 12.0: (1.4, 3.5, 6.5, 10.0)}
+
+
+FIG8_ALPHAS_DEG = (30.0, 36.9, 45.0, 56.3)
+
+
+def linreg(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
+    """Slope, intercept and R^2 of the least-squares line y = slope x + intercept."""
+    if len(x) < 3:
+        return math.nan, math.nan, math.nan
+    slope, icpt = np.polyfit(x, y, 1)
+    ss = float(np.sum((y - y.mean()) ** 2))
+    r2 = 1.0 - float(np.sum((y - slope * x - icpt) ** 2)) / ss if ss > 0 else math.nan
+    return float(slope), float(icpt), r2
+
+
+# ---- The validation table's sweeps, placements and caches; from validate_paper.py
+# (validate_paper, kept_12deg, falling_side, pybullet_hump)
+MODELS = ("pointmass", "rigid", "rigid_limit", "pybullet")
+
+
+#: Seeded placements per sweep, per model (the rigid limit and PyBullet cost ~1 and ~16 wall s a probe).
+PLACEMENTS = {"pointmass": 4, "rigid": 3, "rigid_limit": 2, "pybullet": 2}
+
+
+ALPHAS = FIG8_ALPHAS_DEG
+
+
+CHEESE = ALPHA_CHEESE
+
+
+#: Section 5's check: objects stiffer than 12pi at 12 deg (the paper: they become unstable or fold).
+SEC5_STIFF_PI = (14.0, 23.0, 33.0)
+
+
+FIG3 = {"f_hz": 12.0, "a_p_deg": 12.0, "omega_pi": 10.0, "alpha_deg": 36.9, "omega_b_deg_s": 344.0}
+
+
+FIG10_RANGE = {3.0: (23.0, 30.0), 12.0: (11.0, 14.0)}
+
+
+def canonical_freqs(a_p_deg: float) -> tuple[float, ...]:
+    """Every plate frequency (Hz) a sweep may use: 10-40 Hz at 3 deg, 8-30 Hz at 12 deg (the paper's humps sit at
+    11-14 Hz; above ~24 Hz every tile-link probe slips, reproduce_paper's Fig. 5(a)), 1 Hz apart. Placements are
+    drawn over this list, so a model that probes a subset sees the same placement at each frequency."""
+    return tuple(np.arange(10.0, 40.01, 1.0)) if a_p_deg == 3.0 else tuple(np.arange(8.0, 30.01, 1.0))
+
+
+def freqs(model: str, a_p_deg: float) -> tuple[float, ...]:
+    """Plate frequencies (Hz) of one sweep: the canonical list, or a subset for the dear models (the rigid limit
+    16-36 Hz / 8-18 Hz, ~3 wall s a probe on an idle core; PyBullet every 2 Hz over 12-34 Hz / 8-20 Hz, ~16 s)."""
+    if model == "pybullet":
+        return tuple(np.arange(12.0, 34.01, 2.0)) if a_p_deg == 3.0 else tuple(np.arange(8.0, 20.01, 2.0))
+    if model == "rigid_limit":
+        return tuple(np.arange(16.0, 36.01, 1.0)) if a_p_deg == 3.0 else tuple(np.arange(8.0, 18.01, 1.0))
+    return canonical_freqs(a_p_deg)
+
+
+def windows(model: str) -> dict:
+    """Probe windows: the project's defaults (0.5 s + 1.0 s), PyBullet its atlas's shorter ones (0.3 s + 0.6 s)."""
+    if model == "pybullet":
+        return {"settle_s": bm.PYBULLET_SETTLE_S, "measure_s": bm.PYBULLET_MEASURE_S}
+    return {}
+
+
+def backend(model: str) -> BackendSpec:
+    if model == "pybullet":
+        return BackendSpec.of("pybullet", n_workers=1)
+    return BackendSpec.of("tilelink", model=model)
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """One object's sweep at one amplitude; ``stage`` orders the simulation (1 first)."""
+
+    omega_pi: float
+    alpha_deg: float
+    a_p_deg: float
+    stage: int
+
+    @property
+    def obj(self) -> pe.ObjectSpec:
+        return pe.ObjectSpec.from_paper(self.omega_pi, self.alpha_deg)
+
+    def specs(self, model: str, placement: int, freqs_hz: tuple[float, ...] | None = None) -> list[ProbeSpec]:
+        """The sweep at one seeded placement: each probe placed by ``ProbeSpec.perturbed`` from a generator seeded
+        by (placement, object, amplitude), so every model sees the same placements. ``freqs_hz`` (a subset of
+        :func:`canonical_freqs`) replaces the model's frequencies; a probe at a shared frequency is the same."""
+        rng = np.random.default_rng([placement, round(self.omega_pi * 10), round(self.alpha_deg * 10),
+                                     round(self.a_p_deg * 10)])
+        every = bm.placed_sweeps([self.obj], canonical_freqs(self.a_p_deg), self.a_p_deg, rng, **windows(model))
+        keep = set(freqs(model, self.a_p_deg) if freqs_hz is None else freqs_hz)
+        if not keep <= set(canonical_freqs(self.a_p_deg)):
+            raise ValueError(f"frequencies {sorted(keep - set(canonical_freqs(self.a_p_deg)))} Hz are not on the "
+                             f"{self.a_p_deg:g} deg grid (whole Hz, {canonical_freqs(self.a_p_deg)[0]:g}-"
+                             f"{canonical_freqs(self.a_p_deg)[-1]:g})")
+        return [sp for sp in every if sp.motion.freq_hz in keep]
+
+
+def plan(model: str) -> list[Sweep]:
+    """Every sweep the table needs, in stage order: 1 Fig. 7 and the Fig. 3 object; 2 the rest of Table 1 and
+    Section 5 at alpha 36.9 deg; 3 the other friction angles of Figs. 8-10 (Eq. 10, Figs. 9-10). PyBullet's stage 1
+    leaves Fig. 7(b) and (c) (33pi; 10pi at 56.3 deg) to stage 2 (its probes cost ~16 s)."""
+    late = 2 if model == "pybullet" else 1
+    s: list[Sweep] = [Sweep(10.0, CHEESE, 12.0, 1), Sweep(10.0, CHEESE, 3.0, 1), Sweep(33.0, CHEESE, 3.0, late),
+                      Sweep(10.0, 56.3, 3.0, late)]
+    for a in (3.0, 12.0):
+        for w in FIG8_OMEGAS_PI[a]:
+            if not any(x.omega_pi == w and x.alpha_deg == CHEESE and x.a_p_deg == a for x in s):
+                s.append(Sweep(w, CHEESE, a, 2))
+    s += [Sweep(w, CHEESE, 12.0, 2) for w in SEC5_STIFF_PI]
+    for a in (3.0, 12.0):
+        for w in FIG8_OMEGAS_PI[a]:
+            for al in ALPHAS:
+                if not any(x.omega_pi == w and x.alpha_deg == al and x.a_p_deg == a for x in s):
+                    s.append(Sweep(w, al, a, 3))
+    return s
+
+
+def cache_path(cache_dir: Path, model: str) -> Path:
+    return cache_dir / f"validate_paper_{model}.jsonl"
+
+
+def cached_sweeps(model: str, cache_dir: Path) -> dict[tuple[Sweep, int], list[ProbeResult]]:
+    """The sweeps (sweep, placement) -> results found complete in the cache; nothing is simulated."""
+    tag = backend_tag(backend(model))
+    done = load_cache(cache_path(cache_dir, model))
+    out = {}
+    for sw in plan(model):
+        for p in range(PLACEMENTS[model]):
+            specs = sw.specs(model, p)
+            recs = [done.get(spec_key(tag, s)) for s in specs]
+            if all(r is not None for r in recs):
+                out[(sw, p)] = [result_from_record(s, r) for s, r in zip(specs, recs, strict=True)]
+    return out
+
+
+def observed(fit, f_hz) -> bool:
+    """A fit the table uses: ok, and f0 inside the frequencies of the probes it used, widened by half their
+    spacing (a Lorentzian whose top lies further out extrapolates a hump it never saw; such fits count as no
+    estimate)."""
+    if not fit.ok:
+        return False
+    f = np.unique(np.asarray(f_hz, float)[fit.used])
+    if not f.size:
+        return False
+    half = 0.5 * float(np.min(np.diff(f))) if f.size > 1 else 0.0
+    return bool(f.min() - half <= fit.f0 <= f.max() + half)
+
+
+def fit_sweep(results: list[ProbeResult]):
+    """The first-hump fit of a sweep, with ``ok`` False (reason given) when its f0 was not observed."""
+    from dataclasses import replace
+
+    fit = fit_results(results)
+    if fit.ok and not observed(fit, [r.spec.motion.freq_hz for r in results]):
+        return replace(fit, ok=False, reason=f"f0 {fit.f0:.1f} Hz outside the fitted probes")
+    return fit
+
+
+def git_commit() -> str:
+    try:
+        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+                               text=True, check=True).stdout.strip()
+        return out.stdout.strip() + ("+dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+# ---- Slipped probes read as stable (kept_12deg, pybullet_hump); from kept_12deg.py
+def kept(results: list) -> list:
+    """``results`` with each slipped probe that measured at least one period read as stable."""
+    return [replace(r, unstable=False, reason=None) if r.unstable and r.reason == "slipped" and r.periods_measured > 0
+            else r for r in results]
+
+
+# ---- Forward-model evaluation sets; from forward_models.py
+# (forward_models, faithful_forward, calibration_study, npe_sbi, predictive_check)
+POINTMASS = BackendSpec.of("tilelink", model="pointmass")
+
+
+#: Calibration and test sets inside the point-mass model (10-40 Hz, 1 Hz, at 3 and 12 deg).
+CALIBRATION = EvalSet("tilelink_pointmass", 120, 300, (3.0, 12.0))
+
+
+TEST = EvalSet("tilelink_pointmass", 120, 200, (3.0, 12.0))
+
+
+#: A second test set of the same size: coverage of 120 objects moves +-0.04 (68 %) and +-0.02 (95 %) by sampling.
+TEST_MORE = EvalSet("tilelink_pointmass", 120, 210, (3.0, 12.0))
+
+
+def sets_by_amplitude(data: dict, es: EvalSet) -> dict[str, list[ProbeTable]]:
+    """The sweeps per object at each amplitude and at all amplitudes together ("3", "12", "3+12")."""
+    out = {f"{a:g}": data[a] for a in es.a_p_deg}
+    if len(es.a_p_deg) > 1:
+        out["+".join(f"{a:g}" for a in es.a_p_deg)] = [ProbeTable.concat(*ts)
+                                                       for ts in zip(*(data[a] for a in es.a_p_deg), strict=True)]
+    return out
+
+
+def row(label: str, s: Scores) -> str:
+    return (f"| {label} | {s.n} | {s.median_error.fmt(100, 1, ' %')} | {s.p90_error.fmt(100, 1, ' %')} | "
+            f"{s.coverage68.fmt(1, 2)} | {s.coverage95.fmt(1, 2)} | {s.width95.fmt(100, 0, ' %')} | "
+            f"{s.no_estimate.fmt(1, 2)} |")
+
+
+HEAD = ["| data, forward model | objects | median error | p90 error | 68 % coverage | 95 % coverage | "
+        "median 95 % width / omega_n | no estimate |", "|---|---|---|---|---|---|---|---|"]
+
+
+def episodes(args, fm: ForwardModel, seed: int) -> list[dict]:
+    """``args.episodes`` bayes episodes on live tilelink, objects from the prior with ``seed`` (resumable: finished
+    episodes, with their probes, are kept in experiments/cache)."""
+    import gymnasium as gym
+
+    from plate_env.build import eval_sets as bm
+    from plate_env.env.episode import run_episode
+    from plate_env.run.sweeps import open_for_append, read_records
+    from plate_env_agents import make_agent
+
+    cache = Path(f"experiments/cache/forward_models_bayes_s{seed}.jsonl")
+    done = {d["i"]: d for d in read_records(cache) if "i" in d}
+    objs = bm.prior_objects(args.episodes, np.random.default_rng(seed))
+    if all(i in done for i in range(len(objs))):
+        return [done[i] for i in range(len(objs))]
+    env = gym.make("PlateRotation-v0", physics="tilelink", max_probes=30)
+    with open_for_append(cache) as fh:
+        for i, o in enumerate(objs):
+            if i in done:
+                continue
+            t0 = time.perf_counter()
+            res = run_episode(env, make_agent("bayes", forward=fm), seed=1000 + i,
+                              options={"omega_n": o.omega_n, "alpha": o.alpha, "mass": o.mass})
+            d = {"i": i, "omega_n": o.omega_n, "probes": res.n_probes, "sim_s": res.sim_s,
+                 "wall_s": time.perf_counter() - t0, "estimate": res.estimate.to_dict(),
+                 "table": res.probes.to_rows()}
+            fh.write((json.dumps(d) + "\n").encode())
+            fh.flush()
+            done[i] = d
+            print(f"episode {i}: {o.omega_n / math.pi:.1f}pi -> {d['estimate']['omega_n_pi']:.2f}pi "
+                  f"({res.n_probes} probes)", file=sys.stderr, flush=True)
+    env.close()
+    return [done[i] for i in range(len(objs))]
+
+
+def member(name: str) -> Member:
+    """A shipped atlas as a member with its held-out model error (provenance). No blur: full sweeps are calibrated
+    without it (the within stage); the bayes agent adds its own design blur (agents/bayes.py DESIGN_BLUR)."""
+    from plate_env.surrogate.atlas import load_atlas_file
+
+    atlas = load_atlas_file(name)
+    return Member(atlas, float(atlas.provenance["sigma_model_deg_s"]))
+
+
+#: Data of each family: point-mass objects each with its own draw of the unknown joint/contact values, the
+#: paper-faithful rigid tiles (rigid_limit), the PyBullet sheet (which folds below ~5pi: objects from 5pi-33pi):
+#: the sets the shipped lab Eq. (10) line is pooled over (plate_env.build.eq10).
+DATA = LAB_SETS
+
+
+backend_of = lab_backend_of
+
+
+def data_of(family: str, executor, es: EvalSet | None = None) -> tuple[list[float], list[ProbeTable]]:
+    es = es or DATA[family]
+    tables = run_eval_set(es, backend_of(family), executor, cache_dir=CACHE)[es.a_p_deg[0]]
+    return [o.omega_n for o in es.objects()], tables
+
+
+# ---- Real-time factor of a backend (bench_physics, rigid_fast_validation); from bench_physics.py
+def rtf(physics, specs, repeats):
+    physics.run(specs)  # warm (compile / load cache)
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        res = physics.run(specs)
+        times.append(time.perf_counter() - t0)
+    sim = sum(r.sim_s for r in res)
+    return sim / statistics.median(times), sum(r.unstable for r in res)
+
+
+# ---- Machine state for timing records (ppo_timing, zoo_timing); from ppo_timing.py
+def load() -> list[float]:
+    return [round(x, 2) for x in os.getloadavg()]
+
+
+def commit() -> str | None:
+    out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=Path(__file__).parent)
+    return out.stdout.strip() or None
