@@ -128,11 +128,18 @@ def run_episode(env, agent, seed: int, options: dict | None = None,
     changing the env's observation; the agent's context names it), then estimate omega_n with the agent's method.
     ``on_probe(k, probe_dict)`` is called after each probe. ``prefix``: also the estimate after each probe
     (:func:`prefix_estimates`, in ``EpisodeResult.prefix``; the last is the episode's estimate). Otherwise the
-    estimate of the env's own atlas posterior is reused when the agent's method and forward model are the env's."""
+    estimate of the env's own atlas posterior is reused when the agent's method is the env's. An agent's estimate
+    model (``agent.estimate_model()``) is handed to the env after reset (``use_estimate_model``): the estimate the
+    env's reward charges is this result's, the same floats (method atlas, no lab calibration)."""
     t0 = time.perf_counter()
     e = env.unwrapped
     obs, info = env.reset(seed=seed, options=options)
     _call(agent, "reset", ProbeContext.from_env(env, max_sim_s), np.random.default_rng(seed))
+    fm = estimate_model_of(agent)
+    # one estimate for the env's reward and this result: the agent's estimate model is the env's for this episode
+    shared = agent.method == "atlas" == e.method and getattr(e, "calibration", None) is None
+    if shared and fm is not None:
+        e.use_estimate_model(fm)
     sims: list[float] = []
     decisions: list[float] = []
     done = False
@@ -150,13 +157,12 @@ def run_episode(env, agent, seed: int, options: dict | None = None,
             if on_probe is not None:
                 on_probe(info["probes"], info["last_probe"])
     table = e.table()
-    fm = estimate_model_of(agent)
     prefixes: tuple[Estimate, ...] = ()
     if prefix and len(table):
         prefixes = prefix_estimates(env, table, agent.method, fm)
         estimate = prefixes[-1]
-    elif fm is None and agent.method == "atlas" == e.method:
-        estimate = e.estimate()  # the env's own posterior of these probes (its episode end computed it)
+    elif shared:
+        estimate = e.estimate()  # the env's own posterior of these probes on fm (its episode end computed it)
     else:
         estimate = estimate_of(env, table, agent.method, fm)
     # the truth from the env, not the info: a budget of max_sim_s ends the episode here before the env terminates it

@@ -488,6 +488,24 @@ class PlateRotationEnv(gym.Env):
                 self._posterior = str(exc)
         return self._posterior
 
+    def use_estimate_model(self, forward) -> None:
+        """Read this episode's estimate -- the one its reward charges -- through ``forward`` (a
+        :class:`~plate_env.identify.forward.ForwardModel`, e.g. the one an agent designed its probes on) instead of
+        the shipped model of the env's physics, until the next reset. Call it after ``reset`` and before the first
+        probe; method ``atlas`` without a lab calibration only (ValueError otherwise). ``run_episode`` calls it with
+        the agent's estimate model, so the env's reward and the benchmark's score read one estimate."""
+        from plate_env.identify.posterior_state import PosteriorState
+
+        self._check_open()
+        if self.method != "atlas" or self.calibration is not None:
+            raise ValueError(f"use_estimate_model: the env's estimate is method {self.method!r}"
+                             f"{' through a lab calibration' if self.calibration is not None else ''}; a forward "
+                             "model is read by method 'atlas' without a calibration only")
+        if self._done or self._rows:
+            raise ValueError(f"use_estimate_model: call it after reset and before the first probe (the episode has "
+                             f"{len(self._rows)} probes{', and has ended' if self._done else ''})")
+        self._posterior = PosteriorState(forward)
+
     def hidden_object(self) -> ObjectSpec | None:
         """The episode's hidden object (None before the first reset), for a scorer or a diagnostic, never for an
         agent: the info shows it on the terminating step only (or on every step with ``reveal_truth=True``)."""
