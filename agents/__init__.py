@@ -106,8 +106,9 @@ def load_agent(spec: str):
       (``grid:n=30,method=atlas``); every one takes ``forward=NAME``, the shipped forward model its estimate is made
       through (bayes designs its probes on it too; default: the episode physics' own), e.g. ``ppo:forward=lab``;
     * ``path/to/file.py:MyAgent``: an instance of class ``MyAgent`` from that file, made without arguments;
-    * ``sb3:model.zip`` or ``sb3:a2c:model.zip``: a Stable-Baselines3 policy trained on PlateRotation-v0
-      (:class:`plate_env_agents.ppo.PPOAgent`; algorithm PPO unless named).
+    * ``sb3:model.zip`` or ``sb3:ALGO:model.zip`` (ALGO: ppo, a2c, sac, td3 or ddpg): a Stable-Baselines3 policy
+      trained on PlateRotation-v0, loaded without unpickling anything (:class:`plate_env_agents.ppo.PPOAgent`; the
+      algorithm the zip's policy class names unless one is given, then checked against it).
 
     The agent is checked against the protocol (:func:`plate_env.env.protocol.check_agent`); a bad spec is a ValueError
     naming it."""
@@ -117,9 +118,14 @@ def load_agent(spec: str):
         from plate_env_agents.ppo import SB3_ALGOS, PPOAgent
 
         rest = spec[4:]
-        algo, sep, path = rest.partition(":")
-        if not sep or algo not in SB3_ALGOS:
-            algo, path = "ppo", rest
+        head, sep, path = rest.partition(":")
+        algo = head.lower() if sep and head.lower() in SB3_ALGOS else None
+        if algo is None:
+            path = rest
+            if sep and head.isidentifier() and not Path(rest).exists():
+                raise ValueError(f"agent {spec!r}: {head!r} is not an algorithm sb3: loads; choose one of "
+                                 f"{', '.join(SB3_ALGOS)} (the SB3 algorithms a Box action space admits), "
+                                 "or none (sb3:model.zip takes the zip's)")
         agent = PPOAgent(path=path, algo=algo)
         agent.name = spec
     else:

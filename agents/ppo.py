@@ -10,8 +10,9 @@ Start-up. Importing torch and Stable-Baselines3 takes seconds, so the shipped po
 are exported beside the zip (``ppo_plate.npz``, :func:`export_policy`, written by plate-env build policy, with the
 zip's SHA-256 so a stale export is never used) and the MLP's forward pass (Linear-Tanh layers, then the action
 mean; deterministic) is a few matrix products. Its actions equal ``model.predict(obs, deterministic=True)`` to
-float32 rounding (tests/test_agents_ppo.py). A model without an export (``sb3:model.zip``), another algorithm or
-``deterministic=False`` loads Stable-Baselines3 and acts through ``model.predict``.
+float32 rounding (tests/test_agents_ppo.py). A model without an export (``sb3:model.zip``), another algorithm (A2C,
+SAC, TD3, DDPG) or ``deterministic=False`` acts through the SB3 policy's ``predict``, built from the zip without
+unpickling anything (:mod:`plate_env_agents.sb3_zip`).
 
 ``next_probe`` returns the raw action (f_p, amplitude, window and stop, each in [-1, 1]; the episode loop passes it
 to the env as is), or None when the stop component is positive.
@@ -31,7 +32,6 @@ names amplitudes the policy never saw). With the training settings the action is
 from __future__ import annotations
 
 import hashlib
-import json
 import warnings
 from pathlib import Path
 
@@ -39,13 +39,12 @@ import numpy as np
 
 from plate_env.core.files import check_regular, read_json, write_atomic
 from plate_env.core.probe_table import ProbeTable
-from plate_env.env.codec import N_FEATURES, Codec, phys
+from plate_env.env.codec import Codec, phys
 from plate_env.env.protocol import Agent, ProbeContext
+from plate_env_agents.sb3_zip import SB3_ALGOS, inspect_zip, load_policy
 
 #: The model shipped with the package.
 DEFAULT_MODEL = Path(__file__).parent / "models" / "ppo_plate.zip"
-#: Stable-Baselines3 algorithms a model file may hold.
-SB3_ALGOS = ("ppo", "a2c", "sac")
 #: Activations of SB3's MlpPolicy that the numpy forward pass knows.
 ACTIVATIONS = {"Tanh": np.tanh, "ReLU": lambda x: np.maximum(x, 0.0)}
 
@@ -93,93 +92,31 @@ class NumpyPolicy:
         return h @ self.out[0].T + self.out[1]
 
 
-#: The policy class each algorithm's zip must name (read from its metadata, never unpickled).
-POLICY_CLASSES = {"ppo": "ActorCriticPolicy", "a2c": "ActorCriticPolicy", "sac": "SACPolicy"}
-#: Pickled entries of an SB3 zip that only training reads (replaced by harmless stand-ins on load).
-TRAINING_ONLY = ("lr_schedule", "clip_range", "clip_range_vf", "learning_rate", "ent_coef", "target_entropy",
-                 "_last_obs", "_last_original_obs", "_last_episode_starts", "ep_info_buffer", "ep_success_buffer",
-                 "rollout_buffer_class", "replay_buffer_class", "rollout_buffer_kwargs", "replay_buffer_kwargs",
-                 "action_noise")
-
-
-def _no_schedule(_progress: float) -> float:
-    return 0.0
-
-
-def safe_custom_objects(path: str | Path, algo: str) -> dict:
-    """Everything Stable-Baselines3 would unpickle from a model zip's metadata, replaced before it does: SB3 stores
-    the policy class, the spaces and the schedules with cloudpickle, and unpickling them runs whatever code the zip
-    carries. Here the spaces are rebuilt from their readable fields and checked against PlateRotation-v0's (an
-    observation of ``k * N_FEATURES + 2`` values in [-10, 10], an action of 4 in [-1, 1]), the policy class is the
-    algorithm's own (checked against the name the zip gives), training-only entries become stand-ins, and a zip
-    with any other pickled entry is refused. ValueError naming the file and the problem. The weights
-    (``policy.pth``) are read by torch's loader as SB3 does; a model zip remains a file you should trust."""
-    import zipfile
-
-    import gymnasium as gym
-    import stable_baselines3 as sb3
-
-    where = f"sb3 model {str(path)!r}"
-    check_regular(path, "sb3 model")
-    try:
-        with zipfile.ZipFile(path) as z:
-            data = json.loads(z.read("data"))
-    except (OSError, KeyError, ValueError, zipfile.BadZipFile) as exc:
-        raise ValueError(f"{where}: not a Stable-Baselines3 zip ({exc})") from None
-    out: dict = {}
-    for key, value in data.items():
-        if not (isinstance(value, dict) and ":serialized:" in value):
-            continue
-        if key in ("observation_space", "action_space"):
-            kind = str(value.get(":type:", ""))
-            raw = value.get("_shape")
-            shape = tuple(raw) if isinstance(raw, list) and all(isinstance(x, int) for x in raw) else ()
-            want = f"an observation of k * {N_FEATURES} + 2 values" if key == "observation_space" else "4 values"
-            ok = "gymnasium.spaces.box.Box" in kind and len(shape) == 1 and (
-                (shape[0] - 2) % N_FEATURES == 0 and shape[0] > 2 if key == "observation_space" else shape[0] == 4)
-            if not ok:
-                raise ValueError(f"{where}: its {key.replace('_', ' ')} is {kind or '?'} of shape {shape}, not "
-                                 f"PlateRotation-v0's ({want}): a model for another environment")
-            lim = 10.0 if key == "observation_space" else 1.0
-            out[key] = gym.spaces.Box(-lim, lim, shape, dtype=np.float32)
-        elif key == "policy_class":
-            init = str(value.get("__init__", ""))
-            expected = POLICY_CLASSES[algo]
-            if f"{expected}.__init__" not in init:
-                found = init.split(".__init__")[0].removeprefix("<function ") or "an unknown class"
-                raise ValueError(f"{where}: a {found} policy, not the {expected} of sb3:{algo}: (name the algorithm "
-                                 "it was trained with, e.g. sb3:ppo:model.zip)")
-            out[key] = getattr(sb3, algo.upper()).policy_aliases["MlpPolicy"]
-        elif key in TRAINING_ONLY:
-            out[key] = _no_schedule if key in ("lr_schedule", "clip_range", "clip_range_vf", "learning_rate") else None
-        else:
-            raise ValueError(f"{where}: stores a pickled {key!r}; loading it would run code from the file: refused")
-    return out
-
-
 class PPOAgent(Agent):
     """Probing by a trained SB3 policy; ``path`` is its zip (default: the shipped PPO model), ``algo`` its
-    algorithm (PPO by default; A2C and SAC load through Stable-Baselines3)."""
+    algorithm (one of :data:`SB3_ALGOS`, checked against the zip's policy class; None: the zip's). Any of them
+    loads without unpickling anything (:mod:`plate_env_agents.sb3_zip`)."""
 
     name = "ppo"
     method = "atlas"
 
     def __init__(self, path: str | Path | None = None, deterministic: bool = True, device: str = "cpu",
-                 algo: str = "ppo") -> None:
-        if algo not in SB3_ALGOS:
-            raise ValueError(f"algo = {algo!r}: choose one of {SB3_ALGOS}")
+                 algo: str | None = None) -> None:
+        if algo is not None and algo not in SB3_ALGOS:
+            raise ValueError(f"algo = {algo!r}: choose one of {SB3_ALGOS} (the algorithms a Box action space "
+                             "admits) or None (the zip's)")
         self.path = Path(path) if path is not None else DEFAULT_MODEL
         if not self.path.exists():
-            raise FileNotFoundError(f"no PPO model at {self.path}; train one with plate-env build policy --out "
-                                    "MODEL.zip")
+            raise FileNotFoundError(f"no SB3 model at {self.path} (a zip of {', '.join(SB3_ALGOS)}); train one with "
+                                    "plate-env build policy --out MODEL.zip")
         check_regular(self.path, "sb3 model")
-        self.algo = algo
+        self.algo = inspect_zip(self.path, algo).algo  # refuses a zip it cannot load before any work
         self.deterministic = deterministic
         self.device = device
         self.model_sha256 = _sha256(self.path)
         export = self.path.with_suffix(".npz")
         self._numpy = None
-        if deterministic and algo in ("ppo", "a2c") and export.exists():
+        if deterministic and self.algo in ("ppo", "a2c") and export.exists():
             pol = NumpyPolicy(export)
             if pol.zip_sha256 == self.model_sha256:
                 self._numpy = pol
@@ -200,21 +137,12 @@ class PPOAgent(Agent):
         self._windows: list[float] = []
 
     def _load_sb3(self):
-        import pickle
-
-        import stable_baselines3 as sb3
-
-        custom = safe_custom_objects(self.path, self.algo)
-        try:
-            return getattr(sb3, self.algo.upper()).load(self.path, device=self.device, custom_objects=custom)
-        except pickle.UnpicklingError:  # torch's weights-only loader met something besides tensors
-            raise ValueError(f"sb3 model {str(self.path)!r}: its weights (policy.pth and the other .pth files) hold "
-                             "pickled objects besides tensors; loading them could run code from the file: "
-                             "refused") from None
+        return load_policy(self.path, self.algo, self.device)[0]
 
     @property
     def model(self):
-        """The Stable-Baselines3 model (loaded on first use when the agent acts in numpy)."""
+        """The Stable-Baselines3 policy (``BasePolicy``, :func:`plate_env_agents.sb3_zip.load_policy`; loaded on
+        first use when the agent acts in numpy); ``model.predict`` is the trained model's."""
         if self._sb3 is None:
             self._sb3 = self._load_sb3()
         return self._sb3

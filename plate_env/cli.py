@@ -327,7 +327,7 @@ def _add_bench(sub) -> None:
                    "suite .json file; several: every agent on every suite, and a table of agents against suites")
     b.add_argument("--agent", action="extend", nargs="+", required=True,
                    help="one or more agents: bayes, grid, coarse_to_fine, ppo (options: grid:n=30,method=atlas), "
-                        "path/to/file.py:MyAgent, sb3:model.zip (sb3:a2c:model.zip)")
+                        "path/to/file.py:MyAgent, sb3:model.zip (sb3:td3:model.zip: ppo, a2c, sac, td3, ddpg)")
     b.add_argument("--budgets", default=None, help="probing budgets to score, simulated s, comma list (default: the "
                    "suite's; each at most its largest)")
     b.add_argument("--limit", type=_arg(checks.integer, 1, 100_000), default=None,

@@ -66,7 +66,7 @@ def test_example_agent_through_the_command_line(capsys):
     (f"{EXAMPLE}", "file.py:ClassName"),
     ("grid:n", "key=value"),
     ("gridd", "unknown agent"),
-    ("sb3:nowhere.zip", "no PPO model"),
+    ("sb3:nowhere.zip", "no SB3 model"),
 ])
 def test_bad_agent_specs_are_refused_before_any_episode(spec, message, capsys):
     assert main(["bench", "--suite", "atlas-v0", "--agent", spec, "--no-cache"]) == 2

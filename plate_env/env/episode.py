@@ -142,11 +142,24 @@ def run_episode(env, agent, seed: int, options: dict | None = None,
     changing the env's observation; the agent's context names it), then estimate omega_n with the agent's method.
     ``on_probe(k, probe_dict)`` is called after each probe. ``prefix``: also the estimate after each probe
     (:func:`estimator_prefixes`, in ``EpisodeResult.prefix``; the last is the episode's estimate). Otherwise the
-    env's own estimate is reused when the agent's estimator (:func:`estimator_of`) is the env's."""
+    env's own estimate is reused when the agent's estimator (:func:`estimator_of`) is the env's atlas estimator. An
+    agent's estimate model (``agent.estimate_model()``) is handed to the env after reset (``use_estimate_model``):
+    the estimate the env's reward charges is this result's, the same floats (method atlas, no lab calibration)."""
     t0 = time.perf_counter()
     e = env.unwrapped
     obs, info = env.reset(seed=seed, options=options)
     _call(agent, "reset", ProbeContext.from_env(env, max_sim_s), np.random.default_rng(seed))
+    from plate_env.identify.estimators import AtlasEstimator, ForwardName, agent_estimator
+
+    fm = estimate_model_of(agent)
+    # one estimate for the env's reward and this result: when the agent estimates by the env's atlas estimator (no
+    # lab calibration), its estimate model is the env's for this episode
+    env_estimator = e.estimator()
+    shared = isinstance(env_estimator, AtlasEstimator) and agent_estimator(
+        getattr(agent, "method", "atlas"), None, e.method, env_estimator, ForwardName(e.source, e.model),
+        e.known_inputs()) is env_estimator
+    if shared and fm is not None:
+        e.use_estimate_model(fm)
     sims: list[float] = []
     decisions: list[float] = []
     done = False
@@ -169,8 +182,8 @@ def run_episode(env, agent, seed: int, options: dict | None = None,
     if prefix and len(table):
         prefixes = estimator_prefixes(estimator, table)
         estimate = prefixes[-1]
-    elif estimator == e.estimator():
-        estimate = e.estimate()  # the env's own estimate of these probes (its episode end computed it)
+    elif shared:
+        estimate = e.estimate()  # the env's own posterior of these probes (on fm; its episode end computed it)
     else:
         from plate_env.identify.estimators import fit_or_refuse
 

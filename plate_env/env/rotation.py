@@ -109,7 +109,13 @@ class PlateRotationEnv(gym.Env):
 
     Terminated when the action says stop (after the first probe), when ``max_probes`` probes have run, or when the
     probes have taken ``max_sim_s`` simulated seconds (the probe that crosses it still runs). Never truncated by the
-    env itself (an outer ``TimeLimit`` may truncate; the info of a truncated step is a non-final one).
+    env itself. An outer ``TimeLimit`` shorter than the episode (``max_episode_steps`` <= ``max_probes``) truncates
+    without the env knowing: the truncated step is a non-final one (its reward is that probe's cost, its info has
+    no estimate and no truth), so the error is never charged and the return holds the probe costs only. Learners
+    that bootstrap truncated steps, as Gymnasium's contract says (SB3 through ``TimeLimit.truncated``), still value
+    the error to come; to end episodes with the error charged, bound them with ``max_probes`` or ``max_sim_s``.
+    After a truncation ``env.unwrapped.estimate()`` is the estimate of the probes so far (what a stop would have
+    charged). The registered ids' TimeLimit is the largest ``max_probes`` accepted: it never cuts an episode short.
 
     ## Info
 
@@ -477,6 +483,24 @@ class PlateRotationEnv(gym.Env):
             except ValueError as exc:
                 self._posterior = str(exc)
         return None if self._posterior is False else self._posterior
+
+    def use_estimate_model(self, forward) -> None:
+        """Read this episode's estimate -- the one its reward charges -- through ``forward`` (a
+        :class:`~plate_env.identify.forward.ForwardModel`, e.g. the one an agent designed its probes on) instead of
+        the shipped model of the env's physics, until the next reset. Call it after ``reset`` and before the first
+        probe; method ``atlas`` without a lab calibration only (ValueError otherwise). ``run_episode`` calls it with
+        the agent's estimate model, so the env's reward and the benchmark's score read one estimate."""
+        from plate_env.identify.posterior_state import PosteriorState
+
+        self._check_open()
+        if self.method != "atlas" or self.calibration is not None:
+            raise ValueError(f"use_estimate_model: the env's estimate is method {self.method!r}"
+                             f"{' through a lab calibration' if self.calibration is not None else ''}; a forward "
+                             "model is read by method 'atlas' without a calibration only")
+        if self._done or self._rows:
+            raise ValueError(f"use_estimate_model: call it after reset and before the first probe (the episode has "
+                             f"{len(self._rows)} probes{', and has ended' if self._done else ''})")
+        self._posterior = PosteriorState(forward)
 
     def hidden_object(self) -> ObjectSpec | None:
         """The episode's hidden object (None before the first reset), for a scorer or a diagnostic, never for an

@@ -351,6 +351,12 @@ CHECK_DRAWS = 4000
 CHECK_SEED = 20261202
 #: How many of a member's blur scales (sd of log omega_n) each probe may move along omega_n in the check.
 CHECK_BLURS = 1.0
+#: ... and at least this share of the member's atlas node interval (median, in log omega_n): the atlas knows the
+#: response at its omega_n nodes and interpolates between them, so no probe is trusted to place omega_n finer than
+#: the farthest an object lies from a node, half an interval. Without it a member with no blur (the shipped point
+#: mass) refused live in-model episodes whose probes sat on a steep flank between nodes, tens of model scales off
+#: the spline at the truth (issue 38 item 3; rates in experiments/results/check_false_refusal.md).
+CHECK_NODE_SHARE = 0.5
 
 
 def _surprise(z2: np.ndarray, stable: np.ndarray, p: np.ndarray, nu: float = NU) -> np.ndarray:
@@ -372,6 +378,15 @@ def _check_replicates(n: int) -> tuple[np.ndarray, np.ndarray]:
     u.flags.writeable = False
     part.flags.writeable = False
     return u, part
+
+
+def check_reach_log(member: Member) -> float:
+    """How far (log omega_n) each probe may move along omega_n in :func:`predictive_check`: ``CHECK_BLURS`` of the
+    member's blur, at least ``CHECK_NODE_SHARE`` of its atlas's median omega_n node interval (0 for an atlas with
+    one node)."""
+    nodes = np.asarray(member.atlas.omega_n, float)
+    spacing = float(np.median(np.diff(np.log(nodes)))) if nodes.size > 1 else 0.0
+    return max(CHECK_BLURS * member.blur, CHECK_NODE_SHARE * spacing)
 
 
 def respond(member: Member, a_p_deg: float, w: np.ndarray, a: np.ndarray, f_hz: float):
@@ -415,9 +430,9 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
             known[key] = (float(table.omega_b_deg_s[k]) - mk) / sd, smoothed_p(pk, m.atlas.n_repeats)
         return known[key]
 
-    # a member with a blur trusts no probe to pin omega_n finer than it: each probe's surprise is its least within
-    # CHECK_BLURS blur scales along log omega_n (none for a member without blur)
-    reach = int(round(CHECK_BLURS * m.blur / math.log(w[1] / w[0]))) if len(w) > 1 else 0
+    # no probe is trusted to pin omega_n finer than the member's blur or its atlas's nodes: each probe's surprise
+    # is its least within check_reach_log(m) along log omega_n
+    reach = int(round(check_reach_log(m) / math.log(w[1] / w[0]))) if len(w) > 1 else 0
     total = np.zeros((sub.size, a.size))
     counts: dict[tuple, list[int]] = {}
     keys = _probe_keys(table)

@@ -1,0 +1,143 @@
+"""Issue 34: the modal (floating-frame) rigid-tile disc against the converged rigid limit.
+
+Same probes, scoring and speed harness as ``experiments/rigid_fast_validation.py`` (its ``compare`` and ``speed``):
+every probe of ``experiments/results/rigid_reference.json`` (``rigid_limit`` at dt 6.25e-6 s), omega_B where both
+are stable (median / max |relative difference|), stability agreement, first-hump f0; speed as x real time for one
+probe and a batch of 32 with the point mass measured in the same run. The model
+(:mod:`plate_env.physics.tilelink.rigid_modal`) is experimental and not a registered backend model.
+
+Writes ``experiments/results/rigid_modal.json`` and ``.md`` (one run).
+Usage: ``nice -n 10 python experiments/rigid_modal_validation.py [--routes a,b] [--repeats 1] [--merge]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import plate_env as pe
+from plate_env.physics.tilelink.rigid_modal import ModalDiscConfig
+from plate_env.physics.tilelink.rigid_modal_kernels import RigidModalPhysics
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from rigid_fast_validation import _commit, compare, load_reference, spec_of, speed  # noqa: E402
+
+OUT = HERE / "results" / "rigid_modal"
+#: Routes: (dt s, reduction, contact sweeps a step, what it stands for).
+ROUTES = {
+    "modal_nl10_2e-4": (2e-4, ModalDiscConfig(), 1,
+                        "floating frame + modes < 200 Hz, stiffening in the 10 lowest out-of-plane modes (condensed), "
+                        "foreshortening, dt 2e-4, one contact sweep"),
+    "modal_nl10_1e-4": (1e-4, ModalDiscConfig(), 1, "the same at dt 1e-4"),
+    "modal_linear_2e-4": (2e-4, ModalDiscConfig(n_nonlinear=0, foreshortening=False), 1,
+                          "the linear floating frame (no stiffening, no foreshortening), dt 2e-4"),
+    "modal_nl10_100hz_2e-4": (2e-4, ModalDiscConfig(cutoff_hz=100.0), 1,
+                              "as modal_nl10_2e-4 with the cut-off at 100 Hz"),
+    "modal_nl10_2e-4_it3": (2e-4, ModalDiscConfig(), 3, "as modal_nl10_2e-4 with 3 contact sweeps a step"),
+    "modal_nl10_2e-4_it2": (2e-4, ModalDiscConfig(), 2, "as modal_nl10_2e-4 with 2 contact sweeps a step"),
+    "modal_nl10_k40_2e-4": (2e-4, ModalDiscConfig(max_modes=40), 1,
+                            "as modal_nl10_2e-4 with at most the 40 lowest modes dynamic"),
+}
+
+
+def cpu_speed(physics, pointmass, with_batch: bool = True) -> dict:
+    """Real-time factors by CPU time of this process (the kernel's own cost on a loaded shared machine, where
+    wall time measures the other jobs too): the cheese at 20 Hz alone, and a 32-probe batch (summed over its
+    threads), the point mass beside it."""
+    import math
+
+    from plate_env.core.probe import ProbeSpec
+
+    cheese = pe.preset("cheese")
+    one = [ProbeSpec(cheese, pe.PlateMotion.from_paper(20.0, 3.0))]
+    batch = [ProbeSpec(cheese.with_(omega_n=(5 + k) * math.pi), pe.PlateMotion.from_paper(18 + 0.1 * k, 3.0))
+             for k in range(32)]
+    out = {}
+    for name, phys in (("route", physics), ("pointmass", pointmass)):
+        for label, specs in (("one_probe_cpu_rtf", one), ("batch32_cpu_rtf_per_core", batch))[:2 if with_batch else 1]:
+            phys.run(specs)
+            t0 = time.process_time()
+            res = phys.run(specs)
+            out.setdefault(name, {})[label] = sum(r.sim_s for r in res) / (time.process_time() - t0)
+    return out
+
+
+def render(report: dict) -> str:
+    """The markdown report of the routes run so far."""
+    lines = ["# Issue 34: the modal (floating-frame) rigid-tile disc against the rigid limit", "",
+             f"Reference: `rigid_limit` at dt {report['reference_dt']:g} s, {report['n_reference']} probes "
+             "(experiments/results/rigid_reference.json). Written by `python experiments/rigid_modal_validation.py` "
+             "(one run per route). Model: `plate_env/physics/tilelink/rigid_modal.py` (experimental, unregistered; "
+             "design: rigid_modal_notes.md).",
+             "Tolerances (issue 34): omega_B 2 % median / 5 % max where both are stable, stability calls agree "
+             ">= 90 %, first-hump f0 within 0.3 Hz; speed >= 10x one probe, >= 25x a batch of 32 (2 cores).", "",
+             "| route | dt (s) | both stable | median / max abs diff | stability agree | max abs df0 (Hz) | "
+             "one probe x real time, CPU (point mass) | batch 32 x real time, wall (point mass) | load |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for name, r in report["routes"].items():
+        s_, cs, sp = r["compare"]["summary"], r.get("cpu_speed") or {}, r.get("speed")
+        one = (f"{cs['route']['one_probe_cpu_rtf']:.1f} ({cs['pointmass']['one_probe_cpu_rtf']:.1f})"
+               if cs else "-")
+        bat = (f"{sp['route']['batch32_rtf']:.1f} ({sp['pointmass']['batch32_rtf']:.1f})" if sp else "not run")
+        load = f"{sp['load_avg_1min']:.1f}" if sp else f"{r.get('load_avg_1min', float('nan')):.1f}"
+        lines.append(f"| {name} | {r['dt']:g} | {s_['n_both_stable']} | {100 * s_['median_abs_rel']:.1f} % / "
+                     f"{100 * s_['max_abs_rel']:.1f} % | {100 * s_['stability_agreement']:.0f} % | "
+                     f"{s_['max_abs_f0_diff_hz']:.2f} ({s_['n_fits_compared']} of {s_['n_fits_reference']} fits) | "
+                     f"{one} | {bat} | {load} |")
+    lines += ["", "Routes:", ""] + [f"- {n}: {r['what']} (at {r['commit']})" for n, r in report["routes"].items()]
+    for name, r in report["routes"].items():
+        probes = r["compare"]["probes"]
+        off = [p for p in probes if p["ref_unstable"] != p["new_unstable"]]
+        worst = sorted((p for p in probes if not p["ref_unstable"] and not p["new_unstable"]),
+                       key=lambda p: -abs(p["new"] - p["ref"]) / abs(p["ref"]))[:6]
+        lines += ["", f"## {name}", "", "Stability calls that differ (reference -> route): " + (", ".join(
+            f"{p['key']} ({'unstable' if p['ref_unstable'] else 'stable'} -> {p['new_reason'] or 'stable'})"
+            for p in off) or "none") + ".", "", "Largest differences (reference -> route, deg/s): " + ", ".join(
+            f"{p['key']} {p['ref']:.1f} -> {p['new']:.1f} ({100 * (p['new'] - p['ref']) / abs(p['ref']):+.1f} %)"
+            for p in worst) + ".", "", "First-hump fits f0 (Hz), reference -> route: " + (", ".join(
+                f"{k} {v['f0_hz']:.2f} -> " + (f"{r['compare']['fits_route'][k]['f0_hz']:.2f}"
+                                               if "f0_hz" in r["compare"]["fits_route"].get(k, {}) else "no fit")
+                for k, v in r["compare"]["fits_reference"].items() if "f0_hz" in v) or "none") + "."]
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--routes", default=",".join(ROUTES), help="comma-separated subset of " + ", ".join(ROUTES))
+    ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--merge", action="store_true", help="keep the other routes of an earlier run's JSON")
+    ap.add_argument("--no-batch-speed", action="store_true",
+                    help="measure speed on one probe only (CPU time), not the wall-time harness and the batch of 32 "
+                         "(32 objects to build: minutes on a loaded machine)")
+    args = ap.parse_args()
+    rows = load_reference()
+    specs = [spec_of(r) for r in rows]
+    report = {"reference_dt": rows[0]["dt_s"], "n_reference": len(rows), "routes": {}}
+    if args.merge and OUT.with_suffix(".json").exists():
+        report = json.loads(OUT.with_suffix(".json").read_text())
+    pointmass = pe.make_physics("tilelink")
+    for name in args.routes.split(","):
+        dt, cfg, iters, what = ROUTES[name]
+        physics = RigidModalPhysics(dt, cfg, iters)
+        physics.run(specs[:2])  # compile outside the timing
+        t0 = time.perf_counter()
+        results = physics.run(specs)
+        cmp_ = compare(rows, results)
+        report["routes"][name] = {"dt": dt, "what": what, "compare": cmp_, "sweep_wall_s": time.perf_counter() - t0,
+                                  "speed": None if args.no_batch_speed else speed(physics, pointmass, args.repeats),
+                                  "cpu_speed": cpu_speed(physics, pointmass, not args.no_batch_speed),
+                                  "commit": _commit(), "load_avg_1min": os.getloadavg()[0]}
+        print(name, json.dumps(cmp_["summary"]), json.dumps(report["routes"][name]["speed"]),
+              json.dumps(report["routes"][name]["cpu_speed"]), flush=True)
+        OUT.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
+        OUT.with_suffix(".md").write_text(render(report))
+    print(render(report))
+
+
+if __name__ == "__main__":
+    main()

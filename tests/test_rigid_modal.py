@@ -1,0 +1,83 @@
+"""The experimental modal (floating-frame) rigid-tile disc (issue 34): its reduction is the rigid-tile disc's."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import plate_env as pe
+from plate_env.physics.tilelink.rigid import RIGID_LIMIT_CONFIG, _row_values, bending_stiffness, mass_matrix
+from plate_env.physics.tilelink.rigid_modal import (
+    ModalDiscConfig,
+    _rigid_modes,
+    build_modal_params,
+    joint_rows,
+)
+
+OBJ = pe.ObjectSpec.from_paper(10.0, 36.9)
+
+
+def test_modes_are_mass_normalised_mean_axes_and_below_the_cutoff():
+    p = build_modal_params(OBJ)
+    mm = mass_matrix(p.geom, p.tile_mass)
+    np.testing.assert_allclose(p.phi.T @ mm @ p.phi, np.eye(p.phi.shape[1]), atol=1e-8)
+    # mean axes: no flexible mode moves the mass centre or carries angular momentum at rest
+    rig = _rigid_modes(p.geom)
+    assert np.abs(rig.T @ mm @ p.phi).max() < 1e-8
+    assert p.omega.max() < 2 * math.pi * 200.0
+    # the same bending stiffness as the rigid limit, hitting omega_n (the lowest non-twist mode)
+    assert p.k_bending == pytest.approx(bending_stiffness(OBJ, RIGID_LIMIT_CONFIG), rel=1e-12)
+    assert p.omega[1] == pytest.approx(OBJ.omega_n, rel=1e-3)
+
+
+@pytest.mark.slow
+def test_cutoff_keeps_fewer_modes():
+    assert build_modal_params(OBJ, ModalDiscConfig(cutoff_hz=100.0)).phi.shape[1] < build_modal_params(OBJ).phi.shape[1]
+
+
+@pytest.mark.parametrize("bend_deg", [3.0, 9.0])
+def test_condensed_stiffening_matches_the_exact_joint_rows(bend_deg):
+    """E2 + E3 + E4 of the reduction against the joints' exact energy at the displacement phi q + U s (the first
+    bending mode bent so that its largest tile rotation is ``bend_deg``); the linear energy alone is far off."""
+    p = build_modal_params(OBJ)
+    row_k, _ = _row_values(p.geom, p.tile_mass, p.k_bending, OBJ.omega_n, RIGID_LIMIT_CONFIG)
+    w = np.tile(row_k, len(p.geom.links))
+    rot = np.zeros(p.phi.shape[0], dtype=bool)
+    rot[3::6] = True
+    rot[4::6] = True
+    q = np.zeros(p.phi.shape[1])
+    q[1] = math.radians(bend_deg) / np.abs(p.phi[rot, 1]).max()
+    s = np.array([q[a] * q[b] for a, b in p.pairs])
+    e2 = 0.5 * float((p.omega**2 * q**2).sum())
+    model = e2 + float(q @ p.b_cubic @ s) + 0.5 * float(s @ p.h_quartic @ s)
+    exact = 0.5 * float((w * joint_rows(p.geom, p.phi @ q + p.u_static @ s).ravel() ** 2).sum())
+    assert model == pytest.approx(exact, rel=0.08)
+    assert e2 < 0.5 * exact
+
+
+def test_config_refuses_bad_values():
+    with pytest.raises(ValueError, match="cutoff_hz"):
+        ModalDiscConfig(cutoff_hz=0.0)
+    with pytest.raises(ValueError, match="n_nonlinear"):
+        ModalDiscConfig(n_nonlinear=-1)
+
+
+@pytest.mark.slow
+def test_one_reference_probe():
+    """10pi, 24 Hz, 3 deg (the reference's first hump): within 3 % of the converged rigid limit."""
+    from plate_env.core.probe import ProbeSpec
+    from plate_env.physics.tilelink.rigid_modal_kernels import RigidModalPhysics
+
+    ref = json.loads((Path(__file__).parents[1] / "experiments/results/rigid_reference.json").read_text())
+    row = next(r for r in ref["probes"] if r["key"] == "10pi_36.9deg_24Hz")
+    spec = ProbeSpec(obj=pe.ObjectSpec.from_paper(row["omega_n_pi"], row["alpha_deg"]),
+                     motion=pe.PlateMotion.from_paper(row["f_p_hz"], row["a_p_deg"], row["b_p_mm"]),
+                     settle_s=row["settle_s"], measure_s=row["measure_s"], initial_yaw=row["initial_yaw_rad"],
+                     initial_offset=tuple(row["initial_offset_m"]))
+    res = RigidModalPhysics(2e-4).run([spec])[0]
+    assert not res.unstable
+    assert res.omega_b_deg_s == pytest.approx(row["omega_b_deg_s"], rel=0.03)
