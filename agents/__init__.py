@@ -36,7 +36,9 @@ def make_agent(name: str, **options) -> Agent:
     forward = options.pop("forward", None) if name != "bayes" else None  # bayes designs on it too: its argument
     agent = cls(**options)
     if forward is not None:
-        if agent.method != "atlas":
+        from plate_env.identify.estimators import READS_FORWARD_MODEL
+
+        if not READS_FORWARD_MODEL[agent.method]:
             raise ValueError(f"forward = {forward!r}: agent {name!r} estimates by method {agent.method!r}, which reads "
                              "no forward model (give method=atlas)")
         agent.forward = check_forward_name(forward)

@@ -593,29 +593,45 @@ FIT_KNOWN = {"bp": PAPER_SETUP.b_p_mm, "mass_g": PAPER_SETUP.mass_g, "diameter_m
 FIT_METHOD_OPTIONS = {"atlas": ("forward", "bp", "mass_g", "diameter_mm"), "lorentz": ("physics", "model")}
 
 
-def _fit_options(args: argparse.Namespace) -> None:
-    """Refuse an option the chosen method does not read, and a Lorentz calibration source that does not exist;
-    then fill in the defaults (in place)."""
+def _fit_estimator(args: argparse.Namespace):
+    """``fit``'s :class:`~plate_env.identify.estimators.Estimator`, built once from the options: an option the chosen
+    method does not read is refused (never dropped silently), so are a Lorentz line source that does not exist, a
+    forward model that is not shipped and ``--calibration`` with another method than the default; ``args`` is read,
+    not changed."""
+    from plate_env.identify.estimators import READS_FORWARD_MODEL, ForwardName, make_estimator
+
     for method, names in FIT_METHOD_OPTIONS.items():
         given = [n for n in names if getattr(args, n) is not None]
         if method != args.method and given:
             opts = ", ".join("--" + n.replace("_", "-") for n in given)
             raise CliError(f"{opts} {'applies' if len(given) == 1 else 'apply'} to --method {method} only, not to "
                            f"--method {args.method}")
-    for name, value in FIT_KNOWN.items():
-        if getattr(args, name) is None:
-            setattr(args, name, value)
     # None is "not given"; an empty --forward '' or --physics '' is a value, refused below, not the default
-    args.forward = "lab" if args.forward is None else args.forward
-    args.physics = "lab" if args.physics is None else args.physics
-    if args.method == "lorentz" and args.physics != "paper":
+    forward = "lab" if args.forward is None else args.forward
+    physics = "lab" if args.physics is None else args.physics
+    model = args.model or ("lab" if physics == "lab" else "pointmass")
+    reads_forward = READS_FORWARD_MODEL[args.method]
+    if not reads_forward and physics != "paper":
         from plate_env.identify.calibration import load_calibrations
 
         sources = sorted({k.rsplit("/", 1)[0] for k in load_calibrations()})
-        model = args.model or ("lab" if args.physics == "lab" else "pointmass")
-        if f"{args.physics}/{model}" not in sources:
-            raise CliError(f"--physics {args.physics!r} --model {model!r}: no Eq. (10) calibration; calibrated: "
+        if f"{physics}/{model}" not in sources:
+            raise CliError(f"--physics {physics!r} --model {model!r}: no Eq. (10) calibration; calibrated: "
                            f"{', '.join(sources + ['paper'])}")
+    known = _known_inputs(args)
+    if args.calibration is not None:
+        if not reads_forward:
+            raise CliError("--calibration reads the data through the atlas members: drop --method lorentz")
+        if args.plot:
+            raise CliError("--plot draws a forward model's curve; a calibrated fit has none: drop --plot or "
+                           "--calibration")
+        return make_estimator(known=known, calibration=args.calibration)
+    if reads_forward:
+        from plate_env.surrogate.catalog import forward_model_names
+
+        if forward not in forward_model_names():
+            raise CliError(f"--forward {forward!r}: choose one of {forward_model_names()}")
+    return make_estimator(args.method, ForwardName(physics, model), known, forward=forward if reads_forward else None)
 
 
 def _add_known_inputs(p: argparse.ArgumentParser, what: str, mass_default: str = "") -> None:
@@ -700,18 +716,12 @@ def _read_fit_table(args: argparse.Namespace):
     return read_lab_csv(args.csv, a_p_deg=args.amp, max_rows=MAX_FIT_ROWS)
 
 
-def _cmd_fit_calibrated(args: argparse.Namespace) -> int:
+def _cmd_fit_calibrated(args: argparse.Namespace, estimator) -> int:
     from plate_env.identify import lab_calibration_file as lcf
 
-    if args.method != "atlas":
-        raise CliError("--calibration reads the data through the atlas members: drop --method lorentz")
-    if args.plot:
-        raise CliError("--plot draws a forward model's curve; a calibrated fit has none: drop --plot or --calibration")
-    cal = lcf.load(args.calibration)
-    known = _known_inputs(args)
     table = _read_fit_table(args)
-    lcf.check_data(cal, table, known)
-    est = lcf.identify_calibrated(table, cal, known)
+    lcf.check_data(estimator.calibration, table, estimator.known)
+    est = estimator.fit(table)
     if args.json:
         print(json.dumps({"file": str(args.csv), "calibrated": True, "calibration": str(args.calibration),
                           **est.to_dict()}), flush=True)
@@ -725,45 +735,42 @@ def _cmd_fit_calibrated(args: argparse.Namespace) -> int:
 
 
 def _cmd_fit(args: argparse.Namespace) -> int:
-    _fit_options(args)
-    if args.calibration is not None:
-        return _cmd_fit_calibrated(args)
-    from plate_env.identify import identify
-    from plate_env.surrogate.catalog import forward_model_names
+    from plate_env.identify.estimators import AtlasEstimator, CalibratedEstimator
 
+    estimator = _fit_estimator(args)
+    if isinstance(estimator, CalibratedEstimator):
+        return _cmd_fit_calibrated(args, estimator)
     plot = plot_path(args.plot) if args.plot else None
-    known = _known_inputs(args)
-    if args.method == "atlas" and args.forward not in forward_model_names():
-        raise CliError(f"--forward {args.forward!r}: choose one of {forward_model_names()}")
     table = _read_fit_table(args)
-    model = args.model or ("lab" if args.physics == "lab" else "pointmass")
+    incremental = isinstance(estimator, AtlasEstimator)  # the posterior and its check: say what is computed
     t0 = time.perf_counter()
-    if args.method == "atlas" and len(table) >= FIT_PROGRESS_ROWS:
+    if incremental and len(table) >= FIT_PROGRESS_ROWS:
         from plate_env.identify.inference import distinct_probes
 
         print(f"fit: {len(table)} rows, {distinct_probes(table)} distinct (exact repeats computed once); computing "
               f"the posterior and its predictive check ...", file=sys.stderr, flush=True)
-    est = identify(table, method=args.method, physics=args.physics, model=model, forward=args.forward, known=known)
-    if args.method == "atlas" and len(table) >= FIT_PROGRESS_ROWS:
+    est = estimator.fit(table)
+    if incremental and len(table) >= FIT_PROGRESS_ROWS:
         print(f"fit: done in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
+    name = getattr(estimator, "name", None)  # the Lorentz method's line source (the atlas method reads --forward)
+    physics, model = (name.physics, name.model) if name is not None else (None, None)
     if args.json:
         # what read the data, once: the atlas method's forward model ("forward"), or the Lorentz method's Eq. (10)
         # calibration ("physics", "model"; "forward" null); never the other method's unused options (issue 40 item 5)
-        used = {} if args.method == "atlas" else {"physics": args.physics, "model": model}
+        used = {} if name is None else {"physics": physics, "model": model}
         print(json.dumps({"file": str(args.csv), **used, "calibrated": False, **est.to_dict()}), flush=True)
     else:
         for line in _fit_report(est, table):
             print(line)
         if est.ok:
-            source = est.forward if est.method == "atlas" else f"{args.physics}/{model}"
             print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s "
-                  f"({format_omega_pi(est.omega_n)}) by {est.method} on {source}")
+                  f"({format_omega_pi(est.omega_n)}) by {est.method} on {est.forward or name}")
             print(_intervals(est))
             if est.note:
                 print(f"note: {est.note}")
             if est.alpha is not None:
                 print(f"alpha_hat   = {math.degrees(est.alpha):.1f} +- {math.degrees(est.alpha_stderr):.1f} deg")
-            if est.method == "atlas" and est.forward == "lab":
+            if est.forward == "lab":
                 print(uncalibrated_note(est))
         else:
             print(f"no estimate: {est.reason}")
@@ -771,12 +778,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     if plot is not None:
         from plate_env.plotting import plot_fit
 
-        fm = None
-        if est.method == "atlas" and est.ok:
-            from plate_env.identify.forward import load_forward_model
-
-            fm = load_forward_model(args.forward, known)
-        plot_fit(table, est, str(plot), fm)
+        plot_fit(table, est, str(plot), estimator.forward_model() if incremental and est.ok else None)
         _say_plot(args, plot)
     return 0 if est.ok else 1
 
@@ -836,18 +838,16 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
 
 def _estimate_forward(env, agent):
-    """The forward model an episode's atlas estimate was computed with (the agent's own, else the env's), or None
-    (the Lorentz method, a lab calibration, a physics without one)."""
-    from plate_env.env.episode import estimate_model_of
+    """The forward model an episode's estimate was computed with (its estimator's,
+    :func:`plate_env.env.episode.estimator_of`), or None (the Lorentz method, a lab calibration, a physics without
+    one)."""
+    from plate_env.env.episode import estimator_of
 
-    e = env.unwrapped
-    if e.method != "atlas" or e.calibration is not None:
+    forward_model = getattr(estimator_of(env, agent), "forward_model", None)
+    try:
+        return None if forward_model is None else forward_model()
+    except ValueError:
         return None
-    fm = estimate_model_of(agent)
-    if fm is None:
-        state = e.posterior_state()
-        fm = None if isinstance(state, str) else state.fm
-    return fm
 
 
 def _intervals(est) -> str:

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from plate_env.build.atlas_grid import AtlasGrid
-from plate_env.cli import _fit_options, build_parser, main
+from plate_env.cli import _fit_estimator, build_parser, main
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import PRESETS, ObjectSpec
 from plate_env.core.setup import DIAMETER_RANGE_M, MASS_RANGE_KG, PAPER_SETUP
@@ -43,8 +43,8 @@ def test_the_paper_setup_is_the_default_everywhere():
         args = build_parser().parse_args(command)
         assert (args.bp, args.mass_g, args.diameter_mm) == (None, None, None)  # not given: filled in by the command
     fit = build_parser().parse_args(["fit", "x.csv"])
-    _fit_options(fit)
-    assert (fit.bp, fit.mass_g, fit.diameter_mm) == (3.0, 13.6, 80.0)
+    assert _fit_estimator(fit).known == KnownInputs(b_p=0.003, mass=0.0136, diameter=0.080)  # args not changed
+    assert (fit.bp, fit.mass_g, fit.diameter_mm) == (None, None, None)
 
 
 def test_the_setup_numbers_are_written_once_in_the_library():

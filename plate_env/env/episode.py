@@ -54,38 +54,52 @@ def estimate_model_of(agent):
     return f() if callable(f) else None
 
 
-def estimate_of(env, table: ProbeTable, method: str, forward=None) -> Estimate:
-    """``method``'s estimate from ``table`` for ``env``'s physics and known inputs, on ``forward`` (a forward model,
-    or None for the physics' shipped one); no estimate, with the reason, when the method cannot make one."""
-    from plate_env.identify import identify
+def estimator_of(env, agent):
+    """The :class:`~plate_env.identify.estimators.Estimator` of ``agent``'s estimates in ``env``'s episode
+    (:func:`plate_env.identify.estimators.agent_estimator`: its own forward model's, else the env's estimator when
+    the agent's method is the env's, else its method's)."""
+    from plate_env.identify.estimators import ForwardName, agent_estimator
 
     e = env.unwrapped
-    if len(table) == 0:
-        return Estimate(ok=False, method=method, reason="no probes")
+    return agent_estimator(getattr(agent, "method", "atlas"), estimate_model_of(agent), e.method, e.estimator(),
+                           ForwardName(e.source, e.model), e.known_inputs())
+
+
+def _estimator(env, method: str, forward=None):
+    from plate_env.identify.estimators import ForwardName, make_estimator
+
+    e = env.unwrapped
+    return make_estimator(method, ForwardName(e.source, e.model), e.known_inputs(), forward=forward)
+
+
+def estimate_of(env, table: ProbeTable, method: str, forward=None) -> Estimate:
+    """``method``'s estimate from ``table`` for ``env``'s physics and known inputs, on ``forward`` (a forward model,
+    or None for the physics' shipped one); no estimate, with the reason, when the method cannot make one. (The
+    estimator's :func:`~plate_env.identify.estimators.fit_or_refuse`; an estimator in hand: call that.)"""
+    from plate_env.identify.estimators import fit_or_refuse
+
+    return fit_or_refuse(_estimator(env, method, forward), table)
+
+
+def estimator_prefixes(estimator, table: ProbeTable) -> tuple[Estimate, ...]:
+    """``estimator``'s estimate after each probe of ``table`` (as ``fit_or_refuse`` of each prefix gives it): from
+    one incremental posterior (``estimator.start()``) the probes are added to one by one when it has one (each
+    prefix costs one pooling, not a recomputation of every probe's likelihood), else each prefix fitted anew."""
+    from plate_env.identify.estimators import fit_or_refuse
+
     try:
-        return identify(table, method=method, physics=e.source, model=e.model, known=e.known_inputs(),
-                        forward=forward)
+        state = estimator.start()
     except ValueError as exc:
-        return Estimate(ok=False, method=method, reason=str(exc))
+        return tuple(Estimate(ok=False, method=estimator.method, reason=str(exc)) for _ in range(len(table)))
+    if state is None:
+        return tuple(fit_or_refuse(estimator, table.subset(np.arange(len(table)) < k))
+                     for k in range(1, len(table) + 1))
+    return state.prefix_estimates(table)
 
 
 def prefix_estimates(env, table: ProbeTable, method: str, forward=None) -> tuple[Estimate, ...]:
-    """``method``'s estimate after each probe of ``table`` (as :func:`estimate_of` of each prefix gives it): for the
-    atlas method from one :class:`~plate_env.identify.posterior_state.PosteriorState` the probes are added to one by one
-    (each prefix costs one pooling, not a recomputation of every probe's likelihood)."""
-    if method != "atlas":
-        return tuple(estimate_of(env, table.subset(np.arange(len(table)) < k), method, forward)
-                     for k in range(1, len(table) + 1))
-    from plate_env.identify.forward import load_forward_model
-    from plate_env.identify.posterior_state import PosteriorState
-
-    e = env.unwrapped
-    try:
-        state = PosteriorState(forward if forward is not None else
-                               load_forward_model(f"{e.source}/{e.model}", e.known_inputs()))
-    except ValueError as exc:
-        return tuple(Estimate(ok=False, method=method, reason=str(exc)) for _ in range(len(table)))
-    return state.prefix_estimates(table)
+    """``method``'s estimate after each probe of ``table`` (:func:`estimator_prefixes` of its estimator)."""
+    return estimator_prefixes(_estimator(env, method, forward), table)
 
 
 def _step(env, agent, choice):
@@ -127,17 +141,23 @@ def run_episode(env, agent, seed: int, options: dict | None = None,
     env's budget ends or the probes have taken ``max_sim_s`` simulated seconds (a budget enforced here, without
     changing the env's observation; the agent's context names it), then estimate omega_n with the agent's method.
     ``on_probe(k, probe_dict)`` is called after each probe. ``prefix``: also the estimate after each probe
-    (:func:`prefix_estimates`, in ``EpisodeResult.prefix``; the last is the episode's estimate). Otherwise the
-    estimate of the env's own atlas posterior is reused when the agent's method is the env's. An agent's estimate
-    model (``agent.estimate_model()``) is handed to the env after reset (``use_estimate_model``): the estimate the
-    env's reward charges is this result's, the same floats (method atlas, no lab calibration)."""
+    (:func:`estimator_prefixes`, in ``EpisodeResult.prefix``; the last is the episode's estimate). Otherwise the
+    env's own estimate is reused when the agent's estimator (:func:`estimator_of`) is the env's atlas estimator. An
+    agent's estimate model (``agent.estimate_model()``) is handed to the env after reset (``use_estimate_model``):
+    the estimate the env's reward charges is this result's, the same floats (method atlas, no lab calibration)."""
     t0 = time.perf_counter()
     e = env.unwrapped
     obs, info = env.reset(seed=seed, options=options)
     _call(agent, "reset", ProbeContext.from_env(env, max_sim_s), np.random.default_rng(seed))
+    from plate_env.identify.estimators import AtlasEstimator, ForwardName, agent_estimator
+
     fm = estimate_model_of(agent)
-    # one estimate for the env's reward and this result: the agent's estimate model is the env's for this episode
-    shared = agent.method == "atlas" == e.method and getattr(e, "calibration", None) is None
+    # one estimate for the env's reward and this result: when the agent estimates by the env's atlas estimator (no
+    # lab calibration), its estimate model is the env's for this episode
+    env_estimator = e.estimator()
+    shared = isinstance(env_estimator, AtlasEstimator) and agent_estimator(
+        getattr(agent, "method", "atlas"), None, e.method, env_estimator, ForwardName(e.source, e.model),
+        e.known_inputs()) is env_estimator
     if shared and fm is not None:
         e.use_estimate_model(fm)
     sims: list[float] = []
@@ -157,14 +177,17 @@ def run_episode(env, agent, seed: int, options: dict | None = None,
             if on_probe is not None:
                 on_probe(info["probes"], info["last_probe"])
     table = e.table()
+    estimator = estimator_of(env, agent)
     prefixes: tuple[Estimate, ...] = ()
     if prefix and len(table):
-        prefixes = prefix_estimates(env, table, agent.method, fm)
+        prefixes = estimator_prefixes(estimator, table)
         estimate = prefixes[-1]
     elif shared:
-        estimate = e.estimate()  # the env's own posterior of these probes on fm (its episode end computed it)
+        estimate = e.estimate()  # the env's own posterior of these probes (on fm; its episode end computed it)
     else:
-        estimate = estimate_of(env, table, agent.method, fm)
+        from plate_env.identify.estimators import fit_or_refuse
+
+        estimate = fit_or_refuse(estimator, table)
     # the truth from the env, not the info: a budget of max_sim_s ends the episode here before the env terminates it
     # (the info shows the hidden object on the terminating step only)
     obj = e.hidden_object()

@@ -8,7 +8,9 @@ It lives in the library core so that the episode loop (:mod:`plate_env.env.episo
 An agent is any object with
 
 * ``name`` (str) and ``method`` (``"atlas"``: the forward model's posterior, or ``"lorentz"``: the paper's fit),
-  how its probes are turned into an estimate;
+  how its probes are turned into an estimate: the episode loop reads it, with ``estimate_model()`` when the agent
+  has one, once into an :class:`~plate_env.identify.estimators.Estimator`
+  (:func:`plate_env.env.episode.estimator_of`);
 * ``reset(context, rng)``: a new episode starts (no probes yet); ``rng`` is the episode's seeded generator, the
   only randomness an agent may use;
 * ``next_probe(history, obs)``: given the probes so far (a :class:`~plate_env.core.probe_table.ProbeTable`, in the order

@@ -294,8 +294,7 @@ class PlateRotationEnv(gym.Env):
         self._last: ProbeResult | None = None
         self._closed = False
         self._renderer = None  # plate_env.env.render.Renderer, made on the first frame (never without render_mode)
-        self._posterior = None  # the episode's PosteriorState (method atlas), or why there is none; built lazily
-        self._forward: dict = {}  # the shipped forward model per known inputs (loaded once per env)
+        self._posterior = None  # the episode's PosteriorState, False (not incremental) or why none; built lazily
         self._obs_rows = np.zeros(self.codec.obs_dim, dtype=np.float32)  # the probes' rows, each written once
 
     # ------------------------------------------------------------------ episode
@@ -446,47 +445,44 @@ class PlateRotationEnv(gym.Env):
         f, a, w, se, un, _ = zip(*self._rows, strict=True)
         return ProbeTable.from_arrays(f, a, w, se, un)
 
+    def estimator(self):
+        """The episode's :class:`~plate_env.identify.estimators.Estimator` (the env's method on the forward model of
+        its physics, or its lab calibration), for the episode's known inputs."""
+        from plate_env.identify.estimators import ForwardName, make_estimator
+
+        return make_estimator(self.method, ForwardName(self.source, self.model), self.known_inputs(),
+                              calibration=self.calibration)
+
     def estimate(self) -> Estimate:
-        """The current omega_n estimate from the probes so far (method atlas: the episode's incremental posterior,
-        :class:`plate_env.identify.posterior_state.PosteriorState`, brought up to date with the probes not in it;
-        with a lab calibration: the probes read through it, :func:`plate_env.identify.identify`)."""
+        """The current omega_n estimate from the probes so far: :meth:`estimator`'s, kept up to date probe by probe
+        when it is incremental (the atlas method's :class:`~plate_env.identify.posterior_state.PosteriorState`,
+        brought up to date with the probes not in it), else fitted from scratch (the Lorentz method, a lab
+        calibration); no estimate with the reason when none can be made."""
+        from plate_env.identify.estimators import fit_or_refuse
+
         if not self._rows:
             return Estimate(ok=False, method=self.method, reason="no probes")
-        if self.method == "atlas" and self.calibration is None:
-            state = self.posterior_state()
-            if isinstance(state, str):
-                return Estimate(ok=False, method=self.method, reason=state)
-            if state.n_probes < len(self._rows):
-                state.add_table(self.table(), start=state.n_probes)
-            return state.estimate()
-        from plate_env.identify import identify
-
-        try:
-            if self.calibration is not None:  # read through the lab's calibration (not incremental)
-                return identify(self.table(), calibration=self.calibration, known=self.known_inputs())
-            return identify(self.table(), method=self.method, physics=self.source, model=self.model,
-                            known=self.known_inputs())
-        except ValueError as exc:
-            return Estimate(ok=False, method=self.method, reason=str(exc))
+        state = self.posterior_state()
+        if isinstance(state, str):
+            return Estimate(ok=False, method=self.method, reason=state)
+        if state is None:
+            return fit_or_refuse(self.estimator(), self.table())
+        if state.n_probes < len(self._rows):
+            state.add_table(self.table(), start=state.n_probes)
+        return state.estimate()
 
     def posterior_state(self):
-        """The episode's :class:`~plate_env.identify.posterior_state.PosteriorState` on the shipped forward model of
-        this env's physics, conditioned on the episode's known inputs (probes are added by :meth:`estimate`), or the
-        reason there is none (a str)."""
+        """The episode's incremental posterior (:meth:`estimator`'s ``start()``: a
+        :class:`~plate_env.identify.posterior_state.PosteriorState` conditioned on the episode's known inputs, probes
+        added by :meth:`estimate`), None for an estimator that refits from scratch, or the reason there is none (a
+        str)."""
         if self._posterior is None:
-            from plate_env.identify.forward import load_forward_model
-            from plate_env.identify.posterior_state import PosteriorState
-
-            known = self.known_inputs()
             try:
-                if known not in self._forward:
-                    if len(self._forward) >= 8:  # objects of varied mass: keep the latest few
-                        self._forward.clear()
-                    self._forward[known] = load_forward_model(f"{self.source}/{self.model}", known)
-                self._posterior = PosteriorState(self._forward[known])
+                state = self.estimator().start()
+                self._posterior = False if state is None else state
             except ValueError as exc:
                 self._posterior = str(exc)
-        return self._posterior
+        return None if self._posterior is False else self._posterior
 
     def use_estimate_model(self, forward) -> None:
         """Read this episode's estimate -- the one its reward charges -- through ``forward`` (a
@@ -595,7 +591,6 @@ class PlateRotationEnv(gym.Env):
         state["physics"] = None
         state["_renderer"] = None
         state["_posterior"] = None  # rebuilt from the probes when needed
-        state["_forward"] = {}  # reloaded when needed
         return state
 
     def __setstate__(self, state):
