@@ -7,15 +7,12 @@ from __future__ import annotations
 
 import os
 import re
-import sys
 from pathlib import Path
 
 import pytest
+from calibration_walk import run_walk, walk_commands
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
-from calibration_walk import run_walk, walk_commands  # noqa: E402
-
-from plate_env.core.units import parse_omega_n  # noqa: E402
+from plate_env.core.units import parse_omega_n
 
 INTERVAL = re.compile(r"95 % interval ([\d.]+)-([\d.]+) rad/s")
 
