@@ -3,7 +3,8 @@
     python experiments/calibration_walk.py [--workdir DIR]
 
 Writes experiments/results/calibration_walk.md: each command, its exit code and output, the machine's load and the
-wall time. ``experiments/test_calibration_walk.py`` runs the same commands (:func:`walk_commands`) and checks the answer.
+wall time. ``experiments/test_calibration_walk.py`` runs the same commands (:func:`walk_commands`) and checks the
+answer.
 """
 
 from __future__ import annotations

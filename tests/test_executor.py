@@ -128,7 +128,7 @@ def test_an_interrupted_run_resumes_without_recomputing_finished_chunks(tmp_path
 
 
 def test_import_plate_env_stays_light():
-    code = "import sys, plate_env, plate_env.executor, plate_env.sweeps; print('ray' in sys.modules)"
+    code = "import sys, plate_env, plate_env.run.executor, plate_env.run.sweeps; print('ray' in sys.modules)"
     import subprocess
 
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

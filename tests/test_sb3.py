@@ -124,5 +124,6 @@ def test_hyperparameters_are_rl_zoo3_compatible_and_every_env_setting_is_an_env_
 def test_the_readme_snippet_is_what_experiments_train_readme_ppo_runs():
     readme = (ROOT / "README.md").read_text()
     script = (ROOT / "experiments" / "train_readme_ppo.py").read_text()
-    line = 'model = PPO("MlpPolicy", make_sb3_vec_env(n_envs=8, physics="atlas", seed=0), seed=0, device="cpu")'
+    line = ('model = PPO("MlpPolicy", make_sb3_vec_env(n_envs=8, physics="atlas", seed=0), seed=0, device="cpu", '
+            'verbose=1)')
     assert line in readme and line in script
