@@ -118,6 +118,8 @@ class AtlasJob:
     report: str | None = None
     select: dict = field(default_factory=dict)
     record: dict = field(default_factory=dict)
+    #: progress of the probes (plate_env.core.progress: a bar in a terminal, a few plain lines otherwise); False: none
+    progress: bool = True
 
     def grid_label(self) -> str:
         return self.grid_name or ("pybullet" if self.physics == "pybullet" else "tilelink")
@@ -161,7 +163,7 @@ def build_atlas(job: AtlasJob) -> tuple[Atlas, str, list[str]]:
         full = resolve_grid(job.grid_label())
         res = run_grid(backend, full, job.repeats, job.seed, Path(job.cache_dir) / f"atlas_{tag}.jsonl",
                        executor=executor, chunk=job.chunk, placed=True, sweeps=job.physics == "pybullet",
-                       nodes=picks)
+                       nodes=picks, progress=job.progress)
         return _finish(job, grid, backend, physics, model, tag, res, executor, t0)
     finally:
         executor.close()
@@ -258,7 +260,7 @@ def placement_spread(job: AtlasJob, grid_res: dict, grid: AtlasGrid, executor=No
                  for s in bm.sweep_specs(ObjectSpec.from_paper(w, a), f, amp, settle_s=grid.settle_s,
                                          measure_s=grid.measure_s)]
         runs[i] = run_cached(backend, specs, Path(job.cache_dir) / f"atlas_pybullet_pose{i}.jsonl", chunk=len(f),
-                             desc=f"placement {i}", executor=executor)
+                             desc=f"placement {i}", executor=executor, progress=job.progress)
     n = len(f)
     sds, rels = [], []
     for j, (w, a) in enumerate(bm.PYBULLET_PLACEMENT_OBJECTS):
@@ -319,7 +321,7 @@ def _held_out(job, backend, atlas, grid, tag, n_held, executor) -> tuple[list[st
                                                           float(hrng.choice(grid.a_p_deg)), grid.b_p_mm),
                               settle_s=grid.settle_s, measure_s=grid.measure_s).perturbed(hrng))
     live = run_cached(backend, held, Path(job.cache_dir) / f"atlas_heldout_{tag}.jsonl", desc="held-out",
-                      executor=executor)
+                      executor=executor, progress=job.progress)
     rows = []
     for r in live:
         mu, s, p = atlas.predict(r.spec.motion.freq_hz, r.spec.motion.a_p_deg, r.spec.obj.omega_n, r.spec.obj.alpha)

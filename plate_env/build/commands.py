@@ -50,6 +50,8 @@ def add_build_parser(sub) -> None:
     a.add_argument("--cache-dir", default=".", help="finished chunks are appended to CACHE_DIR/atlas_<name>.jsonl; "
                    "re-running resumes from it")
     a.add_argument("--report", default=None, help="also write the build's markdown report here")
+    a.add_argument("--no-progress", action="store_true", help="no progress bar (outside a terminal: a few plain "
+                   "lines)")
     f = kinds.add_parser("forward-models", help="write the forward-model registry (plate_env/data/forward_models.json) "
                          "from the measured numbers of experiments/forward_models.py's within and lomo stages")
     f.add_argument("--within", default=None, help="the within stage's numbers (default: the frozen input "
@@ -76,6 +78,8 @@ def add_build_parser(sub) -> None:
                    "simulated by the builder: about a quarter of an hour and hours of simulation here, and their "
                    "last bits depend on the CPU")
     add_executor_argument(c)
+    c.add_argument("--no-progress", action="store_true", help="eq10: no progress bar (outside a terminal: a few "
+                   "plain lines)")
     d = kinds.add_parser("design-discrepancy", help="write the bayes agent's design discrepancy "
                          "(plate_env_agents/models/bayes_design_discrepancy.json) from the fit of "
                          "experiments/forward_models.py's within stage")
@@ -153,7 +157,7 @@ def atlas_job(args: argparse.Namespace, record: dict):
     job = AtlasJob(physics=args.physics, model=args.model, grid_name=args.grid, repeats=args.repeats, seed=args.seed,
                    held_out=args.held_out, nuisance=nuisance, options=options, executor=args.executor,
                    chunk=args.chunk, name=args.name, out=args.out, cache_dir=args.cache_dir, report=args.report,
-                   select=select, record=record)
+                   select=select, record=record, progress=not args.no_progress)
     if select:
         from plate_env.build.atlas import select_grid
 
@@ -204,7 +208,8 @@ def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
         from plate_env.build.eq10 import LAB_AMP_DEG, LAB_SETS, LAB_SIMULATED, build_eq10
 
         lab = args.lab_sweeps if args.lab_sweeps is not None else inputs_dir()
-        cals = build_eq10(args.out, record, _sweeps_dir(args.sweeps), lab, args.executor)
+        cals = build_eq10(args.out, record, _sweeps_dir(args.sweeps), lab, args.executor,
+                          progress=not args.no_progress)
         record_in_manifest(args.out, record, {f: LAB_SETS[f].cache(LAB_AMP_DEG, lab) for f in LAB_SETS
                                               if f not in LAB_SIMULATED})
         print("\n".join(f"{c.physics}/{c.model}/{c.a_p_deg:g}: p1 = {c.p1_pi:.2f}, q1 = {c.q1_pi:.1f} pi rad/s, "
