@@ -49,7 +49,8 @@ def main() -> None:
     head = lines[2].replace("| stable probes", "| atlas | stable probes") + " sigma_model [deg/s] |"
     text = ["# The PyBullet atlas at 1 Hz against the 2 Hz one it replaced", "",
             "Command: `python experiments/atlas_pybullet_1hz.py`. The same "
-            f"{len(live)} live PyBullet probes at held-out points (off-grid f_p, omega_n, alpha; the 1 Hz build's held-out set, "
+            f"{len(live)} live PyBullet probes at held-out points (off-grid f_p, omega_n, alpha; the 1 Hz build's "
+            "held-out set, "
             "experiments/cache/atlas_heldout_pybullet_1hz.jsonl) through each atlas. Build report: "
             "experiments/results/atlas_pybullet_pybullet.md.", "",
             head, "|---|---|---|---|---|---|---|---|---|", *rows, ""]
