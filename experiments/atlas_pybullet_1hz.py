@@ -102,7 +102,7 @@ def main() -> None:
         none, med, cov = identification(atlas, truth, tables)
         text.append(f"| {label} | {none} of {len(truth)} | {100 * med:.1f} % | {cov:.2f} |")
     text += ["", "Reading: the 1 Hz atlas predicts held-out probes better, but identification through it refuses more "
-             "objects (the alpha posterior piles at the grid's 30 or 60 deg edge, and the edge rule gives no estimate). "
+             "objects (the alpha posterior piles at the grid's 30 or 60 deg edge; the edge rule gives no estimate). "
              "The same probe specification simulated in two builds disagrees on stability where the sheet is near its "
              "limit (18-26 Hz), while each single-placement atlas carries only the fallback spread of one run: its "
              "likelihood is sharper than the sheet's run-to-run variation. Not shipped until that variation is in the "
