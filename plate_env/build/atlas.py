@@ -307,10 +307,11 @@ def _study_table(rows, floor_abs, floor_rel) -> list[str]:
     return out
 
 
-def _held_out(job, backend, atlas, grid, tag, n_held, executor) -> tuple[list[str], float]:
-    """The atlas against live probes at held-out points (off-grid frequency, omega_n and alpha): a report and the
-    atlas's model error (deg/s, :func:`plate_env.identify.inference.fit_sigma_model`)."""
-    hrng = np.random.default_rng(job.seed + 1)
+def held_out_specs(grid: AtlasGrid, n_held: int, seed: int) -> list[ProbeSpec]:
+    """The ``n_held`` live probes that score an atlas of ``grid`` built with ``seed``: held-out objects (omega_n,
+    alpha off the grid: :data:`plate_env.build.eval_sets.HELD_OUT_OMEGAS_PI` / ``HELD_OUT_ALPHAS_DEG``) at a
+    frequency drawn uniformly 0.5 Hz inside the grid's band, each placed at random; deterministic in ``seed``."""
+    hrng = np.random.default_rng(seed + 1)
     held = []
     f_lo, f_hi = grid.f_hz[0], grid.f_hz[-1]
     for _ in range(n_held):
@@ -320,8 +321,14 @@ def _held_out(job, backend, atlas, grid, tag, n_held, executor) -> tuple[list[st
         held.append(ProbeSpec(obj, PlateMotion.from_paper(float(hrng.uniform(f_lo + 0.5, f_hi - 0.5)),
                                                           float(hrng.choice(grid.a_p_deg)), grid.b_p_mm),
                               settle_s=grid.settle_s, measure_s=grid.measure_s).perturbed(hrng))
-    live = run_cached(backend, held, Path(job.cache_dir) / f"atlas_heldout_{tag}.jsonl", desc="held-out",
-                      executor=executor, progress=job.progress)
+    return held
+
+
+def held_out_score(atlas: Atlas, live: Sequence) -> tuple[list[str], float]:
+    """``atlas`` against the live probes ``live`` (ProbeResults at held-out points): a markdown report (median and
+    90th-percentile |omega_B error| in deg/s over the stable probes, median |z|, the instability Brier score, the
+    share of stability calls agreeing) and the atlas's model error (deg/s,
+    :func:`plate_env.identify.inference.fit_sigma_model`). Pure."""
     rows = []
     for r in live:
         mu, s, p = atlas.predict(r.spec.motion.freq_hz, r.spec.motion.a_p_deg, r.spec.obj.omega_n, r.spec.obj.alpha)
@@ -347,5 +354,14 @@ def _held_out(job, backend, atlas, grid, tag, n_held, executor) -> tuple[list[st
             "atlas's provenance)."], sigma_model
 
 
-__all__: Sequence[str] = ("AXES", "GRIDS", "AtlasJob", "build_atlas", "make_backend", "resolve_grid", "select_grid",
-                          "shipped_grids")
+def _held_out(job, backend, atlas, grid, tag, n_held, executor) -> tuple[list[str], float]:
+    """The atlas against live probes at held-out points (:func:`held_out_specs`, cached in the job's cache
+    directory as ``atlas_heldout_<tag>.jsonl``), scored by :func:`held_out_score`."""
+    cache = Path(job.cache_dir) / f"atlas_heldout_{tag}.jsonl"
+    live = run_cached(backend, held_out_specs(grid, n_held, job.seed), cache, desc="held-out", executor=executor,
+                      progress=job.progress)
+    return held_out_score(atlas, live)
+
+
+__all__: Sequence[str] = ("AXES", "GRIDS", "AtlasJob", "build_atlas", "held_out_score", "held_out_specs",
+                          "make_backend", "resolve_grid", "select_grid", "shipped_grids")
