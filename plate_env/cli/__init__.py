@@ -9,6 +9,7 @@ import re
 import sys
 import warnings
 from collections.abc import Sequence
+from typing import TYPE_CHECKING, Protocol, TextIO
 
 from plate_env.cli import bench, build, cache, calibrate, fit, identify, probe, sweep
 from plate_env.cli.bench import strict_json
@@ -16,9 +17,20 @@ from plate_env.cli.fit import FIT_PROGRESS_ROWS
 from plate_env.cli.options import MAX_FIT_ROWS, MAX_SWEEP_PROBES, TILELINK_MODELS_HELP, CliError
 from plate_env.cli.sweep import parse_freqs
 
-#: Each command's module, in the order ``--help`` lists them: ``add_parser(sub)`` adds its subparser, ``run(args)``
-#: runs it and returns the exit code.
-COMMANDS = {"probe": probe, "sweep": sweep, "identify": identify, "bench": bench, "fit": fit,
+if TYPE_CHECKING:
+    from plate_env.cli.options import Subparsers
+
+
+class Command(Protocol):
+    """A command's module: ``add_parser(sub)`` adds its subparser, ``run(args)`` runs it and returns the exit code."""
+
+    def add_parser(self, sub: Subparsers) -> None: ...
+
+    def run(self, args: argparse.Namespace) -> int: ...
+
+
+#: Each command's module, in the order ``--help`` lists them.
+COMMANDS: dict[str, Command] = {"probe": probe, "sweep": sweep, "identify": identify, "bench": bench, "fit": fit,
             "calibrate": calibrate, "cache": cache, "build": build}
 
 
@@ -78,7 +90,8 @@ def _join_negative_values(argv: list[str]) -> list[str]:
     return out
 
 
-def _warn_one_line(message, category, filename, lineno, file=None, line=None) -> None:
+def _warn_one_line(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                   file: TextIO | None = None, line: str | None = None) -> None:
     print(f"plate-env: warning: {message}", file=sys.stderr)
 
 

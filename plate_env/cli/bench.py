@@ -8,17 +8,21 @@ import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from plate_env.cli.options import CliError, number_arg, output_path, plot_path, say_plot
 from plate_env.core import checks
 from plate_env.core.streams import stdout_to_stderr
 from plate_env.run.executor import BackendSpec, add_executor_argument
 
+if TYPE_CHECKING:
+    from plate_env.cli.options import Subparsers
+
 #: Where ``bench`` keeps finished episodes unless told otherwise (a rerun resumes from there).
 BENCH_CACHE_DIR = ".plate_env_bench"
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: Subparsers) -> None:
     b = sub.add_parser("bench", help="score agents on a versioned suite: error against probing seconds, intervals")
     b.add_argument("--suite", nargs="+", default=["atlas-v0"], help="suite name (atlas-v0, tilelink-v0, "
                    "pybullet-v0, faithful-v0, misspec_pointmass-v0, misspec_faithful-v0, misspec_pybullet-v0) or a "
@@ -42,7 +46,7 @@ def add_parser(sub) -> None:
     add_executor_argument(b)
 
 
-def _nulled(obj, path: str, nulled: list[str]):
+def _nulled(obj: Any, path: str, nulled: list[str]) -> Any:
     if isinstance(obj, float) and not math.isfinite(obj):
         nulled.append(path)
         return None
@@ -53,7 +57,7 @@ def _nulled(obj, path: str, nulled: list[str]):
     return obj
 
 
-def strict_json(doc: dict) -> str:
+def strict_json(doc: dict[str, Any]) -> str:
     """``doc`` as strict JSON (RFC 8259: no ``Infinity`` or ``NaN``, which Python's json writes and most parsers
     refuse): a non-finite number becomes ``null`` and its path is listed under ``"non_finite"`` (e.g. an error of
     an agent with no estimate, which is infinite)."""

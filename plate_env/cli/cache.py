@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from plate_env.cli.options import Subparsers
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: Subparsers) -> None:
     c = sub.add_parser("cache", help="show or clear the disk cache of derived arrays (docs/speed.md)")
     c.add_argument("action", choices=("info", "clear"), help="info: where it is, its entries and their size; "
                    "clear: delete its entries (each is computed again when next needed)")

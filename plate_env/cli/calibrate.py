@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from plate_env.cli.options import MAX_FIT_ROWS, CliError, add_known_inputs, known_inputs, output_path
 
+if TYPE_CHECKING:
+    from plate_env.cli.options import Subparsers
 
-def add_parser(sub) -> None:
+
+def add_parser(sub: Subparsers) -> None:
     c = sub.add_parser("calibrate", help="learn a lab calibration from reference discs of known omega_n")
     c.add_argument("refs", nargs="+", help="the reference discs: SWEEP.csv=OMEGA (one disc's sweep as `sweep --csv` "
                    "writes it, its known omega_n in rad/s or e.g. 10pi; named after the file) or REFS.csv (several "

@@ -7,13 +7,20 @@ import json
 import math
 import sys
 import time
+from typing import TYPE_CHECKING
 
 from plate_env.cli.options import MAX_FIT_ROWS, CliError, add_known_inputs, intervals, known_inputs, plot_path, say_plot
 from plate_env.core.units import format_omega_pi
 from plate_env.identify.api import METHODS
 
+if TYPE_CHECKING:
+    from plate_env.cli.options import Subparsers
+    from plate_env.core.probe_table import ProbeTable
+    from plate_env.identify.estimate import Estimate
+    from plate_env.identify.estimators import CalibratedEstimator, Estimator
 
-def add_parser(sub) -> None:
+
+def add_parser(sub: Subparsers) -> None:
     """The ``fit`` command on the CLI's subparsers ``sub``."""
     f = sub.add_parser("fit", help="fit a lab sweep (CSV) and estimate omega_n")
     f.add_argument("csv", help="CSV with columns f_p_hz, omega_b_deg_s[, stderr_deg_s, a_p_deg, unstable]")
@@ -42,7 +49,7 @@ FIT_PROGRESS_ROWS = 200
 FIT_METHOD_OPTIONS = {"atlas": ("forward", "bp", "mass_g", "diameter_mm"), "lorentz": ("physics", "model")}
 
 
-def _fit_estimator(args: argparse.Namespace):
+def _fit_estimator(args: argparse.Namespace) -> Estimator:
     """``fit``'s :class:`~plate_env.identify.estimators.Estimator`, built once from the options: an option the chosen
     method does not read is refused (never dropped silently), so are a Lorentz line source that does not exist, a
     forward model that is not shipped and ``--calibration`` with another method than the default; ``args`` is read,
@@ -83,7 +90,7 @@ def _fit_estimator(args: argparse.Namespace):
     return make_estimator(args.method, ForwardName(physics, model), known, forward=forward if reads_forward else None)
 
 
-def _fit_report(est, table) -> list[str]:
+def _fit_report(est: Estimate, table: ProbeTable) -> list[str]:
     """An lmfit-like report of the per-amplitude Lorentzian fits."""
     out = []
     for amp, fit in est.fits.items():
@@ -102,7 +109,7 @@ def _fit_report(est, table) -> list[str]:
     return out
 
 
-def uncalibrated_note(est) -> str:
+def uncalibrated_note(est: Estimate) -> str:
     """The line ``fit`` prints without a calibration: how far this fit's own 95 % interval reaches either side of
     its estimate (a factor; what it is on the paper's objects: ``experiments/results/forward_models_paper.md``)."""
     lo, hi = est.omega_n_ci95
@@ -112,18 +119,18 @@ def uncalibrated_note(est) -> str:
             f"to narrow it (docs/calibration.md)")
 
 
-def _read_fit_table(args: argparse.Namespace):
+def _read_fit_table(args: argparse.Namespace) -> ProbeTable:
     """``fit``'s CSV, refused past :data:`MAX_FIT_ROWS` rows (before any is parsed)."""
     from plate_env.core.probe_table import read_lab_csv
 
     return read_lab_csv(args.csv, a_p_deg=args.amp, max_rows=MAX_FIT_ROWS)
 
 
-def _cmd_fit_calibrated(args: argparse.Namespace, estimator) -> int:
+def _cmd_fit_calibrated(args: argparse.Namespace, estimator: CalibratedEstimator) -> int:
     from plate_env.identify import lab_calibration_file as lcf
 
     table = _read_fit_table(args)
-    lcf.check_data(estimator.calibration, table, estimator.known)
+    lcf.check_data(estimator.calibration, table, estimator.known or estimator.calibration.known)
     est = estimator.fit(table)
     if args.json:
         print(json.dumps({"file": str(args.csv), "calibrated": True, "calibration": str(args.calibration),
@@ -181,6 +188,7 @@ def run(args: argparse.Namespace) -> int:
     if plot is not None:
         from plate_env.plotting import plot_fit
 
-        plot_fit(table, est, str(plot), estimator.forward_model() if incremental and est.ok else None)
+        plot_fit(table, est, str(plot), estimator.forward_model() if isinstance(estimator, AtlasEstimator) and est.ok
+                 else None)
         say_plot(args, plot)
     return 0 if est.ok else 1

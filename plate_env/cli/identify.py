@@ -7,6 +7,7 @@ import contextlib
 import json
 import math
 import sys
+from typing import TYPE_CHECKING, Any, cast
 
 from plate_env.cli.options import (
     TILELINK_MODELS_HELP,
@@ -31,15 +32,25 @@ from plate_env.core.streams import stdout_to_stderr
 from plate_env.core.units import format_omega_pi
 from plate_env.physics import PHYSICS_NAMES
 
+if TYPE_CHECKING:
+    import gymnasium as gym
+
+    from plate_env.cli.options import Subparsers
+    from plate_env.env.episode import EpisodeResult
+    from plate_env.env.protocol import ProbingAgent
+    from plate_env.env.rotation import PlateRotationEnv
+    from plate_env.identify.forward import ForwardModel
+
 
 def _agent_names() -> tuple[str, ...]:
     # the seam: the CLI is the application layer, the only module of plate_env that imports the agents
     from plate_env_agents import AGENT_NAMES
 
-    return AGENT_NAMES
+    names: tuple[str, ...] = AGENT_NAMES
+    return names
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: Subparsers) -> None:
     """The ``identify`` command on the CLI's subparsers ``sub``."""
     i = sub.add_parser("identify", help="identify a hidden object with a probing agent (the main job)")
     i.add_argument("--agent", default="bayes", choices=_agent_names(), help="the probing agent")
@@ -75,13 +86,14 @@ def run(args: argparse.Namespace) -> int:
     obj = object_spec(args)
     plot = plot_path(args.plot) if args.plot else None
     agent = make_agent(args.agent, **({} if args.target is None else {"target_rel": args.target}))
-    env_kw = dict(physics=args.physics, physics_options=physics_options(args), max_probes=args.max_probes,
-                  b_p_mm=args.bp)
+    env_kw: dict[str, Any] = dict(physics=args.physics, physics_options=physics_options(args),
+                                  max_probes=args.max_probes, b_p_mm=args.bp)
     if args.physics == "pybullet":
         env_kw["method"] = "lorentz"
     env = gym.make("PlateRotation-v0", **env_kw)
+    plate = cast("PlateRotationEnv", env.unwrapped)
 
-    def show(k: int, p: dict) -> None:
+    def show(k: int, p: dict[str, Any]) -> None:
         state = f"unstable: {p['reason']}" if p["unstable"] else f"{p['omega_b_deg_s']:7.1f} deg/s"
         print(f"probe {k:2d}: f_p = {p['f_p_hz']:6.2f} Hz  A_p = {p['a_p_deg']:4.1f} deg  "
               f"{p['sim_s']:.2f} s simulated  -> {state}", flush=True)
@@ -94,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
                               on_probe=None if args.json else show)
         plot_fm = _estimate_forward(env, agent) if plot is not None else None  # the plot's curve at the estimate
     except KeyboardInterrupt:  # the probes so far were shown as they finished; with --json, print them now
-        done = env.unwrapped.table()
+        done = plate.table()
         if args.json:
             print(json.dumps({"physics": args.physics, "object": obj.name, "interrupted": True,
                               "probes": done.to_rows()}), flush=True)
@@ -115,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
     return 0 if est.ok else 1
 
 
-def _estimate_forward(env, agent):
+def _estimate_forward(env: gym.Env[Any, Any], agent: ProbingAgent) -> ForwardModel | None:
     """The forward model an episode's estimate was computed with (its estimator's,
     :func:`plate_env.env.episode.estimator_of`), or None (the Lorentz method, a lab calibration, a physics without
     one)."""
@@ -123,12 +135,13 @@ def _estimate_forward(env, agent):
 
     forward_model = getattr(estimator_of(env, agent), "forward_model", None)
     try:
-        return None if forward_model is None else forward_model()
+        model: ForwardModel | None = None if forward_model is None else forward_model()
     except ValueError:
         return None
+    return model
 
 
-def _print_identify(res) -> None:
+def _print_identify(res: EpisodeResult) -> None:
     est = res.estimate
     if est.ok:
         print(f"omega_n_hat = {est.omega_n:.2f} +- {est.omega_n_stderr:.2f} rad/s ({format_omega_pi(est.omega_n)}) "

@@ -9,6 +9,7 @@ import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from plate_env.core import checks
 from plate_env.core.motion import PlateMotion
@@ -25,19 +26,25 @@ from plate_env.core.setup import (
 from plate_env.core.units import format_omega_pi, parse_omega_n
 from plate_env.physics import PHYSICS_NAMES, ProbeSpec
 
+if TYPE_CHECKING:
+    from typing import TypeAlias
+
+    from plate_env.identify.estimate import Estimate
+    from plate_env.surrogate.conditioning import KnownInputs
+
+    #: The CLI's subparsers, where each command module's ``add_parser`` adds its command.
+    Subparsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
+
 #: Most probes one sweep may ask for.
 MAX_SWEEP_PROBES = 2000
-
 
 #: Most rows ``fit`` reads, and ``calibrate`` over all its reference discs (what one sweep may make; the
 #: posterior's cost grows with the rows).
 MAX_FIT_ROWS = MAX_SWEEP_PROBES
 
-
 #: The tile-link models ``--model`` takes, as help text (the list is plate_env.physics.tilelink.backend.MODELS, not
 #: imported here: half a second of start-up; tests/test_hardening3_inputs.py checks the two agree).
 TILELINK_MODELS_HELP = "pointmass, rigid, rigid_limit, rigid_fast"
-
 
 #: The allowed mass at the edge, grams (plate_env.core.setup.MASS_RANGE_KG).
 MASS_RANGE_G = tuple(round(x * 1e3, 9) for x in MASS_RANGE_KG)
@@ -47,12 +54,12 @@ class CliError(Exception):
     """A user error: printed as one line, exit code 2."""
 
 
-def number_arg(check: Callable, *args, **kwargs) -> Callable[[str], object]:
+def number_arg(check: Callable[..., Any], *args: Any, **kwargs: Any) -> Callable[[str], Any]:
     """An argparse ``type`` running ``check(name, value, ...)`` on the parsed number, so a bad value is refused
     while parsing, before any work, by a message naming the option and the allowed range."""
     integral = check is checks.integer
 
-    def convert(text: str):
+    def convert(text: str) -> Any:
         try:
             value = int(text) if integral else float(text)
         except ValueError:
@@ -111,7 +118,7 @@ def say_plot(args: argparse.Namespace, plot: Path) -> None:
 
 def object_spec(args: argparse.Namespace) -> ObjectSpec:
     base = preset(args.object) if args.object else ObjectSpec(name="custom")
-    changes: dict = {}
+    changes: dict[str, float] = {}
     if args.omega_n is not None:
         changes["omega_n"] = args.omega_n
     if args.alpha is not None:
@@ -121,9 +128,9 @@ def object_spec(args: argparse.Namespace) -> ObjectSpec:
     return base.with_(**changes) if changes else base
 
 
-def physics_options(args: argparse.Namespace) -> dict:
+def physics_options(args: argparse.Namespace) -> dict[str, Any]:
     """Backend options from --model and --dt, refused where the backend has no such knob."""
-    options: dict = {}
+    options: dict[str, Any] = {}
     if args.dt is not None:
         if args.physics == "atlas":
             raise CliError("--dt does not apply to --physics atlas (a tabulated response has no time step)")
@@ -193,12 +200,12 @@ def add_known_inputs(p: argparse.ArgumentParser, what: str, mass_default: str = 
                    f"{PAPER_SETUP.diameter_mm:g})")
 
 
-def known_inputs(args: argparse.Namespace, mass_g: float | None = None):
+def known_inputs(args: argparse.Namespace, mass_g: float | None = None) -> KnownInputs:
     """The known inputs given as ``--bp``, ``--mass-g``, ``--diameter-mm``; each one not given is ``PAPER_SETUP``'s
     (the mass: ``mass_g`` first, e.g. a references file's)."""
     from plate_env.surrogate.conditioning import KnownInputs
 
-    def given(value, default):
+    def given(value: float | None, default: float) -> float:
         return default if value is None else value
 
     return KnownInputs(b_p=given(args.bp, PAPER_SETUP.b_p_mm) * 1e-3,
@@ -206,7 +213,7 @@ def known_inputs(args: argparse.Namespace, mass_g: float | None = None):
                        diameter=given(args.diameter_mm, PAPER_SETUP.diameter_mm) * 1e-3)
 
 
-def intervals(est) -> str:
+def intervals(est: Estimate) -> str:
     """The 68 % and 95 % intervals of omega_n, rad/s and in units of pi."""
     (a, b), (c, d) = est.omega_n_ci68, est.omega_n_ci95
     return (f"              68 % interval {a:.2f}-{b:.2f} rad/s ({a / math.pi:.2f}-{b / math.pi:.2f} pi), "

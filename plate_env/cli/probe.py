@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from typing import TYPE_CHECKING
 
 from plate_env.cli.options import add_common, number_arg, object_spec, physics_options, probe_spec
 from plate_env.core import checks
@@ -16,8 +17,12 @@ from plate_env.core.streams import stdout_to_stderr
 from plate_env.core.units import format_omega_pi
 from plate_env.physics import make_physics
 
+if TYPE_CHECKING:
+    from plate_env.cli.options import Subparsers
+    from plate_env.physics import Physics
 
-def add_parser(sub) -> None:
+
+def add_parser(sub: Subparsers) -> None:
     """The ``probe`` command on the CLI's subparsers ``sub``."""
     p = sub.add_parser("probe", help="run one probe and print omega_B")
     add_common(p)
@@ -25,7 +30,7 @@ def add_parser(sub) -> None:
                    required=True, help="plate frequency f_p, Hz")
 
 
-def _physics(args: argparse.Namespace):
+def _physics(args: argparse.Namespace) -> Physics:
     return make_physics(args.physics, **physics_options(args))
 
 

@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 import sys
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -31,6 +32,10 @@ from plate_env.core.streams import stdout_to_stderr
 from plate_env.core.units import format_omega_pi
 from plate_env.physics.interface import refuse_early
 from plate_env.run.executor import BackendSpec, add_executor_argument, make_executor
+
+if TYPE_CHECKING:
+    from plate_env.cli.options import Subparsers
+    from plate_env.core.probe import ProbeResult
 
 
 def parse_freqs(text: str) -> np.ndarray:
@@ -64,7 +69,7 @@ def parse_freqs(text: str) -> np.ndarray:
     return freqs
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: Subparsers) -> None:
     """The ``sweep`` command on the CLI's subparsers ``sub``."""
     s = sub.add_parser("sweep", help="run a batched frequency sweep")
     add_common(s)
@@ -78,7 +83,7 @@ def add_parser(sub) -> None:
     add_executor_argument(s)
 
 
-def _print_sweep(args: argparse.Namespace, obj: ObjectSpec, results: list, interrupted: bool) -> None:
+def _print_sweep(args: argparse.Namespace, obj: ObjectSpec, results: list[ProbeResult], interrupted: bool) -> None:
     if args.json:
         print(json.dumps({"physics": args.physics, "object": obj.name, "interrupted": interrupted,
                           "probes": [r.to_dict() for r in results]}), flush=True)
