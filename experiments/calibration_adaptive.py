@@ -30,10 +30,8 @@ import math
 import sys
 from pathlib import Path
 
+import common
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).parent))
-import calibration_study as cs  # noqa: E402
 
 RESULTS = Path("experiments/results")
 KS = (1, 2, 3, 5, 8)
@@ -62,50 +60,50 @@ def raw_features_of(tables) -> np.ndarray:
     return out
 
 
-FEATURES = {"lorentz": cs.features_of, "raw": raw_features_of}
+FEATURES = {"lorentz": common.features_of, "raw": raw_features_of}
 
 
-def load(src: str, lab_n: int, features: str = "lorentz") -> list[cs.Lab]:
+def load(src: str, lab_n: int, features: str = "lorentz") -> list[common.Lab]:
     """The cached sweeps of ``src`` as labs of ``lab_n`` discs (consecutive objects; one lab when fewer), with the
     hump features ``features`` (:data:`FEATURES`)."""
-    truth, tables = cs.source_data(src, None, None)
+    truth, tables = common.source_data(src, None, None)
     truth = np.asarray(truth)
     feats = FEATURES[features](tables)
     n = len(truth)
     n_labs = max(1, n // lab_n)
     edges = np.linspace(0, n, n_labs + 1).astype(int)
-    return [cs.Lab(f"{src}{j}" if n_labs > 1 else src, truth[a:b], [], feats[a:b])
+    return [common.Lab(f"{src}{j}" if n_labs > 1 else src, truth[a:b], [], feats[a:b])
             for j, (a, b) in enumerate(zip(edges[:-1], edges[1:], strict=True))]
 
 
-def oracle(labs: list[cs.Lab]) -> dict:
+def oracle(labs: list[common.Lab]) -> dict:
     """The information limit of a source: least squares of log omega_n on (1, f0, log omega_Brmax) over ALL its
     discs (labs pooled), in-sample residual sd and median abs error."""
     F = np.concatenate([lab.features for lab in labs])
     y = np.log(np.concatenate([lab.truth for lab in labs]))
     ok = F[:, 0] == 1
-    x = cs.feat_x(F[ok])
+    x = common.feat_x(F[ok])
     beta, *_ = np.linalg.lstsq(x, y[ok], rcond=None)
     r = y[ok] - x @ beta
     return {"n": int(ok.sum()), "of": int(ok.size), "sd": float(np.sqrt(np.mean(r ** 2))),
             "median_error": float(np.median(np.abs(np.expm1(r))))}
 
 
-def learn_prior(pseudo: list[cs.Lab], log_sd: float) -> tuple[cs.FeatPrior, dict]:
-    """cs.learn_feat_prior, with the scatter prior's spread max(log_sd, the pseudo-labs' spread of log sd)."""
-    prior, info = cs.learn_feat_prior(pseudo, log_sd)
+def learn_prior(pseudo: list[common.Lab], log_sd: float) -> tuple[common.FeatPrior, dict]:
+    """common.learn_feat_prior, with the scatter prior's spread max(log_sd, the pseudo-labs' spread of log sd)."""
+    prior, info = common.learn_feat_prior(pseudo, log_sd)
     sds = []
     for lab in pseudo:
         ok = lab.features[:, 0] == 1
         if ok.sum() < 5:
             continue
-        x, y = cs.feat_x(lab.features[ok]), np.log(lab.truth[ok])
+        x, y = common.feat_x(lab.features[ok]), np.log(lab.truth[ok])
         beta, *_ = np.linalg.lstsq(x, y, rcond=None)
         sds.append(float(np.sqrt(np.mean((y - x @ beta) ** 2))))
     spread = float(np.std(np.log(sds))) if len(sds) > 1 else 0.0
     lsd = max(log_sd, spread)
     info["log_sd"] = lsd
-    return cs.FeatPrior(prior.m0, prior.c0, prior.sigma_median, lsd), info
+    return common.FeatPrior(prior.m0, prior.c0, prior.sigma_median, lsd), info
 
 
 def feat_predict_t(post, f_row: np.ndarray, nu: float):
@@ -114,37 +112,37 @@ def feat_predict_t(post, f_row: np.ndarray, nu: float):
     from scipy.stats import t as student_t
 
     if not math.isfinite(nu):
-        return cs.feat_predict(post, f_row)
+        return common.feat_predict(post, f_row)
     from plate_env.identify.lab_calibration import Prediction
 
     if f_row[0] != 1:
         return Prediction(False, reason="no Lorentzian fit")
     wt, parts = post
-    x = cs.feat_x(f_row[None])[0]
-    cdf = np.zeros_like(cs._Y)
-    for w, sg, (mn, cn) in zip(wt, cs.FEAT_SIGMAS, parts, strict=True):
+    x = common.feat_x(f_row[None])[0]
+    cdf = np.zeros_like(common.FEAT_Y)
+    for w, sg, (mn, cn) in zip(wt, common.FEAT_SIGMAS, parts, strict=True):
         if w >= 1e-8:
-            cdf += w * student_t.cdf(cs._Y, nu, x @ mn, math.sqrt(sg ** 2 + x @ cn @ x))
+            cdf += w * student_t.cdf(common.FEAT_Y, nu, x @ mn, math.sqrt(sg ** 2 + x @ cn @ x))
     cdf /= cdf[-1]
 
     def q(level: float) -> float:
-        return float(math.exp(np.interp(level, cdf, cs._Y)))
+        return float(math.exp(np.interp(level, cdf, common.FEAT_Y)))
 
     return Prediction(True, q(0.5), (q(0.16), q(0.84)), (q(0.025), q(0.975)))
 
 
 #: Beside the study's statistics: the share of discs without an estimate (no hump features) and the coverage among
 #: the discs with one (the study's coverage counts a disc without an estimate as a miss).
-cs.STATS["no_estimate"] = ("miss", lambda x: np.nanmean(x, axis=-1))
-cs.STATS["coverage95_given"] = ("in95g", lambda x: np.nanmean(x, axis=-1))
-cs.STATS["coverage68_given"] = ("in68g", lambda x: np.nanmean(x, axis=-1))
+common.STATS["no_estimate"] = ("miss", lambda x: np.nanmean(x, axis=-1))
+common.STATS["coverage95_given"] = ("in95g", lambda x: np.nanmean(x, axis=-1))
+common.STATS["coverage68_given"] = ("in68g", lambda x: np.nanmean(x, axis=-1))
 SCORE_KEYS = ("error", "in68", "in95", "width95", "miss", "in95g", "in68g")
 
 
 def scores(truth: np.ndarray, preds) -> dict[str, np.ndarray]:
     """:func:`calibration_study.per_object_scores` plus ``miss`` (1: no estimate) and the coverages with NaN where
     there is no estimate."""
-    out = cs.per_object_scores(truth, preds)
+    out = common.per_object_scores(truth, preds)
     ok = np.array([p.ok for p in preds])
     out["miss"] = (~ok).astype(float)
     out["in95g"] = np.where(ok, out["in95"], np.nan)
@@ -152,15 +150,15 @@ def scores(truth: np.ndarray, preds) -> dict[str, np.ndarray]:
     return out
 
 
-def feat_fit_ev(prior: cs.FeatPrior, F: np.ndarray, y: np.ndarray):
+def feat_fit_ev(prior: common.FeatPrior, F: np.ndarray, y: np.ndarray):
     """:func:`calibration_study.feat_fit` and the references' log marginal likelihood under ``prior`` (the scatter
     prior normalised on the grid); 0 without a reference that has features."""
-    wt, parts = cs.feat_fit(prior, F, y)
+    wt, parts = common.feat_fit(prior, F, y)
     ok = F[:, 0] == 1
-    x, yy = cs.feat_x(F[ok]), y[ok]
-    lp = -0.5 * ((np.log(cs.FEAT_SIGMAS) - math.log(prior.sigma_median)) / prior.log_sd) ** 2
+    x, yy = common.feat_x(F[ok]), y[ok]
+    lp = -0.5 * ((np.log(common.FEAT_SIGMAS) - math.log(prior.sigma_median)) / prior.log_sd) ** 2
     lp -= np.logaddexp.reduce(lp)
-    for j, sg in enumerate(cs.FEAT_SIGMAS):
+    for j, sg in enumerate(common.FEAT_SIGMAS):
         cov_y = sg ** 2 * np.eye(len(yy)) + x @ prior.c0 @ x.T
         r = yy - x @ prior.m0
         _, logdet = np.linalg.slogdet(cov_y)
@@ -168,14 +166,14 @@ def feat_fit_ev(prior: cs.FeatPrior, F: np.ndarray, y: np.ndarray):
     return (wt, parts), float(np.logaddexp.reduce(lp))
 
 
-def offset_only(prior: cs.FeatPrior) -> cs.FeatPrior:
+def offset_only(prior: common.FeatPrior) -> common.FeatPrior:
     """The same prior with the slopes held at their prior means (sd 1e-4): only the intercept and the scatter are
     learned from the references."""
     c0 = prior.c0.copy()
     c0[1:, :] = 0.0
     c0[:, 1:] = 0.0
     c0[1, 1] = c0[2, 2] = 1e-8
-    return cs.FeatPrior(prior.m0, c0, prior.sigma_median, prior.log_sd)
+    return common.FeatPrior(prior.m0, c0, prior.sigma_median, prior.log_sd)
 
 
 def bma_predict(fits, f_row: np.ndarray, nu: float):
@@ -189,7 +187,7 @@ def bma_predict(fits, f_row: np.ndarray, nu: float):
     w = np.exp(lev - lev.max())
     w /= w.sum()
     # mixture quantiles from each candidate's own quantiles: interpolate a CDF through its 5 quantile points (log)
-    grid = cs._Y
+    grid = common.FEAT_Y
     cdf = np.zeros_like(grid)
     for (p, _), wi in zip(preds, w, strict=True):
         qs = np.log([p.ci95[0], p.ci68[0], p.omega_n, p.ci68[1], p.ci95[1]])
@@ -203,13 +201,14 @@ def bma_predict(fits, f_row: np.ndarray, nu: float):
 
 def run(args) -> dict:
     data = {s: load(s, args.lab_n, args.features) for s in args.sources}
-    out: dict = {"command": "python " + " ".join(sys.argv), "commit": cs.commit(), "draws": args.draws,
+    out: dict = {"command": "python " + " ".join(sys.argv), "commit": common.git_commit(dirty=False),
+                 "draws": args.draws,
                  "seed": args.seed, "log_sd": args.log_sd, "lab_n": args.lab_n,
                  "features": args.features, "nu": args.nu, "bma": args.bma,
                  "oracle": {s: oracle(labs) for s, labs in data.items()}, "priors": {}, "by_k": {}}
     priors = {}
     for s in args.sources:
-        pseudo = [lab for t, labs in data.items() if cs.SOURCE_FAMILY[t] != cs.SOURCE_FAMILY[s] for lab in labs]
+        pseudo = [lab for t, labs in data.items() if common.SOURCE_FAMILY[t] != common.SOURCE_FAMILY[s] for lab in labs]
         priors[s], out["priors"][s] = learn_prior(pseudo, args.log_sd)
     for K in KS:
         blocks = {}
@@ -230,7 +229,7 @@ def run(args) -> dict:
                         fits = [feat_fit_ev(pr, lab.features[ref], y) for pr in (priors[s], offset_only(priors[s]))]
                         preds = [bma_predict(fits, lab.features[i], args.nu) for i in others]
                     else:
-                        post = cs.feat_fit(priors[s], lab.features[ref], y)
+                        post = common.feat_fit(priors[s], lab.features[ref], y)
                         preds = [feat_predict_t(post, lab.features[i], args.nu) for i in others]
                     for k, v in scores(lab.truth[others], preds).items():
                         res[k][others, d] = v
@@ -238,8 +237,8 @@ def run(args) -> dict:
             if bl:
                 blocks[s] = {k: np.concatenate([b[k] for b in bl]) for k in bl[0]}
         brng = np.random.default_rng([args.seed, K, 99])
-        out["by_k"][str(K)] = {"pooled": cs.summarize(list(blocks.values()), brng, args.n_boot),
-                               **{s: cs.summarize([b], brng, args.n_boot) for s, b in blocks.items()}}
+        out["by_k"][str(K)] = {"pooled": common.summarize(list(blocks.values()), brng, args.n_boot),
+                               **{s: common.summarize([b], brng, args.n_boot) for s, b in blocks.items()}}
         print(K, {k: (round(v["median_error"]["value"], 3), round(v["coverage95"]["value"], 3),
                       round(v["width95"]["value"], 2)) for k, v in out["by_k"][str(K)].items()}, flush=True)
     return out
@@ -261,10 +260,11 @@ def write_md(res: dict) -> str:
             o = res["oracle"].get(s)
             lim = f"{o['sd']:.3f} ({o['median_error']:.1%}; {o['n']} of {o['of']} fitted)" if o else "-"
             lines.append(f"| {k} | {s} | {lim} | {st['no_estimate']['value']:.0%} | "
-                         f"{cs._cell(st['median_error'], 100, 1)} | {cs._cell(st['coverage68'], 1, 2, '')} | "
-                         f"{cs._cell(st['coverage95'], 1, 2, '')} | {cs._cell(st['coverage95_given'], 1, 2, '')} | "
-                         f"{cs._cell(st['width95'])} |")
-    lines += ["", "Priors: " + "; ".join(f"{s}: {cs._prior_text(p)}" for s, p in res["priors"].items()), ""]
+                         f"{common.cell(st['median_error'], 100, 1)} | {common.cell(st['coverage68'], 1, 2, '')} | "
+                         f"{common.cell(st['coverage95'], 1, 2, '')} | "
+                         f"{common.cell(st['coverage95_given'], 1, 2, '')} | "
+                         f"{common.cell(st['width95'])} |")
+    lines += ["", "Priors: " + "; ".join(f"{s}: {common.prior_text(p)}" for s, p in res["priors"].items()), ""]
     return "\n".join(lines) + "\n"
 
 

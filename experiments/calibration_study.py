@@ -18,13 +18,25 @@ import argparse
 import dataclasses
 import json
 import math
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import common
 import numpy as np
+from common import (
+    SOURCE_FAMILY,
+    Lab,
+    cell,
+    feat_fit,
+    feat_predict,
+    features_of,
+    learn_feat_prior,
+    per_object_scores,
+    prior_text,
+    source_data,
+    summarize,
+)
 
 from plate_env.build.eval_sets import EvalSet
 from plate_env.build.forward_models import FAMILIES
@@ -81,27 +93,7 @@ def all_members() -> tuple[ForwardModel, list[str]]:
     return ForwardModel("all", tuple(members)), fams
 
 
-def source_data(fam: str, n: int | None, executor) -> tuple[list[float], list]:
-    es = common.DATA[fam] if n is None else dataclasses.replace(common.DATA[fam], n=n)
-    return common.data_of(fam, executor, es)
-
-
-#: Each source's physics family (its members are left out of the forward model when it is the lab). ``pmlab``: the
-#: point mass with lab-level nuisance (:class:`LabEvalSet`), several labs.
-SOURCE_FAMILY = {"pointmass": "pointmass", "rigid": "rigid", "pybullet": "pybullet", "pmlab": "pointmass"}
 ALL_SOURCES = (*SOURCES, "pmlab")
-
-
-@dataclasses.dataclass(frozen=True)
-class Lab:
-    """One lab's discs: true omega_n (rad/s), every member's reading of each sweep, and each sweep's hump features
-    (rows ok, f0 Hz, b Hz, omega_Brmax deg/s, f0 stderr Hz; NaN where the Lorentzian fit failed)."""
-
-    name: str
-    truth: np.ndarray
-    readings: list
-    features: np.ndarray
-    shape_readings: list | None = None
 
 
 def readings_of(name: str, tables, fm: ForwardModel, shape: bool = False, only=None) -> list[Readings]:
@@ -119,19 +111,6 @@ def readings_of(name: str, tables, fm: ForwardModel, shape: bool = False, only=N
                         log_z=np.stack([r.log_z for r in out]))
     print(f"readings {name}: {len(tables)} sweeps x {len(fm.members)} members in {time.perf_counter() - t0:.0f} s",
           file=sys.stderr, flush=True)
-    return out
-
-
-def features_of(tables) -> np.ndarray:
-    """Each sweep's first-hump Lorentzian (Eq. 9): (ok, f0, b, omega_Brmax, f0 stderr), NaN where it fails."""
-    from plate_env.identify.fitting import fit_lorentzian
-
-    out = np.full((len(tables), 5), np.nan)
-    for i, t in enumerate(tables):
-        f = fit_lorentzian(t.f_p_hz, t.omega_b_deg_s, t.stderr_deg_s, t.unstable)
-        out[i, 0] = float(f.ok)
-        if f.ok:
-            out[i, 1:] = (f.f0, f.b, f.omega_max, f.f0_stderr)
     return out
 
 
@@ -157,146 +136,6 @@ def lab_readings(readings: list[Readings], fams: list[str], exclude: set[str], p
         return [r.subset(idx) for r in readings], [MEMBER_FILES[i] for i in idx]
     groups = {f: [i for i, g in enumerate(fams) if g == f] for f in SOURCES if f not in exclude}
     return [r.pooled(list(groups.values())) for r in readings], list(groups)
-
-
-# --------------------------------------------------------------------------------------------------- scoring
-def per_object_scores(truth: np.ndarray, preds) -> dict[str, np.ndarray]:
-    err = np.array([abs(p.omega_n - w) / w if p.ok else math.inf for p, w in zip(preds, truth, strict=True)])
-    in68 = np.array([p.ok and p.ci68[0] <= w <= p.ci68[1] for p, w in zip(preds, truth, strict=True)], float)
-    in95 = np.array([p.ok and p.ci95[0] <= w <= p.ci95[1] for p, w in zip(preds, truth, strict=True)], float)
-    width = np.array([(p.ci95[1] - p.ci95[0]) / w if p.ok else math.inf for p, w in zip(preds, truth, strict=True)])
-    return {"error": err, "in68": in68, "in95": in95, "width95": width}
-
-
-STATS = {
-    "median_error": ("error", lambda x: np.nanmedian(x, axis=-1)),
-    "p90_error": ("error", lambda x: np.nanpercentile(x, 90, axis=-1)),
-    "coverage68": ("in68", lambda x: np.nanmean(x, axis=-1)),
-    "coverage95": ("in95", lambda x: np.nanmean(x, axis=-1)),
-    "width95": ("width95", lambda x: np.nanmedian(x, axis=-1)),
-}
-
-
-def boot_indices(labs: np.ndarray, rng: np.random.Generator, n_boot: int) -> np.ndarray:
-    """Two-stage bootstrap rows (n_boot, n): within each source, its labs drawn with replacement, then objects drawn
-    with replacement inside each drawn lab (a source with one lab: objects alone). ``labs``: per object, a
-    ``source/lab`` label; the source is the part before the slash."""
-    src_of = np.array([lab.split("/")[0] for lab in labs])
-    members = {lab: np.flatnonzero(labs == lab) for lab in dict.fromkeys(labs)}
-    by_src = {s_: [lab for lab in members if lab.split("/")[0] == s_] for s_ in dict.fromkeys(src_of)}
-    rows = []
-    for _ in range(n_boot):
-        parts = []
-        for names in by_src.values():
-            for lab in rng.choice(len(names), size=len(names), replace=True):
-                obj = members[names[lab]]
-                parts.append(rng.choice(obj, size=obj.size, replace=True))
-        row = np.concatenate(parts)
-        rows.append(np.resize(row, labs.size))  # equal-size labs keep the length; resize guards unequal ones
-    return np.array(rows)
-
-
-def summarize(blocks: list[dict[str, np.ndarray]], rng: np.random.Generator, n_boot: int = 1000) -> dict:
-    """Statistics over every (object, draw) pair with 95 % bootstrap intervals (an object carries all its draws):
-    labs resampled within each source, then objects within each lab (:func:`boot_indices`). ``blocks``: per source,
-    arrays (n_objects, n_draws) with NaN where the object was a reference, and ``lab`` labels."""
-    arrays = {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
-    n = arrays["error"].shape[0]
-    idx = boot_indices(arrays["lab"], rng, n_boot)
-    out = {"objects": int(n), "pairs": int(np.isfinite(arrays["in95"]).sum())}
-    for name, (key, fn) in STATS.items():
-        v = arrays[key].astype(float)
-        value = float(fn(v.reshape(1, -1))[0])
-        boot = np.array([fn(v[i].reshape(1, -1))[0] for i in idx])
-        out[name] = {"value": value, "ci95": [float(np.percentile(boot, 2.5)), float(np.percentile(boot, 97.5))]}
-    return out
-
-
-# --------------------------------------------------------------------------------------------------- features
-#: Candidate (b), the paper's way: log omega_n linear in the hump's features x = (1, f0 - 26 Hz, log(omega_Brmax /
-#: 600 deg/s)), a lab's coefficients from its K references, shrunk toward a prior learned from other labs.
-FEAT_SIGMAS = np.geomspace(0.02, 1.0, 24)
-#: The prior sd of each coefficient is at least the pseudo-labs' spread plus these floors (intercept, per Hz, per
-#: unit log peak): a lab's physics may differ from every lab the prior saw.
-FEAT_FLOOR = np.array([0.5, 0.1, 1.0])
-
-
-def feat_x(F: np.ndarray) -> np.ndarray:
-    return np.c_[np.ones(len(F)), F[:, 1] - 26.0, np.log(F[:, 3] / 600.0)]
-
-
-@dataclasses.dataclass(frozen=True)
-class FeatPrior:
-    m0: np.ndarray
-    c0: np.ndarray
-    sigma_median: float
-    log_sd: float
-
-
-def learn_feat_prior(pseudo: list[Lab], log_sd: float) -> tuple[FeatPrior, dict]:
-    """Coefficients by least squares on each pseudo-lab (all its fitted sweeps); the prior mean is their mean, its
-    covariance their spread plus (|mean| + floor)^2 on the diagonal; the scatter prior log-normal around the
-    geometric mean of their residual sds."""
-    betas, sds = [], []
-    for lab in pseudo:
-        ok = lab.features[:, 0] == 1
-        if ok.sum() < 5:
-            continue
-        x, y = feat_x(lab.features[ok]), np.log(lab.truth[ok])
-        beta, *_ = np.linalg.lstsq(x, y, rcond=None)
-        betas.append(beta)
-        sds.append(float(np.sqrt(np.mean((y - x @ beta) ** 2))))
-    B = np.array(betas)
-    m0 = B.mean(0)
-    spread = np.cov(B.T) if len(B) > 1 else np.zeros((3, 3))
-    c0 = spread + np.diag((np.abs(m0) * np.array([0, 1, 1]) + FEAT_FLOOR) ** 2)
-    med = float(np.exp(np.mean(np.log(sds))))
-    return FeatPrior(m0, c0, med, log_sd), {"pseudo_labs": [lab.name for lab in pseudo], "m0": m0.tolist(),
-                                             "sd0": np.sqrt(np.diag(c0)).tolist(), "median": med, "log_sd": log_sd}
-
-
-def feat_fit(prior: FeatPrior, F: np.ndarray, y: np.ndarray):
-    """Posterior on the scatter grid: per sigma, the Gaussian posterior of the coefficients and the evidence."""
-    ok = F[:, 0] == 1
-    x, y = feat_x(F[ok]), y[ok]
-    lp = -0.5 * ((np.log(FEAT_SIGMAS) - math.log(prior.sigma_median)) / prior.log_sd) ** 2
-    prec0 = np.linalg.inv(prior.c0)
-    out = []
-    for j, sg in enumerate(FEAT_SIGMAS):
-        cov_y = sg ** 2 * np.eye(len(y)) + x @ prior.c0 @ x.T
-        r = y - x @ prior.m0
-        sign, logdet = np.linalg.slogdet(cov_y)
-        lp[j] += -0.5 * (logdet + r @ np.linalg.solve(cov_y, r))
-        cn = np.linalg.inv(prec0 + x.T @ x / sg ** 2)
-        mn = cn @ (prec0 @ prior.m0 + x.T @ y / sg ** 2)
-        out.append((mn, cn))
-    wt = np.exp(lp - lp.max())
-    return wt / wt.sum(), out
-
-
-_Y = np.linspace(math.log(1.0), math.log(400.0), 2400)
-
-
-def feat_predict(post, f_row: np.ndarray):
-    from plate_env.identify.lab_calibration import Prediction
-
-    if f_row[0] != 1:
-        return Prediction(False, reason="no Lorentzian fit")
-    wt, parts = post
-    x = feat_x(f_row[None])[0]
-    cdf = np.zeros_like(_Y)
-    from scipy.stats import norm
-
-    for w, sg, (mn, cn) in zip(wt, FEAT_SIGMAS, parts, strict=True):
-        if w < 1e-8:
-            continue
-        cdf += w * norm.cdf(_Y, x @ mn, math.sqrt(sg ** 2 + x @ cn @ x))
-    cdf /= cdf[-1]
-
-    def q(level: float) -> float:
-        return float(math.exp(np.interp(level, cdf, _Y)))
-
-    return Prediction(True, q(0.5), (q(0.16), q(0.84)), (q(0.025), q(0.975)))
 
 
 # --------------------------------------------------------------------------------------------------- study
@@ -379,18 +218,11 @@ METHODS = {
 }
 
 
-def commit() -> str:
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                              check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
 def stage_study(args) -> None:
     fm, fams = all_members()
     data = {src: load_labs(src, args, fm) for src in args.sources}
-    results: dict = {"command": "python " + " ".join(sys.argv), "commit": commit(), "draws": args.draws,
+    results: dict = {"command": "python " + " ".join(sys.argv), "commit": common.git_commit(dirty=False),
+                     "draws": args.draws,
                      "seed": args.seed, "ks": list(KS), "log_sd": args.log_sd,
                      "sources": {s: {"objects": int(sum(len(lab.truth) for lab in data[s])), "labs": len(data[s]),
                                      "family": SOURCE_FAMILY[s],
@@ -443,11 +275,6 @@ def stage_study(args) -> None:
     write_md(results)
 
 
-def _cell(st: dict, scale: float = 100, digits: int = 0, unit: str = " %") -> str:
-    v, (lo, hi) = st["value"], st["ci95"]
-    return f"{v * scale:.{digits}f}{unit} [{lo * scale:.{digits}f}, {hi * scale:.{digits}f}]"
-
-
 #: What each source's numbers claim (the report states it beside every table).
 REGIME = {
     "pointmass": "point mass, per-disc nuisance: every disc draws its own joint and contact values (a lab whose "
@@ -487,16 +314,6 @@ def choice_text(ms: dict, shipped: str) -> str:
             "candidate meets the goals (K = 3: median error <= 10 %, median 95 % width <= 50 %) while honest. "
             f"The feature line (`features`) has the lowest point error ({best_feat}) but its prior, learned from "
             "labs of one other physics, is over-confident on the point-mass labs.")
-
-
-def _prior_text(p: dict) -> str:
-    if isinstance(p.get("pseudo_labs"), dict):
-        return (f"scatter median {p['median']:.3f}, sd(log) {p['log_sd']:g} (from "
-                + ", ".join(f"{k} {v:.3f}" for k, v in p["pseudo_labs"].items()) + ")")
-    if "m0" in p:
-        return (f"coefficients {', '.join(f'{x:.3g}' for x in p['m0'])} (sd {', '.join(f'{x:.3g}' for x in p['sd0'])}),"
-                f" scatter median {p['median']:.3f}, sd(log) {p['log_sd']:g}, from {', '.join(p['pseudo_labs'])}")
-    return str(p.get("pseudo_labs"))
 
 
 def write_md(results: dict) -> None:
@@ -550,15 +367,15 @@ def write_md(results: dict) -> None:
         lines += [f"## {res['label']} (`{mname}`)", "",
                   f"Command: `{res.get('command', results.get('command'))}` at commit "
                   f"{res.get('commit', results.get('commit'))}.", "",
-                  "Priors per lab: " + "; ".join(f"{lab}: {_prior_text(p)}" for lab, p in res["priors"].items()), "",
+                  "Priors per lab: " + "; ".join(f"{lab}: {prior_text(p)}" for lab, p in res["priors"].items()), "",
                   "| K | lab | objects (pairs) | median error | p90 error | 68 % coverage | 95 % coverage | "
                   "median 95 % width |", "|---|---|---|---|---|---|---|---|"]
         for k, byk in res["by_k"].items():
             for lab in ["pooled", *res.get("sources", srcs)]:
                 st = byk[lab]
-                lines.append(f"| {k} | {lab} | {st['objects']} ({st['pairs']}) | {_cell(st['median_error'], 100, 1)}"
-                             f" | {_cell(st['p90_error'])} | {_cell(st['coverage68'], 1, 2, '')} | "
-                             f"{_cell(st['coverage95'], 1, 2, '')} | {_cell(st['width95'])} |")
+                lines.append(f"| {k} | {lab} | {st['objects']} ({st['pairs']}) | {cell(st['median_error'], 100, 1)}"
+                             f" | {cell(st['p90_error'])} | {cell(st['coverage68'], 1, 2, '')} | "
+                             f"{cell(st['coverage95'], 1, 2, '')} | {cell(st['width95'])} |")
         lines.append("")
     if SHIPPED in ms:
         lines += ["## Choice", "", choice_text(ms, SHIPPED), ""]
@@ -621,7 +438,7 @@ def stage_paper(args) -> None:
                      "covered95": bool(e.omega_n_ci95[0] <= w * math.pi <= e.omega_n_ci95[1])})
     path = RESULTS / "calibration_study.json"
     results = json.loads(path.read_text())
-    results["paper"] = {"command": "python " + " ".join(sys.argv), "commit": commit(),
+    results["paper"] = {"command": "python " + " ".join(sys.argv), "commit": common.git_commit(dirty=False),
                         "references": [{"omega_n_pi": w, "omega_max_deg_s": wm, "f0_hz": f0, "b_hz": b}
                                        for w, wm, f0, b in refs],
                         "f_hz": list(PAPER_F_HZ), "stderr_deg_s": PAPER_STDERR,
@@ -657,7 +474,8 @@ def stage_oracle(args) -> None:
                          "sd": post.summary()["sigma_mean"], "median_error": float(np.median(err))})
     path = RESULTS / "calibration_study.json"
     results = json.loads(path.read_text())
-    results["oracle"] = {"command": "python " + " ".join(sys.argv), "commit": commit(), "rows": rows}
+    results["oracle"] = {"command": "python " + " ".join(sys.argv), "commit": common.git_commit(dirty=False),
+                         "rows": rows}
     path.write_text(json.dumps(results, indent=1) + "\n")
     write_md(results)
 

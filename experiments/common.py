@@ -15,6 +15,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -27,7 +28,7 @@ from plate_env.build.eq10 import LAB_SETS, lab_backend_of
 from plate_env.build.eval_sets import EvalSet, run_eval_set
 from plate_env.core.probe import ProbeResult, ProbeSpec
 from plate_env.core.probe_table import ProbeTable
-from plate_env.identify.fitting import fit_results
+from plate_env.identify.fitting import fit_lorentzian, fit_results
 from plate_env.identify.forward import ForwardModel, Member
 from plate_env.run.executor import BackendSpec
 from plate_env.run.sweeps import backend_tag, load_cache, result_from_record, spec_key
@@ -295,12 +296,17 @@ def fit_sweep(results: list[ProbeResult]):
     return fit
 
 
-def git_commit() -> str:
+def git_commit(dirty: bool = True, under: str | None = None) -> str:
+    """The checkout's short commit; with ``dirty``, ``+dirty`` when tracked files (only those under ``under``, a
+    folder of the checkout such as ``"plate_env"``: which kernel a route ran on) have uncommitted changes;
+    ``"unknown"`` outside git."""
     try:
-        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True)
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
-                               text=True, check=True).stdout.strip()
-        return out.stdout.strip() + ("+dirty" if dirty else "")
+        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True,
+                             cwd=ROOT)
+        where = ["--", str(ROOT / under)] if under else []
+        changed = dirty and subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", *where],
+                                           capture_output=True, text=True, check=True, cwd=ROOT).stdout.strip()
+        return out.stdout.strip() + ("+dirty" if changed else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
 
@@ -406,16 +412,48 @@ def data_of(family: str, executor, es: EvalSet | None = None) -> tuple[list[floa
     return [o.omega_n for o in es.objects()], tables
 
 
-# ---- Real-time factor of a backend (bench_physics, rigid_fast_validation); from bench_physics.py
-def rtf(physics, specs, repeats):
+# ---- Real-time factor of a backend and the speed harness (bench_physics, rigid_fast_validation,
+# rigid_modal_validation); from bench_physics.py and rigid_fast_validation.py
+def rtf(physics, specs, repeats: int, clock: Callable[[], float] = time.perf_counter) -> tuple[float, int]:
+    """Simulated seconds per ``clock`` second of ``physics.run(specs)`` (the median of ``repeats`` runs after a
+    warm-up run that compiles or loads caches) and the unstable probes of the last run."""
     physics.run(specs)  # warm (compile / load cache)
     times = []
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0 = clock()
         res = physics.run(specs)
-        times.append(time.perf_counter() - t0)
+        times.append(clock() - t0)
     sim = sum(r.sim_s for r in res)
     return sim / statistics.median(times), sum(r.unstable for r in res)
+
+
+def speed_probes() -> tuple[list[ProbeSpec], list[ProbeSpec]]:
+    """bench_physics' harness: the cheese at 20 Hz alone, and a batch of 32 objects 5pi-36pi at 18-21 Hz (A_p 3 deg)."""
+    cheese = pe.preset("cheese")
+    one = [ProbeSpec(cheese, pe.PlateMotion.from_paper(20.0, 3.0))]
+    batch = [ProbeSpec(cheese.with_(omega_n=(5 + k) * math.pi), pe.PlateMotion.from_paper(18 + 0.1 * k, 3.0))
+             for k in range(32)]
+    return one, batch
+
+
+def speed(physics, pointmass, repeats: int, clock: Callable[[], float] = time.perf_counter,
+          batch: bool = True) -> dict:
+    """Real-time factors on :func:`speed_probes` (:func:`rtf`), ``physics`` as ``"route"`` and the point mass measured
+    in the same run, the 1-minute load, and whether the route holds issue 26's goals (>= 10x one probe, >= 25x the
+    batch of 32). ``clock``: time.perf_counter (wall, the default) or time.process_time (this process's CPU time,
+    summed over its threads: the kernel's own cost on a loaded shared machine); ``batch=False``: one probe only."""
+    one, many = speed_probes()
+    out: dict = {}
+    for name, phys in (("route", physics), ("pointmass", pointmass)):
+        out[name] = {"one_probe_rtf": rtf(phys, one, repeats, clock)[0]}
+        if batch:
+            r32, bad = rtf(phys, many, repeats, clock)
+            out[name].update(batch32_rtf=r32, batch32_unstable=bad)
+    out["load_avg_1min"] = os.getloadavg()[0]
+    out["holds"] = {"one_probe": out["route"]["one_probe_rtf"] >= 10.0}
+    if batch:
+        out["holds"]["batch32"] = out["route"]["batch32_rtf"] >= 25.0
+    return out
 
 
 # ---- Machine state for timing records (ppo_timing, zoo_timing); from ppo_timing.py
@@ -426,3 +464,257 @@ def load() -> list[float]:
 def commit() -> str | None:
     out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=Path(__file__).parent)
     return out.stdout.strip() or None
+
+
+# ---- The converged rigid-limit reference, its probes and the scores against it (rigid_fast_validation,
+# rigid_modal_validation); from rigid_fast_validation.py
+RIGID_REFERENCE = HERE / "results" / "rigid_reference.json"
+#: What a route must reach against the reference: omega_B median / max |relative difference| where both are stable,
+#: stability agreement, first-hump f0 difference (Hz).
+TOL_MEDIAN, TOL_MAX, TOL_AGREE, TOL_F0 = 0.02, 0.05, 0.90, 0.3
+
+
+def load_reference() -> list[dict]:
+    return json.loads(RIGID_REFERENCE.read_text())["probes"]
+
+
+def spec_of(row: dict) -> ProbeSpec:
+    """The reference probe exactly as it was run (object, motion, windows, placement)."""
+    obj = pe.ObjectSpec.from_paper(row["omega_n_pi"], row["alpha_deg"])
+    mot = pe.PlateMotion.from_paper(row["f_p_hz"], row["a_p_deg"], row["b_p_mm"])
+    return ProbeSpec(obj=obj, motion=mot, settle_s=row["settle_s"], measure_s=row["measure_s"],
+                     initial_yaw=row["initial_yaw_rad"], initial_offset=tuple(row["initial_offset_m"]))
+
+
+def fits(rows: list[dict], omegas: list[float], unstable: list[bool]) -> dict[str, dict]:
+    """First-hump fit per object (omega_n, alpha): f0, b, omega_max or the reason it cannot fit."""
+    out = {}
+    for key in sorted({(r["omega_n_pi"], r["alpha_deg"]) for r in rows}):
+        idx = [i for i, r in enumerate(rows) if (r["omega_n_pi"], r["alpha_deg"]) == key]
+        if len(idx) < 4:
+            continue
+        res = fit_lorentzian([rows[i]["f_p_hz"] for i in idx], [omegas[i] for i in idx],
+                             unstable=[unstable[i] for i in idx])
+        name = f"{key[0]:g}pi_{key[1]:g}deg"
+        out[name] = ({"f0_hz": res.f0, "b_hz": res.b, "omega_max_deg_s": res.omega_max, "n_used": res.n_used}
+                     if res.ok else {"reason": res.reason})
+    return out
+
+
+def compare(rows: list[dict], results) -> dict:
+    """omega_B differences where both are stable, stability agreement, fits of both, per-probe rows."""
+    ref_w = [r["omega_b_deg_s"] for r in rows]
+    ref_u = [r["unstable"] for r in rows]
+    new_w = [r.omega_b_deg_s for r in results]
+    new_u = [r.unstable for r in results]
+    rel = [(n - w) / abs(w) for w, u, n, v in zip(ref_w, ref_u, new_w, new_u, strict=True)
+           if not u and not v and abs(w) > 0]
+    agree = float(np.mean([u == v for u, v in zip(ref_u, new_u, strict=True)]))
+    ref_fit, new_fit = fits(rows, ref_w, ref_u), fits(rows, new_w, new_u)
+    ref_ok = [k for k in ref_fit if "f0_hz" in ref_fit[k]]
+    df0 = {k: new_fit[k]["f0_hz"] - ref_fit[k]["f0_hz"] for k in ref_ok if "f0_hz" in new_fit.get(k, {})}
+    arel = np.abs(rel) if rel else np.array([math.nan])
+    summary = {"n_probes": len(rows), "n_both_stable": len(rel), "median_abs_rel": float(np.median(arel)),
+               "max_abs_rel": float(np.max(arel)), "stability_agreement": agree, "f0_diff_hz": df0,
+               "max_abs_f0_diff_hz": max((abs(v) for v in df0.values()), default=math.nan),
+               "n_fits_compared": len(df0), "n_fits_reference": len(ref_ok),
+               "n_sweeps": len(ref_fit)}
+    summary["holds"] = {
+        "omega_b_median": summary["median_abs_rel"] <= TOL_MEDIAN, "omega_b_max": summary["max_abs_rel"] <= TOL_MAX,
+        "stability_agreement": agree >= TOL_AGREE,
+        "fits": len(df0) == len(ref_ok) > 0 and summary["max_abs_f0_diff_hz"] <= TOL_F0}
+    probes = [{"key": r["key"], "ref": w, "ref_unstable": u, "new": n, "new_unstable": v, "new_reason": x.reason}
+              for r, w, u, n, v, x in zip(rows, ref_w, ref_u, new_w, new_u, results, strict=True)]
+    return {"summary": summary, "fits_reference": ref_fit, "fits_route": new_fit, "probes": probes}
+
+
+# ---- A calibration study's labs, scores and the hump-feature line (calibration_study, calibration_adaptive); from
+# calibration_study.py
+#: Each source's physics family (its members are left out of the forward model when it is the lab). ``pmlab``: the
+#: point mass with lab-level nuisance (calibration_study's ``LabEvalSet``), several labs.
+SOURCE_FAMILY = {"pointmass": "pointmass", "rigid": "rigid", "pybullet": "pybullet", "pmlab": "pointmass"}
+
+
+def source_data(fam: str, n: int | None, executor) -> tuple[list[float], list]:
+    es = DATA[fam] if n is None else replace(DATA[fam], n=n)
+    return data_of(fam, executor, es)
+
+
+@dataclass(frozen=True)
+class Lab:
+    """One lab's discs: true omega_n (rad/s), every member's reading of each sweep, and each sweep's hump features
+    (rows ok, f0 Hz, b Hz, omega_Brmax deg/s, f0 stderr Hz; NaN where the Lorentzian fit failed)."""
+
+    name: str
+    truth: np.ndarray
+    readings: list
+    features: np.ndarray
+    shape_readings: list | None = None
+
+
+def features_of(tables) -> np.ndarray:
+    """Each sweep's first-hump Lorentzian (Eq. 9): (ok, f0, b, omega_Brmax, f0 stderr), NaN where it fails."""
+    from plate_env.identify.fitting import fit_lorentzian
+
+    out = np.full((len(tables), 5), np.nan)
+    for i, t in enumerate(tables):
+        f = fit_lorentzian(t.f_p_hz, t.omega_b_deg_s, t.stderr_deg_s, t.unstable)
+        out[i, 0] = float(f.ok)
+        if f.ok:
+            out[i, 1:] = (f.f0, f.b, f.omega_max, f.f0_stderr)
+    return out
+
+
+def per_object_scores(truth: np.ndarray, preds) -> dict[str, np.ndarray]:
+    err = np.array([abs(p.omega_n - w) / w if p.ok else math.inf for p, w in zip(preds, truth, strict=True)])
+    in68 = np.array([p.ok and p.ci68[0] <= w <= p.ci68[1] for p, w in zip(preds, truth, strict=True)], float)
+    in95 = np.array([p.ok and p.ci95[0] <= w <= p.ci95[1] for p, w in zip(preds, truth, strict=True)], float)
+    width = np.array([(p.ci95[1] - p.ci95[0]) / w if p.ok else math.inf for p, w in zip(preds, truth, strict=True)])
+    return {"error": err, "in68": in68, "in95": in95, "width95": width}
+
+
+STATS = {
+    "median_error": ("error", lambda x: np.nanmedian(x, axis=-1)),
+    "p90_error": ("error", lambda x: np.nanpercentile(x, 90, axis=-1)),
+    "coverage68": ("in68", lambda x: np.nanmean(x, axis=-1)),
+    "coverage95": ("in95", lambda x: np.nanmean(x, axis=-1)),
+    "width95": ("width95", lambda x: np.nanmedian(x, axis=-1)),
+}
+
+
+def boot_indices(labs: np.ndarray, rng: np.random.Generator, n_boot: int) -> np.ndarray:
+    """Two-stage bootstrap rows (n_boot, n): within each source, its labs drawn with replacement, then objects drawn
+    with replacement inside each drawn lab (a source with one lab: objects alone). ``labs``: per object, a
+    ``source/lab`` label; the source is the part before the slash."""
+    src_of = np.array([lab.split("/")[0] for lab in labs])
+    members = {lab: np.flatnonzero(labs == lab) for lab in dict.fromkeys(labs)}
+    by_src = {s_: [lab for lab in members if lab.split("/")[0] == s_] for s_ in dict.fromkeys(src_of)}
+    rows = []
+    for _ in range(n_boot):
+        parts = []
+        for names in by_src.values():
+            for lab in rng.choice(len(names), size=len(names), replace=True):
+                obj = members[names[lab]]
+                parts.append(rng.choice(obj, size=obj.size, replace=True))
+        row = np.concatenate(parts)
+        rows.append(np.resize(row, labs.size))  # equal-size labs keep the length; resize guards unequal ones
+    return np.array(rows)
+
+
+def summarize(blocks: list[dict[str, np.ndarray]], rng: np.random.Generator, n_boot: int = 1000) -> dict:
+    """Statistics over every (object, draw) pair with 95 % bootstrap intervals (an object carries all its draws):
+    labs resampled within each source, then objects within each lab (:func:`boot_indices`). ``blocks``: per source,
+    arrays (n_objects, n_draws) with NaN where the object was a reference, and ``lab`` labels."""
+    arrays = {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
+    n = arrays["error"].shape[0]
+    idx = boot_indices(arrays["lab"], rng, n_boot)
+    out = {"objects": int(n), "pairs": int(np.isfinite(arrays["in95"]).sum())}
+    for name, (key, fn) in STATS.items():
+        v = arrays[key].astype(float)
+        value = float(fn(v.reshape(1, -1))[0])
+        boot = np.array([fn(v[i].reshape(1, -1))[0] for i in idx])
+        out[name] = {"value": value, "ci95": [float(np.percentile(boot, 2.5)), float(np.percentile(boot, 97.5))]}
+    return out
+
+
+#: Candidate (b), the paper's way: log omega_n linear in the hump's features x = (1, f0 - 26 Hz, log(omega_Brmax /
+#: 600 deg/s)), a lab's coefficients from its K references, shrunk toward a prior learned from other labs.
+FEAT_SIGMAS = np.geomspace(0.02, 1.0, 24)
+
+
+#: The prior sd of each coefficient is at least the pseudo-labs' spread plus these floors (intercept, per Hz, per
+#: unit log peak): a lab's physics may differ from every lab the prior saw.
+FEAT_FLOOR = np.array([0.5, 0.1, 1.0])
+
+
+def feat_x(F: np.ndarray) -> np.ndarray:
+    return np.c_[np.ones(len(F)), F[:, 1] - 26.0, np.log(F[:, 3] / 600.0)]
+
+
+@dataclass(frozen=True)
+class FeatPrior:
+    m0: np.ndarray
+    c0: np.ndarray
+    sigma_median: float
+    log_sd: float
+
+
+def learn_feat_prior(pseudo: list[Lab], log_sd: float) -> tuple[FeatPrior, dict]:
+    """Coefficients by least squares on each pseudo-lab (all its fitted sweeps); the prior mean is their mean, its
+    covariance their spread plus (|mean| + floor)^2 on the diagonal; the scatter prior log-normal around the
+    geometric mean of their residual sds."""
+    betas, sds = [], []
+    for lab in pseudo:
+        ok = lab.features[:, 0] == 1
+        if ok.sum() < 5:
+            continue
+        x, y = feat_x(lab.features[ok]), np.log(lab.truth[ok])
+        beta, *_ = np.linalg.lstsq(x, y, rcond=None)
+        betas.append(beta)
+        sds.append(float(np.sqrt(np.mean((y - x @ beta) ** 2))))
+    B = np.array(betas)
+    m0 = B.mean(0)
+    spread = np.cov(B.T) if len(B) > 1 else np.zeros((3, 3))
+    c0 = spread + np.diag((np.abs(m0) * np.array([0, 1, 1]) + FEAT_FLOOR) ** 2)
+    med = float(np.exp(np.mean(np.log(sds))))
+    return FeatPrior(m0, c0, med, log_sd), {"pseudo_labs": [lab.name for lab in pseudo], "m0": m0.tolist(),
+                                             "sd0": np.sqrt(np.diag(c0)).tolist(), "median": med, "log_sd": log_sd}
+
+
+def feat_fit(prior: FeatPrior, F: np.ndarray, y: np.ndarray):
+    """Posterior on the scatter grid: per sigma, the Gaussian posterior of the coefficients and the evidence."""
+    ok = F[:, 0] == 1
+    x, y = feat_x(F[ok]), y[ok]
+    lp = -0.5 * ((np.log(FEAT_SIGMAS) - math.log(prior.sigma_median)) / prior.log_sd) ** 2
+    prec0 = np.linalg.inv(prior.c0)
+    out = []
+    for j, sg in enumerate(FEAT_SIGMAS):
+        cov_y = sg ** 2 * np.eye(len(y)) + x @ prior.c0 @ x.T
+        r = y - x @ prior.m0
+        sign, logdet = np.linalg.slogdet(cov_y)
+        lp[j] += -0.5 * (logdet + r @ np.linalg.solve(cov_y, r))
+        cn = np.linalg.inv(prec0 + x.T @ x / sg ** 2)
+        mn = cn @ (prec0 @ prior.m0 + x.T @ y / sg ** 2)
+        out.append((mn, cn))
+    wt = np.exp(lp - lp.max())
+    return wt / wt.sum(), out
+
+
+FEAT_Y = np.linspace(math.log(1.0), math.log(400.0), 2400)
+
+
+def feat_predict(post, f_row: np.ndarray):
+    from plate_env.identify.lab_calibration import Prediction
+
+    if f_row[0] != 1:
+        return Prediction(False, reason="no Lorentzian fit")
+    wt, parts = post
+    x = feat_x(f_row[None])[0]
+    cdf = np.zeros_like(FEAT_Y)
+    from scipy.stats import norm
+
+    for w, sg, (mn, cn) in zip(wt, FEAT_SIGMAS, parts, strict=True):
+        if w < 1e-8:
+            continue
+        cdf += w * norm.cdf(FEAT_Y, x @ mn, math.sqrt(sg ** 2 + x @ cn @ x))
+    cdf /= cdf[-1]
+
+    def q(level: float) -> float:
+        return float(math.exp(np.interp(level, cdf, FEAT_Y)))
+
+    return Prediction(True, q(0.5), (q(0.16), q(0.84)), (q(0.025), q(0.975)))
+
+
+def cell(st: dict, scale: float = 100, digits: int = 0, unit: str = " %") -> str:
+    v, (lo, hi) = st["value"], st["ci95"]
+    return f"{v * scale:.{digits}f}{unit} [{lo * scale:.{digits}f}, {hi * scale:.{digits}f}]"
+
+
+def prior_text(p: dict) -> str:
+    if isinstance(p.get("pseudo_labs"), dict):
+        return (f"scatter median {p['median']:.3f}, sd(log) {p['log_sd']:g} (from "
+                + ", ".join(f"{k} {v:.3f}" for k, v in p["pseudo_labs"].items()) + ")")
+    if "m0" in p:
+        return (f"coefficients {', '.join(f'{x:.3g}' for x in p['m0'])} (sd {', '.join(f'{x:.3g}' for x in p['sd0'])}),"
+                f" scatter median {p['median']:.3f}, sd(log) {p['log_sd']:g}, from {', '.join(p['pseudo_labs'])}")
+    return str(p.get("pseudo_labs"))

@@ -19,7 +19,11 @@ imported, except by mypy with ``--mypy``). Counts:
 - ``imports_inside_functions``: import statements inside a function body in ``plate_env/`` and ``agents/``;
 - ``modules_over_400_lines`` and the largest, in ``plate_env/`` and ``agents/``;
 - ``cli_lines``: lines of the command line (``plate_env/cli.py`` or the largest module of ``plate_env/cli/``);
-- ``mypy_errors`` (``--mypy``): errors mypy reports on ``plate_env`` (``--ignore-missing-imports``).
+- ``mypy_errors`` (``--mypy``): errors mypy reports on ``plate_env`` (its default, lenient settings,
+  ``--ignore-missing-imports``; a commit's own ``[tool.mypy]`` is not read);
+- ``mypy_public_api_errors`` (``--mypy``): errors of ``mypy --strict`` on the public API, the files this checkout's
+  ``pyproject.toml`` ``[tool.mypy]`` lists (``plate_env/cli`` read as ``plate_env/cli.py`` where the command line
+  was one module), their imports followed silently, as ``tests/test_types.py`` checks them.
 
 Writes ``experiments/results/design_counts.{json,md}``.
 """
@@ -184,8 +188,26 @@ def cli_lines(root: Path) -> int:
 
 
 def mypy_errors(root: Path) -> int | None:
-    done = subprocess.run([sys.executable, "-m", "mypy", "plate_env", "--ignore-missing-imports",
-                           "--no-error-summary", "--cache-dir", str(Path(tempfile.gettempdir()) / "mypy-counts")],
+    return _mypy_count(root, ["plate_env", "--ignore-missing-imports"])
+
+
+def public_api_files(root: Path) -> list[str]:
+    """This checkout's ``[tool.mypy]`` files as they exist in ``root`` (the CLI package or module)."""
+    import tomllib
+
+    files = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["mypy"]["files"]
+    return [f if (root / f).exists() or f != "plate_env/cli" else "plate_env/cli.py" for f in files
+            if (root / f).exists() or f == "plate_env/cli"]
+
+
+def mypy_public_api_errors(root: Path) -> int | None:
+    return _mypy_count(root, ["--strict", "--follow-imports=silent", "--ignore-missing-imports",
+                              *public_api_files(root)])
+
+
+def _mypy_count(root: Path, args: list[str]) -> int | None:
+    done = subprocess.run([sys.executable, "-m", "mypy", "--config-file", "", *args, "--no-error-summary",
+                           "--cache-dir", str(Path(tempfile.gettempdir()) / "mypy-counts")],
                           cwd=root, capture_output=True, text=True)
     if "No module named mypy" in done.stderr:
         return None
@@ -213,6 +235,7 @@ def counts(root: Path, with_mypy: bool) -> dict:
            "largest_modules": biggest, "cli_lines": cli_lines(root)}
     if with_mypy:
         out["mypy_errors"] = mypy_errors(root)
+        out["mypy_public_api_errors"] = mypy_public_api_errors(root)
     return out
 
 

@@ -20,22 +20,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
-import os
 import time
 from pathlib import Path
 
-import numpy as np
-from common import rtf
+import common
+from common import compare, load_reference, spec_of, speed
 
 import plate_env as pe
-from plate_env.core.probe import ProbeSpec
-from plate_env.identify.fitting import fit_lorentzian
 from plate_env.physics.tilelink.rigid import RIGID_FAST_CONFIG, RigidTileConfig
 
 HERE = Path(__file__).resolve().parent
 
-REFERENCE = HERE / "results" / "rigid_reference.json"
 OUT = HERE / "results" / "rigid_fast"
 #: Routes measured: (tilelink model, dt s, joint/solver config, what it stands for).
 ROUTES = {
@@ -49,82 +44,11 @@ ROUTES = {
                                "sparse solve reaches at dt 1e-4 s; its cost: structure)"),
     "rigid_2e-4": ("rigid", 2e-4, RigidTileConfig(), "the shipped model=\"rigid\" (5000 rad/s rows) for comparison"),
 }
-TOL_MEDIAN, TOL_MAX, TOL_AGREE, TOL_F0 = 0.02, 0.05, 0.90, 0.3
-
-
-def load_reference() -> list[dict]:
-    return json.loads(REFERENCE.read_text())["probes"]
-
-
-def spec_of(row: dict) -> ProbeSpec:
-    """The reference probe exactly as it was run (object, motion, windows, placement)."""
-    obj = pe.ObjectSpec.from_paper(row["omega_n_pi"], row["alpha_deg"])
-    mot = pe.PlateMotion.from_paper(row["f_p_hz"], row["a_p_deg"], row["b_p_mm"])
-    return ProbeSpec(obj=obj, motion=mot, settle_s=row["settle_s"], measure_s=row["measure_s"],
-                     initial_yaw=row["initial_yaw_rad"], initial_offset=tuple(row["initial_offset_m"]))
 
 
 def physics_of(route: str):
     model, dt, cfg, _ = ROUTES[route]
     return pe.make_physics("tilelink", model=model, dt=dt, rigid_config=cfg)
-
-
-def fits(rows: list[dict], omegas: list[float], unstable: list[bool]) -> dict[str, dict]:
-    """First-hump fit per object (omega_n, alpha): f0, b, omega_max or the reason it cannot fit."""
-    out = {}
-    for key in sorted({(r["omega_n_pi"], r["alpha_deg"]) for r in rows}):
-        idx = [i for i, r in enumerate(rows) if (r["omega_n_pi"], r["alpha_deg"]) == key]
-        if len(idx) < 4:
-            continue
-        res = fit_lorentzian([rows[i]["f_p_hz"] for i in idx], [omegas[i] for i in idx],
-                             unstable=[unstable[i] for i in idx])
-        name = f"{key[0]:g}pi_{key[1]:g}deg"
-        out[name] = ({"f0_hz": res.f0, "b_hz": res.b, "omega_max_deg_s": res.omega_max, "n_used": res.n_used}
-                     if res.ok else {"reason": res.reason})
-    return out
-
-
-def compare(rows: list[dict], results) -> dict:
-    """omega_B differences where both are stable, stability agreement, fits of both, per-probe rows."""
-    ref_w = [r["omega_b_deg_s"] for r in rows]
-    ref_u = [r["unstable"] for r in rows]
-    new_w = [r.omega_b_deg_s for r in results]
-    new_u = [r.unstable for r in results]
-    rel = [(n - w) / abs(w) for w, u, n, v in zip(ref_w, ref_u, new_w, new_u, strict=True)
-           if not u and not v and abs(w) > 0]
-    agree = float(np.mean([u == v for u, v in zip(ref_u, new_u, strict=True)]))
-    ref_fit, new_fit = fits(rows, ref_w, ref_u), fits(rows, new_w, new_u)
-    ref_ok = [k for k in ref_fit if "f0_hz" in ref_fit[k]]
-    df0 = {k: new_fit[k]["f0_hz"] - ref_fit[k]["f0_hz"] for k in ref_ok if "f0_hz" in new_fit.get(k, {})}
-    arel = np.abs(rel) if rel else np.array([math.nan])
-    summary = {"n_probes": len(rows), "n_both_stable": len(rel), "median_abs_rel": float(np.median(arel)),
-               "max_abs_rel": float(np.max(arel)), "stability_agreement": agree, "f0_diff_hz": df0,
-               "max_abs_f0_diff_hz": max((abs(v) for v in df0.values()), default=math.nan),
-               "n_fits_compared": len(df0), "n_fits_reference": len(ref_ok),
-               "n_sweeps": len(ref_fit)}
-    summary["holds"] = {
-        "omega_b_median": summary["median_abs_rel"] <= TOL_MEDIAN, "omega_b_max": summary["max_abs_rel"] <= TOL_MAX,
-        "stability_agreement": agree >= TOL_AGREE,
-        "fits": len(df0) == len(ref_ok) > 0 and summary["max_abs_f0_diff_hz"] <= TOL_F0}
-    probes = [{"key": r["key"], "ref": w, "ref_unstable": u, "new": n, "new_unstable": v, "new_reason": x.reason}
-              for r, w, u, n, v, x in zip(rows, ref_w, ref_u, new_w, new_u, results, strict=True)]
-    return {"summary": summary, "fits_reference": ref_fit, "fits_route": new_fit, "probes": probes}
-
-
-def speed(physics, pointmass, repeats: int) -> dict:
-    """Real-time factors with bench_physics' harness, the point mass in the same run."""
-    cheese = pe.preset("cheese")
-    one = [ProbeSpec(cheese, pe.PlateMotion.from_paper(20.0, 3.0))]
-    batch = [ProbeSpec(cheese.with_(omega_n=(5 + k) * math.pi), pe.PlateMotion.from_paper(18 + 0.1 * k, 3.0))
-             for k in range(32)]
-    out = {}
-    for name, phys in (("route", physics), ("pointmass", pointmass)):
-        r1, _ = rtf(phys, one, repeats)
-        r32, bad = rtf(phys, batch, repeats)
-        out[name] = {"one_probe_rtf": r1, "batch32_rtf": r32, "batch32_unstable": bad}
-    out["load_avg_1min"] = os.getloadavg()[0]
-    out["holds"] = {"one_probe": out["route"]["one_probe_rtf"] >= 10.0, "batch32": out["route"]["batch32_rtf"] >= 25.0}
-    return out
 
 
 def structure() -> dict:
@@ -185,18 +109,6 @@ def markdown(report: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _commit() -> str:
-    """The worktree's commit (with ``+dirty`` when the package has uncommitted changes): which kernel a route was
-    run on."""
-    import subprocess
-
-    def git(*a):
-        return subprocess.run(["git", *a], cwd=HERE, capture_output=True, text=True).stdout.strip()
-
-    dirty = git("status", "--porcelain", "--untracked-files=no", "--", str(HERE.parent / "plate_env"))
-    return git("rev-parse", "--short", "HEAD") + ("+dirty" if dirty else "")
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--routes", default=",".join(ROUTES), help="comma-separated subset of " + ", ".join(ROUTES))
@@ -227,7 +139,8 @@ def main() -> None:
     for name in args.routes.split(","):
         physics = physics_of(name)
         if args.speed_only:
-            report["routes"][name].update(speed=speed(physics, pointmass, args.repeats), commit=_commit())
+            report["routes"][name].update(speed=speed(physics, pointmass, args.repeats),
+                                          commit=common.git_commit(under="plate_env"))
             print(name, json.dumps(report["routes"][name]["speed"]), flush=True)
             continue
         t0 = time.perf_counter()
@@ -235,7 +148,8 @@ def main() -> None:
         cmp_ = compare(rows, results)
         report["routes"][name] = {"dt": ROUTES[name][1], "what": ROUTES[name][3], "compare": cmp_,
                                   "sweep_wall_s": time.perf_counter() - t0,
-                                  "speed": speed(physics, pointmass, args.repeats), "commit": _commit()}
+                                  "speed": speed(physics, pointmass, args.repeats),
+                                  "commit": common.git_commit(under="plate_env")}
         print(name, json.dumps(cmp_["summary"]), json.dumps(report["routes"][name]["speed"]), flush=True)
         OUT.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
     if not args.no_structure:

@@ -1,6 +1,7 @@
 """Issue 34: the modal (floating-frame) rigid-tile disc against the converged rigid limit.
 
-Same probes, scoring and speed harness as ``experiments/rigid_fast_validation.py`` (its ``compare`` and ``speed``):
+Same probes, scoring and speed harness as ``experiments/rigid_fast_validation.py`` (``common.compare`` and
+``common.speed``):
 every probe of ``experiments/results/rigid_reference.json`` (``rigid_limit`` at dt 6.25e-6 s), omega_B where both
 are stable (median / max |relative difference|), stability agreement, first-hump f0; speed as x real time for one
 probe and a batch of 32 with the point mass measured in the same run. The model
@@ -15,17 +16,17 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import time
 from pathlib import Path
+
+import common
+from common import compare, load_reference, spec_of, speed
 
 import plate_env as pe
 from plate_env.physics.tilelink.rigid_modal import ModalDiscConfig
 from plate_env.physics.tilelink.rigid_modal_kernels import RigidModalPhysics
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-from rigid_fast_validation import _commit, compare, load_reference, spec_of, speed  # noqa: E402
 
 OUT = HERE / "results" / "rigid_modal"
 #: Routes: (dt s, reduction, contact sweeps a step, what it stands for).
@@ -48,23 +49,10 @@ ROUTES = {
 def cpu_speed(physics, pointmass, with_batch: bool = True) -> dict:
     """Real-time factors by CPU time of this process (the kernel's own cost on a loaded shared machine, where
     wall time measures the other jobs too): the cheese at 20 Hz alone, and a 32-probe batch (summed over its
-    threads), the point mass beside it."""
-    import math
-
-    from plate_env.core.probe import ProbeSpec
-
-    cheese = pe.preset("cheese")
-    one = [ProbeSpec(cheese, pe.PlateMotion.from_paper(20.0, 3.0))]
-    batch = [ProbeSpec(cheese.with_(omega_n=(5 + k) * math.pi), pe.PlateMotion.from_paper(18 + 0.1 * k, 3.0))
-             for k in range(32)]
-    out = {}
-    for name, phys in (("route", physics), ("pointmass", pointmass)):
-        for label, specs in (("one_probe_cpu_rtf", one), ("batch32_cpu_rtf_per_core", batch))[:2 if with_batch else 1]:
-            phys.run(specs)
-            t0 = time.process_time()
-            res = phys.run(specs)
-            out.setdefault(name, {})[label] = sum(r.sim_s for r in res) / (time.process_time() - t0)
-    return out
+    threads), the point mass beside it (:func:`common.speed` on ``time.process_time``, one timed run each)."""
+    done = speed(physics, pointmass, 1, clock=time.process_time, batch=with_batch)
+    labels = {"one_probe_rtf": "one_probe_cpu_rtf", "batch32_rtf": "batch32_cpu_rtf_per_core"}
+    return {name: {labels[k]: v for k, v in done[name].items() if k in labels} for name in ("route", "pointmass")}
 
 
 def render(report: dict) -> str:
@@ -131,7 +119,7 @@ def main() -> None:
         report["routes"][name] = {"dt": dt, "what": what, "compare": cmp_, "sweep_wall_s": time.perf_counter() - t0,
                                   "speed": None if args.no_batch_speed else speed(physics, pointmass, args.repeats),
                                   "cpu_speed": cpu_speed(physics, pointmass, not args.no_batch_speed),
-                                  "commit": _commit(), "load_avg_1min": os.getloadavg()[0]}
+                                  "commit": common.git_commit(under="plate_env"), "load_avg_1min": os.getloadavg()[0]}
         print(name, json.dumps(cmp_["summary"]), json.dumps(report["routes"][name]["speed"]),
               json.dumps(report["routes"][name]["cpu_speed"]), flush=True)
         OUT.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")

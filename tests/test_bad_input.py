@@ -267,7 +267,7 @@ class Interrupting(PhysicsBackend):
 def test_cli_sweep_interrupted_prints_the_finished_probes(json_out, monkeypatch, capsys):
     import json
 
-    import plate_env.cli as cli
+    import plate_env.cli.sweep as cli
 
     class OnPhysics:  # an in-process executor that runs every chunk on one built backend
         name = "inprocess"
@@ -306,7 +306,7 @@ def test_cli_sweep_interrupted_prints_the_finished_probes(json_out, monkeypatch,
     ("x.bogus", "unknown image format"),
 ])
 def test_cli_plot_path_checked_before_any_work(argv, plot, message, tmp_path, monkeypatch, capsys):
-    import plate_env.cli as cli
+    import plate_env.cli.probe as cli
 
     lab = tmp_path / "lab.csv"
     lab.write_text("f_p_hz,omega_b_deg_s\n" + "".join(f"{f},{300 + f}\n" for f in range(10, 30)))

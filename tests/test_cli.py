@@ -313,11 +313,11 @@ def test_no_help_text_names_a_path_that_does_not_exist():
 
 def _numeric_kind(action) -> str | None:
     """'int' or 'real' for an option whose value is a number (its ``type``), else None."""
-    from plate_env.cli import _omega_n_arg
+    from plate_env.cli.options import omega_n_arg
     from plate_env.core import checks
 
     t = action.type
-    if t is int or t is float or t is _omega_n_arg:
+    if t is int or t is float or t is omega_n_arg:
         return "int" if t is int else "real"
     cells = [c.cell_contents for c in (getattr(t, "__closure__", None) or ())]
     if checks.integer in cells:

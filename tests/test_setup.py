@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from plate_env.build.atlas_grid import AtlasGrid
-from plate_env.cli import _fit_estimator, build_parser, main
+from plate_env.cli import build_parser, main
+from plate_env.cli.fit import _fit_estimator
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import PRESETS, ObjectSpec
 from plate_env.core.setup import DIAMETER_RANGE_M, MASS_RANGE_KG, PAPER_SETUP

@@ -39,16 +39,17 @@ from __future__ import annotations
 import json
 import math
 import pickle
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 
 from plate_env.bench.fingerprint import agent_fingerprint, run_key
-from plate_env.bench.suites import Suite, load_suite
+from plate_env.bench.suites import Suite, SuiteObject, load_suite
 from plate_env.bench.summary import AgentRun, check_budgets
-from plate_env.env.protocol import check_agent
+from plate_env.env.protocol import ProbingAgent, check_agent
 from plate_env.identify.estimate import Estimate
 
 
@@ -64,7 +65,8 @@ class Episode:
     prefix: tuple[Estimate, ...] = field(repr=False)
     decision_wall_s: tuple[float, ...]
     wall_s: float
-    probes: tuple[tuple, ...] = field(default=(), repr=False)
+    #: each probe as (f_p_hz, a_p_deg, omega_b_deg_s, stderr_deg_s, unstable)
+    probes: tuple[tuple[float, float, float, float, bool], ...] = field(default=(), repr=False)
 
     def n_at(self, budget_s: float) -> int:
         """Probes finished within ``budget_s`` simulated seconds."""
@@ -82,34 +84,34 @@ class Episode:
     def seconds_per_decision(self) -> float:
         return float(np.mean(self.decision_wall_s)) if self.decision_wall_s else 0.0
 
-    def to_record(self, key: str) -> dict:
+    def to_record(self, key: str) -> dict[str, Any]:
         return {"key": key, "index": self.index, "seed": self.seed, "omega_n_true": self.omega_n_true,
                 "probe_sim_s": list(self.probe_sim_s), "prefix": [_est_record(e) for e in self.prefix],
                 "decision_wall_s": list(self.decision_wall_s), "wall_s": self.wall_s,
                 "probes": [list(p) for p in self.probes]}
 
     @classmethod
-    def from_record(cls, d: dict) -> Episode:
+    def from_record(cls, d: dict[str, Any]) -> Episode:
         return cls(index=int(d["index"]), seed=int(d["seed"]), omega_n_true=float(d["omega_n_true"]),
                    probe_sim_s=tuple(d["probe_sim_s"]), prefix=tuple(_est_from(e) for e in d["prefix"]),
                    decision_wall_s=tuple(d["decision_wall_s"]), wall_s=float(d["wall_s"]),
                    probes=tuple(tuple(p) for p in d["probes"]))
 
 
-def _est_record(e: Estimate) -> dict:
+def _est_record(e: Estimate) -> dict[str, Any]:
     return {"ok": e.ok, "method": e.method, "omega_n": e.omega_n, "ci68": list(e.omega_n_ci68),
             "ci95": list(e.omega_n_ci95), "bound": list(e.bound) if e.bound else None,
             "reason": (e.reason or "")[:300] or None}
 
 
-def _est_from(d: dict) -> Estimate:
+def _est_from(d: dict[str, Any]) -> Estimate:
     ci68 = tuple(d["ci68"])
     return Estimate(ok=bool(d["ok"]), method=d["method"], reason=d["reason"], omega_n=float(d["omega_n"]),
                     omega_n_stderr=(ci68[1] - ci68[0]) / 2, omega_n_ci68=ci68, omega_n_ci95=tuple(d["ci95"]),
                     bound=tuple(d["bound"]) if d["bound"] else None)
 
 
-def play(env, agent, obj, index: int, max_budget_s: float) -> Episode:
+def play(env: Any, agent: ProbingAgent, obj: SuiteObject, index: int, max_budget_s: float) -> Episode:
     """One episode of ``agent`` on ``env`` hiding suite object ``obj``: the probes until it stops or the budget
     ends, and the agent's estimate after every probe."""
     from plate_env.env.episode import run_episode
@@ -127,20 +129,20 @@ def play(env, agent, obj, index: int, max_budget_s: float) -> Episode:
 class _Same:
     """A factory returning one agent instance (in this process; a pickled copy in a worker)."""
 
-    def __init__(self, agent) -> None:
+    def __init__(self, agent: ProbingAgent) -> None:
         self.agent = agent
 
-    def __call__(self):
+    def __call__(self) -> ProbingAgent:
         return self.agent
 
 
 #: This process's envs, by suite content hash, and agents, by their pickled factory (a worker keeps both between
 #: chunks: loading a policy through torch takes seconds; an agent starts every episode afresh by ``reset``).
-_ENVS: dict[str, object] = {}
-_AGENTS: dict[bytes, object] = {}
+_ENVS: dict[str, Any] = {}
+_AGENTS: dict[bytes, ProbingAgent] = {}
 
 
-def _agent_of(factory):
+def _agent_of(factory: Callable[[], ProbingAgent]) -> ProbingAgent:
     if isinstance(factory, _Same):
         return factory()
     try:
@@ -153,7 +155,11 @@ def _agent_of(factory):
     return _AGENTS[key]
 
 
-def run_episode_chunk(items: Sequence[tuple]) -> list[Episode]:
+#: One episode to play: (agent factory, suite, object index, largest budget in simulated s).
+EpisodeTask = tuple[Callable[[], ProbingAgent], Suite, int, float]
+
+
+def run_episode_chunk(items: Sequence[EpisodeTask]) -> list[Episode]:
     """Executor ``fn``: play episodes ``(agent factory, suite, index, max budget)`` in this process (the env of a
     suite and the agent of a factory are built once per process)."""
     out = []
@@ -174,7 +180,7 @@ class BenchInterrupted(KeyboardInterrupt):
         self.cache = cache
 
 
-def _numbers_problem(name: str, v, lo: float = -math.inf, length: int | None = None) -> str | None:
+def _numbers_problem(name: str, v: object, lo: float = -math.inf, length: int | None = None) -> str | None:
     """Why ``v`` is not a list (of ``length`` items, when given) of finite numbers >= ``lo``, else None."""
     from plate_env.run.sweeps import number_problem
 
@@ -183,7 +189,7 @@ def _numbers_problem(name: str, v, lo: float = -math.inf, length: int | None = N
     return next((p for i, x in enumerate(v) if (p := number_problem(f"{name}[{i}]", x, lo))), None)
 
 
-def episode_record_problem(d: dict) -> str | None:
+def episode_record_problem(d: dict[str, Any]) -> str | None:
     """Why a bench-cache record cannot be loaded (a field missing, of the wrong type, non-finite or out of range;
     a probe count that differs between its lists), else None."""
     from plate_env.run.sweeps import number_problem
@@ -247,9 +253,9 @@ def _load_records(path: Path, key: str) -> dict[int, Episode]:
     return out
 
 
-def evaluate(agent, suite: Suite | str, *, label: str | None = None, budgets_s: Sequence[float] | None = None,
-             executor=None, cache: str | Path | None = None, limit: int | None = None, progress: bool = False,
-             chunk: int = 2) -> AgentRun:
+def evaluate(agent: ProbingAgent | Callable[[], ProbingAgent], suite: Suite | str, *, label: str | None = None,
+             budgets_s: Sequence[float] | None = None, executor: str | None = None, cache: str | Path | None = None,
+             limit: int | None = None, progress: bool = False, chunk: int = 2) -> AgentRun:
     """Play ``agent`` on every episode of ``suite`` and return the :class:`AgentRun` (see the module docstring).
 
     ``agent``: an agent (:mod:`plate_env.env.protocol`) or a zero-argument factory of one (a picklable one, e.g.
@@ -268,7 +274,8 @@ def evaluate(agent, suite: Suite | str, *, label: str | None = None, budgets_s: 
     n = len(suite.objects) if limit is None else min(int(limit), len(suite.objects))
     if n < 1:
         raise ValueError(f"limit = {limit!r}: at least one object")
-    factory = agent if (callable(agent) and not hasattr(agent, "next_probe")) else _Same(agent)
+    factory: Callable[[], ProbingAgent] = (agent if (callable(agent) and not hasattr(agent, "next_probe"))
+                                           else _Same(cast(ProbingAgent, agent)))
     probe_agent = check_agent(factory(), where=label or "agent")
     label = label or probe_agent.name
     key = run_key(suite, agent_fingerprint(probe_agent), suite.max_budget_s)

@@ -20,11 +20,15 @@ import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from plate_env.core import checks
 from plate_env.core.files import read_json
 from plate_env.core.objects import ObjectSpec
 from plate_env.core.setup import SEED_RANGE
+
+if TYPE_CHECKING:
+    from plate_env.env.rotation import PlateRotationEnv
 
 #: The content hash of every shipped suite version. A new version is added here; an entry is never edited.
 PINNED = {
@@ -82,7 +86,7 @@ class Suite:
     def physics(self) -> str:
         return self.env_kwargs["physics"]
 
-    def make_env(self):
+    def make_env(self) -> PlateRotationEnv:
         """A fresh PlateRotation-v0 with the suite's settings."""
         from plate_env.env.rotation import PlateRotationEnv
 

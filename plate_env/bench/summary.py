@@ -26,8 +26,11 @@ N_BOOT = 2000
 class ScoredEpisode(Protocol):
     """What the scores read of an episode (:class:`plate_env.bench.runner.Episode`)."""
 
-    omega_n_true: float
-    seconds_per_decision: float
+    @property
+    def omega_n_true(self) -> float: ...
+
+    @property
+    def seconds_per_decision(self) -> float: ...
 
     def n_at(self, budget_s: float) -> int: ...
 

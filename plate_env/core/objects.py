@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
 
 from plate_env.core.setup import DIAMETER_RANGE_M, MASS_RANGE_KG, PAPER_SETUP, in_range
+
+if TYPE_CHECKING:
+    import numpy as np
 
 #: The paper's ratio of kinetic to static friction, mu_k = BETA * mu_s (Section 3.2).
 BETA = 0.53
@@ -74,7 +78,7 @@ class ObjectSpec:
             name=name,
         )
 
-    def with_(self, **changes: float | str) -> ObjectSpec:
+    def with_(self, **changes: Any) -> ObjectSpec:
         """A copy with some fields changed."""
         return replace(self, **changes)
 
@@ -102,7 +106,7 @@ class ObjectPrior:
     omega_n_range_pi: tuple[float, float] = (3.5, 33.0)
     alpha_range_deg: tuple[float, float] = (30.0, 60.0)
 
-    def draw(self, rng) -> tuple[float, float]:
+    def draw(self, rng: np.random.Generator) -> tuple[float, float]:
         """One object's ``(omega_n rad/s, alpha rad)``: exactly two draws from ``rng`` (a numpy Generator),
         omega_n first."""
         lo, hi = self.omega_n_range_pi

@@ -7,6 +7,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import IntEnum
+from typing import Any
 
 import numpy as np
 
@@ -164,7 +165,7 @@ class ProbeResult:
     periods_measured: int
     trace: YawTrace | None = field(default=None, compare=False, repr=False)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary in edge units."""
         return {
             "f_p_hz": self.spec.motion.freq_hz,

@@ -10,21 +10,22 @@ command line) does not import gymnasium."""
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from plate_env.core.setup import DEFAULT_MAX_PROBES
     from plate_env.env.codec import N_FEATURES, Codec
-    from plate_env.env.rotation import DEFAULT_MAX_PROBES, RESET_OPTIONS, PlateRotationEnv
+    from plate_env.env.rotation import RESET_OPTIONS, PlateRotationEnv
 
 #: Public name -> the module that defines it.
 _LAZY = {"N_FEATURES": "plate_env.env.codec", "Codec": "plate_env.env.codec",
-         "DEFAULT_MAX_PROBES": "plate_env.env.rotation", "RESET_OPTIONS": "plate_env.env.rotation",
+         "DEFAULT_MAX_PROBES": "plate_env.core.setup", "RESET_OPTIONS": "plate_env.env.rotation",
          "PlateRotationEnv": "plate_env.env.rotation"}
 
 __all__ = ["DEFAULT_MAX_PROBES", "N_FEATURES", "RESET_OPTIONS", "Codec", "PlateRotationEnv"]
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name in _LAZY:
         value = getattr(importlib.import_module(_LAZY[name]), name)
         globals()[name] = value

@@ -7,12 +7,22 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from plate_env.core.probe_table import ProbeTable
-from plate_env.env.protocol import Probe, ProbeContext
+from plate_env.env.protocol import Probe, ProbeContext, ProbingAgent
 from plate_env.identify.estimate import Estimate
+
+if TYPE_CHECKING:
+    from plate_env.identify.estimators import Estimator
+    from plate_env.identify.forward import ForwardModel
+
+#: The env argument of these functions: a ``PlateRotation-v0`` env, made by ``gym.make`` (wrapped) or directly; its
+#: ``unwrapped`` is a :class:`~plate_env.env.rotation.PlateRotationEnv` (not typed here while that class is
+#: refactored, issue 35).
+EnvLike = Any
 
 
 @dataclass(frozen=True)
@@ -40,21 +50,22 @@ class EpisodeResult:
     def relative_error(self) -> float:
         return self.estimate.relative_error(self.omega_n_true)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {"agent": self.agent, "omega_n_true_rad_s": self.omega_n_true, "alpha_true_deg":
                 float(np.degrees(self.alpha_true)), "relative_error": self.relative_error if self.estimate.ok
                 else None, "n_probes": self.n_probes, "sim_s": self.sim_s, "wall_s": self.wall_s,
                 "estimate": self.estimate.to_dict(), "probes": self.probes.to_rows()}
 
 
-def estimate_model_of(agent):
+def estimate_model_of(agent: ProbingAgent) -> ForwardModel | None:
     """The forward model ``agent``'s estimates use (``agent.estimate_model()``; None, the physics' shipped one,
     for an agent without that method)."""
     f = getattr(agent, "estimate_model", None)
-    return f() if callable(f) else None
+    model: ForwardModel | None = f() if callable(f) else None
+    return model
 
 
-def estimator_of(env, agent):
+def estimator_of(env: EnvLike, agent: ProbingAgent) -> Estimator:
     """The :class:`~plate_env.identify.estimators.Estimator` of ``agent``'s estimates in ``env``'s episode
     (:func:`plate_env.identify.estimators.agent_estimator`: its own forward model's, else the env's estimator when
     the agent's method is the env's, else its method's)."""
@@ -65,14 +76,14 @@ def estimator_of(env, agent):
                            ForwardName(e.source, e.model), e.known_inputs())
 
 
-def _estimator(env, method: str, forward=None):
+def _estimator(env: EnvLike, method: str, forward: ForwardModel | str | None = None) -> Estimator:
     from plate_env.identify.estimators import ForwardName, make_estimator
 
     e = env.unwrapped
     return make_estimator(method, ForwardName(e.source, e.model), e.known_inputs(), forward=forward)
 
 
-def estimate_of(env, table: ProbeTable, method: str, forward=None) -> Estimate:
+def estimate_of(env: EnvLike, table: ProbeTable, method: str, forward: ForwardModel | str | None = None) -> Estimate:
     """``method``'s estimate from ``table`` for ``env``'s physics and known inputs, on ``forward`` (a forward model,
     or None for the physics' shipped one); no estimate, with the reason, when the method cannot make one. (The
     estimator's :func:`~plate_env.identify.estimators.fit_or_refuse`; an estimator in hand: call that.)"""
@@ -81,7 +92,7 @@ def estimate_of(env, table: ProbeTable, method: str, forward=None) -> Estimate:
     return fit_or_refuse(_estimator(env, method, forward), table)
 
 
-def estimator_prefixes(estimator, table: ProbeTable) -> tuple[Estimate, ...]:
+def estimator_prefixes(estimator: Estimator, table: ProbeTable) -> tuple[Estimate, ...]:
     """``estimator``'s estimate after each probe of ``table`` (as ``fit_or_refuse`` of each prefix gives it): from
     one incremental posterior (``estimator.start()``) the probes are added to one by one when it has one (each
     prefix costs one pooling, not a recomputation of every probe's likelihood), else each prefix fitted anew."""
@@ -94,15 +105,18 @@ def estimator_prefixes(estimator, table: ProbeTable) -> tuple[Estimate, ...]:
     if state is None:
         return tuple(fit_or_refuse(estimator, table.subset(np.arange(len(table)) < k))
                      for k in range(1, len(table) + 1))
-    return state.prefix_estimates(table)
+    prefixes: tuple[Estimate, ...] = state.prefix_estimates(table)
+    return prefixes
 
 
-def prefix_estimates(env, table: ProbeTable, method: str, forward=None) -> tuple[Estimate, ...]:
+def prefix_estimates(env: EnvLike, table: ProbeTable, method: str,
+                     forward: ForwardModel | str | None = None) -> tuple[Estimate, ...]:
     """``method``'s estimate after each probe of ``table`` (:func:`estimator_prefixes` of its estimator)."""
     return estimator_prefixes(_estimator(env, method, forward), table)
 
 
-def _step(env, agent, choice):
+def _step(env: EnvLike, agent: ProbingAgent,
+          choice: Probe | np.ndarray | None) -> tuple[Any, float, bool, bool, dict[str, Any]]:
     """``env.step`` of an agent's answer (ValueError naming the agent for an answer the env refuses; the env is
     left as it was)."""
     e = env.unwrapped
@@ -113,7 +127,8 @@ def _step(env, agent, choice):
             action = e.encode_action(choice.f_p_hz, choice.a_p_deg, choice.measure_s)
         else:
             action = np.asarray(choice, dtype=np.float32)
-        return env.step(action)  # the env checks the action before it runs anything
+        stepped: tuple[Any, float, bool, bool, dict[str, Any]] = env.step(action)  # checked before anything runs
+        return stepped
     except ValueError as exc:
         raise ValueError(f"agent {agent.name!r}: next_probe returned {choice!r}: {exc}") from None
 
@@ -123,7 +138,7 @@ class AgentError(ValueError):
     command line answers it as the user's input (exit 2), not as a bug of plate-env."""
 
 
-def _call(agent, method: str, *args):
+def _call(agent: object, method: str, *args: Any) -> Any:
     """``agent.<method>(*args)``, its failures (an exception, ``sys.exit``) as :class:`AgentError` naming it."""
     try:
         return getattr(agent, method)(*args)
@@ -134,8 +149,8 @@ def _call(agent, method: str, *args):
         raise AgentError(f"agent {name!r} failed in {method}: {type(exc).__name__}: {exc}") from None
 
 
-def run_episode(env, agent, seed: int, options: dict | None = None,
-                on_probe: Callable[[int, dict], None] | None = None,
+def run_episode(env: EnvLike, agent: ProbingAgent, seed: int, options: dict[str, Any] | None = None,
+                on_probe: Callable[[int, dict[str, Any]], None] | None = None,
                 max_sim_s: float | None = None, prefix: bool = False) -> EpisodeResult:
     """Reset ``env`` with ``seed`` (and ``options``: omega_n, alpha, mass), let ``agent`` probe until it stops, the
     env's budget ends or the probes have taken ``max_sim_s`` simulated seconds (a budget enforced here, without

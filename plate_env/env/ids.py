@@ -5,12 +5,14 @@ here."""
 
 from __future__ import annotations
 
+from typing import Any
+
 from plate_env.core.setup import MAX_PROBES_RANGE
 
 #: The faithful ids (issue 33): the paper-faithful rigid tiles (``rigid_fast``) at the amplitudes its atlas
 #: answers; ``PlateRotation-v1`` runs them live (evaluation), ``PlateRotationAtlas-v1`` answers from their 1 Hz atlas
 #: (training, microseconds a probe). The same env contract as v0 (PlateRotationEnv's Version History).
-FAITHFUL_IDS = {
+FAITHFUL_IDS: dict[str, dict[str, Any]] = {
     "PlateRotation-v1": {"physics": "tilelink", "physics_options": {"model": "rigid_fast"},
                          "amplitudes_deg": (3.0, 6.0)},
     "PlateRotationAtlas-v1": {"physics": "atlas", "physics_options": {"model": "rigid_fast"},
@@ -20,7 +22,8 @@ FAITHFUL_IDS = {
 #: Every registered id -> its ``gym.make`` keyword arguments (each also under the ``plate_env/`` namespace):
 #: ``PlateRotationAtlas-v0`` is v0's training twin, the point mass's atlas (issue 41: an id alone must not train on
 #: the live physics).
-ENV_IDS = {"PlateRotation-v0": {}, "PlateRotationAtlas-v0": {"physics": "atlas"}, **FAITHFUL_IDS}
+ENV_IDS: dict[str, dict[str, Any]] = {"PlateRotation-v0": {}, "PlateRotationAtlas-v0": {"physics": "atlas"},
+                                      **FAITHFUL_IDS}
 
 
 def register() -> None:

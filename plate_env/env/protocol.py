@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import numpy as np
 
@@ -34,6 +35,9 @@ from plate_env.core.probe_table import ProbeTable
 from plate_env.core.setup import AMP_RANGE_RAD
 from plate_env.identify.api import METHODS
 from plate_env.surrogate.conditioning import KnownInputs
+
+if TYPE_CHECKING:
+    from plate_env.identify.forward import ForwardModel
 
 #: The estimators an agent may name as its ``method``.
 AGENT_METHODS = METHODS
@@ -77,7 +81,7 @@ class ProbeContext:
     known: KnownInputs = KnownInputs()
 
     @classmethod
-    def from_env(cls, env, max_sim_s: float | None = None) -> ProbeContext:
+    def from_env(cls, env: Any, max_sim_s: float | None = None) -> ProbeContext:
         """The context of ``env``'s current episode; ``max_sim_s`` (a budget the caller enforces) tightens the
         env's own."""
         e = env.unwrapped
@@ -107,7 +111,7 @@ class Agent(ABC):
     def next_probe(self, history: ProbeTable, obs: np.ndarray | None = None) -> Probe | np.ndarray | None:
         """The next probe to run (a :class:`Probe` or a raw env action), or None to stop and estimate."""
 
-    def estimate_model(self):
+    def estimate_model(self) -> ForwardModel | None:
         """The forward model (:class:`~plate_env.identify.forward.ForwardModel`) the episode's estimate must use, or
         None for the shipped one of the episode's physics: an agent that chose its probes on a model says so here.
         The base class answers :attr:`forward`'s model (None when it is None)."""
@@ -118,7 +122,22 @@ class Agent(ABC):
         return load_forward_model(self.forward, self.context.known)
 
 
-def check_agent(agent: object, where: str = "agent") -> object:
+class ProbingAgent(Protocol):
+    """The duck type of an agent (the module docstring; :func:`check_agent` checks it at run time): ``name``,
+    ``reset`` and ``next_probe``; ``method`` (default ``"atlas"``) and ``estimate_model()`` are optional."""
+
+    @property
+    def name(self) -> str: ...
+
+    def reset(self, context: ProbeContext, rng: np.random.Generator) -> None: ...
+
+    def next_probe(self, history: ProbeTable, obs: np.ndarray | None = None) -> Probe | np.ndarray | None: ...
+
+
+_A = TypeVar("_A")
+
+
+def check_agent(agent: _A, where: str = "agent") -> _A:
     """``agent`` if it follows the protocol (callable ``reset`` and ``next_probe``, a string ``name``, ``method``
     one of :data:`AGENT_METHODS`), else ValueError naming ``where`` and what is missing."""
     missing = [m for m in ("reset", "next_probe") if not callable(getattr(agent, m, None))]

@@ -17,11 +17,13 @@ to train with it.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
+from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 
 from plate_env.core import checks
 from plate_env.env.vector import PlateRotationVectorEnv
@@ -33,7 +35,8 @@ class PlateRotationSB3VecEnv(VecEnv):
     def __init__(self, n_envs: int = 8, **env_kwargs: Any) -> None:
         n_envs = checks.integer("n_envs", n_envs, 1, 10_000)
         self.vec = PlateRotationVectorEnv(num_envs=n_envs, **env_kwargs)
-        self.envs = self.vec.envs
+        # the bare PlateRotationEnv sub-environments (their class not typed while it is refactored, issue 35)
+        self.envs: list[Any] = self.vec.envs
         super().__init__(n_envs, self.vec.single_observation_space, self.vec.single_action_space)
         self._actions: np.ndarray | None = None
 
@@ -50,7 +53,7 @@ class PlateRotationSB3VecEnv(VecEnv):
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = self.vec._check_actions(actions)
 
-    def step_wait(self):
+    def step_wait(self) -> VecEnvStepReturn:
         if self._actions is None:
             raise RuntimeError("step_wait() without step_async()")
         outcomes = self.vec.step_envs(self._actions, np.ones(self.num_envs, dtype=bool))
@@ -58,8 +61,10 @@ class PlateRotationSB3VecEnv(VecEnv):
         obs = []
         rewards = np.zeros(self.num_envs, dtype=np.float32)
         dones = np.zeros(self.num_envs, dtype=bool)
-        infos: list[dict] = []
-        for i, (env, (o, r, terminated, truncated, info)) in enumerate(zip(self.envs, outcomes, strict=True)):
+        infos: list[dict[str, Any]] = []
+        for i, (env, outcome) in enumerate(zip(self.envs, outcomes, strict=True)):
+            assert outcome is not None  # every sub-environment stepped (all active)
+            o, r, terminated, truncated, info = outcome
             rewards[i] = r
             dones[i] = terminated or truncated
             info["TimeLimit.truncated"] = truncated and not terminated
@@ -73,24 +78,26 @@ class PlateRotationSB3VecEnv(VecEnv):
     def close(self) -> None:
         self.vec.close()
 
-    def _indices(self, indices) -> Sequence[int]:
+    def _indices(self, indices: VecEnvIndices) -> Iterable[int]:
         if indices is None:
             return range(self.num_envs)
         if isinstance(indices, int):
             return [indices]
         return indices
 
-    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         return [getattr(self.envs[i], attr_name) for i in self._indices(indices)]
 
-    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
         for i in self._indices(indices):
             setattr(self.envs[i], attr_name, value)
 
-    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
+    def env_method(self, method_name: str, *method_args: Any, indices: VecEnvIndices = None,
+                   **method_kwargs: Any) -> list[Any]:
         return [getattr(self.envs[i], method_name)(*method_args, **method_kwargs) for i in self._indices(indices)]
 
-    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper[Any, Any, Any, Any]],
+                       indices: VecEnvIndices = None) -> list[bool]:
         return [False for _ in self._indices(indices)]  # the sub-environments are bare PlateRotationEnv
 
     def get_images(self) -> Sequence[np.ndarray | None]:

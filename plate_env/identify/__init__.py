@@ -12,7 +12,7 @@ The names below load :mod:`~plate_env.identify.api` on first use, so that a modu
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from plate_env.identify.api import METHODS, identify, identify_lorentz, offset_intervals, positive_intervals
@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 __all__ = ["METHODS", "identify", "identify_lorentz", "offset_intervals", "positive_intervals"]
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name in __all__:
         value = getattr(importlib.import_module("plate_env.identify.api"), name)
         globals()[name] = value

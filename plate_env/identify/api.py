@@ -6,7 +6,9 @@ names are kept here for callers).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 from plate_env.core.probe import ProbeResult
 from plate_env.core.probe_table import ProbeTable
@@ -22,6 +24,9 @@ from plate_env.identify.lorentz import (
 )
 from plate_env.surrogate.conditioning import KnownInputs
 
+if TYPE_CHECKING:
+    from plate_env.identify.lab_calibration_file import LabCalibration
+
 __all__ = ["METHODS", "extrapolated_peak", "identify", "identify_lorentz", "offset_intervals", "positive_intervals",
            "zero_interval_note"]
 
@@ -32,7 +37,7 @@ def _table(probes: Sequence[ProbeResult] | ProbeTable) -> ProbeTable:
 
 def identify(probes: Sequence[ProbeResult] | ProbeTable, method: str = "atlas", physics: str = "tilelink",
              model: str = "pointmass", forward: ForwardModel | str | None = None, known: KnownInputs | None = None,
-             calibration=None, **options) -> Estimate:
+             calibration: LabCalibration | str | os.PathLike[str] | None = None, **options: Any) -> Estimate:
     """Estimate omega_n (and alpha) from probes at any plate amplitudes.
 
     ``method="atlas"`` (model-based, the default): the posterior of a forward model

@@ -10,7 +10,9 @@ identify is a bound (``ok`` False, ``bound`` set), never a confident value.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +41,8 @@ class Marginal:
     ci95: tuple[float, float]
 
 
-def marginal(x: np.ndarray, p: np.ndarray, transform=None, floor: float = 0.0) -> Marginal:
+def marginal(x: np.ndarray, p: np.ndarray, transform: Callable[[float], float] | None = None,
+             floor: float = 0.0) -> Marginal:
     """Median and equal-tailed intervals of a density gridded at ``x`` (each cell's mass spread evenly over the
     cell; quantiles interpolated in ``x``), mapped by ``transform``; the 68 % interval is at least ``floor`` (in x)
     wide. Pure."""
@@ -87,10 +90,10 @@ class Posterior:
     model_omega: np.ndarray | None = None
 
     def marginal_omega(self) -> np.ndarray:
-        return self.prob.sum(1)
+        return np.asarray(self.prob.sum(1))
 
     def marginal_alpha(self) -> np.ndarray:
-        return self.prob.sum(0)
+        return np.asarray(self.prob.sum(0))
 
     def omega(self) -> Marginal:
         """omega_n (rad/s): quantiles interpolated in log omega; the 68 % interval at least one grid step wide."""
@@ -179,12 +182,12 @@ class PredictiveCheck:
                 "describes the object")
 
     @classmethod
-    def from_dict(cls, d: dict) -> PredictiveCheck:
+    def from_dict(cls, d: dict[str, Any]) -> PredictiveCheck:
         w = d.get("worst")
         return cls(statistic=d["statistic"], p_value=d["p_value"], n_probes=d["n_probes"], member=d["member"],
                    worst=None if w is None else (w["f_p_hz"], w["a_p_deg"], w["z"]), p_min=d["p_min"])
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {"statistic": self.statistic, "p_value": self.p_value, "p_min": self.p_min, "passed": self.passed,
                 "n_probes": self.n_probes, "member": self.member,
                 "worst": None if self.worst is None else {"f_p_hz": self.worst[0], "a_p_deg": self.worst[1],
@@ -239,7 +242,7 @@ class Estimate:
         """|omega_n_hat - omega_n_true| / omega_n_true; inf when there is no estimate."""
         return abs(self.omega_n - omega_n_true) / omega_n_true if self.ok else math.inf
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary in edge units (the posterior grid is left out)."""
         d = {"ok": self.ok, "method": self.method, "reason": self.reason, "forward": self.forward,
              "omega_n_rad_s": self.omega_n, "omega_n_stderr_rad_s": self.omega_n_stderr,
@@ -260,7 +263,7 @@ class Estimate:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict) -> Estimate:
+    def from_dict(cls, d: dict[str, Any]) -> Estimate:
         """The estimate back from :meth:`to_dict` (its posterior grid and per-amplitude fits are not kept)."""
         bound = d.get("bound")
         alpha = d.get("alpha_deg")

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify.estimate import METHODS, Estimate
@@ -68,7 +68,8 @@ class Estimator(Protocol):
     :class:`~plate_env.identify.posterior_state.PosteriorState` whose ``estimate()`` equals ``fit`` of the probes
     added, or None when the method refits from scratch)."""
 
-    method: str
+    @property
+    def method(self) -> str: ...
 
     def fit(self, table: ProbeTable) -> Estimate: ...
 
@@ -118,7 +119,7 @@ class AtlasEstimator:
 
         return PosteriorState(self.forward_model())
 
-    def _key(self) -> tuple:
+    def _key(self) -> tuple[object, ...]:
         return (str(self.forward), self.known) if self.model is None else ("given", id(self.model))
 
     def __eq__(self, other: object) -> bool:
@@ -187,7 +188,8 @@ class CalibratedEstimator:
 
 def make_estimator(method: str = "atlas", name: ForwardName | str = ForwardName("tilelink", "pointmass"),
                    known: KnownInputs | None = None, forward: ForwardModel | str | None = None,
-                   calibration: LabCalibration | str | os.PathLike | None = None, **options) -> Estimator:
+                   calibration: LabCalibration | str | os.PathLike[str] | None = None,
+                   **options: Any) -> Estimator:
     """The registry: the estimator of ``method`` (``"atlas"`` or ``"lorentz"``) for data made by ``name``.
 
     ``forward``: the atlas method's forward model (a shipped name or a ForwardModel; default ``name``'s);
@@ -267,8 +269,8 @@ def gated_unknown_origin(est: Estimate, table: ProbeTable, known: KnownInputs, f
 
     if not est.ok:
         return est
-    base = dict(ok=False, method=est.method, n_probes=est.n_probes, n_unstable=est.n_unstable, forward=est.forward,
-                fits=est.fits)
+    base: dict[str, Any] = dict(ok=False, method=est.method, n_probes=est.n_probes, n_unstable=est.n_unstable,
+                                forward=est.forward, fits=est.fits)
     try:
         gate = AtlasEstimator(forward, known).fit(table)
     except ValueError:  # no member for these known inputs: nothing to check against
@@ -277,7 +279,8 @@ def gated_unknown_origin(est: Estimate, table: ProbeTable, known: KnownInputs, f
     if require_hump or check is None or not check.passed:
         why = hump_reason(table)
         if why is not None:
-            said = "" if check is None or check.passed else f"{gate.reason}; and "
+            failed = gate is not None and check is not None and not check.passed
+            said = f"{gate.reason}; and " if failed and gate is not None else ""
             return Estimate(reason=f"no {est.method} reading of these probes: {said}they show no resonance ({why})",
                             check=check, **base)
     if gate is not None and gate.bound is not None:

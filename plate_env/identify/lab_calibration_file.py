@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import subprocess
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -264,7 +265,7 @@ PAPER = "paper"
 PAPER_FILE = "calibration_paper.json"
 
 
-def load(path: str | Path) -> LabCalibration:
+def load(path: str | os.PathLike[str]) -> LabCalibration:
     """Read CAL.json (or the shipped ``"paper"`` calibration); CalibrationError (naming the file) when it is not
     one, is from another version, or was edited."""
     if str(path) == PAPER:

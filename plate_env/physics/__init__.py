@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from plate_env.core.probe import ProbeResult, ProbeSpec, YawTrace
 from plate_env.core.registry import Registry
 from plate_env.physics.interface import Physics
@@ -13,7 +15,7 @@ PHYSICS = Registry("physics", {"tilelink": "plate_env.physics.tilelink:TileLinkP
 PHYSICS_NAMES = PHYSICS.names
 
 
-def make_physics(name: str, **options) -> Physics:
+def make_physics(name: str, **options: Any) -> Physics:
     """Create a physics backend by name (:data:`PHYSICS`); options go to its constructor.
 
     ``"tilelink"``: the paper's model (``model="pointmass"`` default, ``"rigid"``, ``"rigid_limit"``,
@@ -21,7 +23,8 @@ def make_physics(name: str, **options) -> Physics:
     ``"pybullet"``: a PyBullet soft-body sheet on a kinematic plate (options: dt, n_layer, n_workers, ...).
     ``"atlas"``: the response atlas of another backend served as physics (microsecond probes, for RL training).
     """
-    return PHYSICS.load(name)(**options)
+    physics: Physics = PHYSICS.load(name)(**options)
+    return physics
 
 
 __all__ = ["PHYSICS", "PHYSICS_NAMES", "Physics", "ProbeResult", "ProbeSpec", "YawTrace", "make_physics"]
