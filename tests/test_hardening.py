@@ -96,16 +96,23 @@ def test_item2_a_friction_angle_outside_the_atlas_is_flagged():
     assert Posterior(w, a, flat).alpha_edge() is None
 
 
-def test_item2_all_zero_rotation_at_12_deg_is_no_estimate_and_a_bound_only_because_every_alpha_says_so():
-    """At 12 deg most probes end unstable; the few stable ones all at 0 deg/s pile alpha at its top edge, but the
-    models explain them by a disc stiffer than they cover at every friction angle inside the range too: no
-    estimate, and the omega_n bound (the pile is the data's, not bought by the alpha edge)."""
-    t = _honest_sweep(10 * math.pi, 45.0, 12.0, seed=3)
+@pytest.mark.parametrize("seed", range(6))
+def test_item2_all_zero_rotation_at_12_deg_is_no_estimate_and_a_bound_only_where_every_alpha_says_so(seed):
+    """At 12 deg most probes end unstable; the few stable ones all at 0 deg/s pile alpha at its top edge: never an
+    estimate, and an omega_n bound exactly when the models put omega_n beyond their range at the friction angles
+    inside the range too (the pile is the data's, not bought by the alpha edge). Which of the two a sweep gets
+    depends on its unstable pattern (and, near the edge mass, on the CPU and library versions: a fresh machine with
+    AVX-512 and numpy 2.4 / scipy 1.17 gave no bound for the seed an earlier machine bounded), so the rule is
+    checked on six sweeps rather than one outcome pinned; the rule's two cases are pinned on a made-up posterior in
+    the next test."""
+    t = _honest_sweep(10 * math.pi, 45.0, 12.0, seed=seed)
     zero = ProbeTable(t.f_p_hz, t.a_p_deg, 0 * t.omega_b_deg_s, t.stderr_deg_s, t.unstable)
     est = identify(zero, forward="tilelink/pointmass")
     post = est.posterior
-    assert post.alpha_edge() == "above" and post.edge() == "above" and post.edge_at_inner_alpha() == "above"
-    assert not est.ok and est.bound is not None and est.bound[0] == "above", est.reason
+    assert not est.ok and post.alpha_edge() == "above", est.reason
+    every_alpha = post.edge() if post.edge() == post.edge_at_inner_alpha() else None
+    assert (est.bound[0] if est.bound is not None else None) == every_alpha, (est.bound, post.edge(),
+                                                                                post.edge_at_inner_alpha())
 
 
 def test_item2_an_omega_pile_bought_by_the_alpha_edge_gives_no_bound():
