@@ -7,7 +7,6 @@ The environment's documentation, in Gymnasium's layout, is :class:`PlateRotation
 from __future__ import annotations
 
 import math
-import os
 from typing import Any
 
 import gymnasium as gym
@@ -18,31 +17,24 @@ from plate_env.core import checks, jit
 from plate_env.core.motion import PlateMotion
 from plate_env.core.objects import ObjectPrior, ObjectSpec
 from plate_env.core.probe import (
-    MIN_PROBE_FREQ_HZ,
-    WINDOW_RANGE_S,
-    ProbeRefused,
     ProbeResult,
     ProbeSpec,
 )
 from plate_env.core.probe_table import ProbeTable
-from plate_env.core.setup import B_P_RANGE_M, DEFAULT_MAX_PROBES, FREQ_RANGE_HZ, MAX_PROBES_RANGE, PAPER_SETUP
+from plate_env.core.setup import DEFAULT_MAX_PROBES
 from plate_env.env import info as info_schema
 from plate_env.env.codec import ACTION_SIZE, Codec
+from plate_env.env.config import ARGUMENTS, MASS_KG, OPTION_OF, RENDER_MODES, EnvConfig, refuse_unanswerable
 from plate_env.env.render import FPS, FRAMES_PER_PROBE
-from plate_env.identify.estimate import METHODS, Estimate
-from plate_env.physics import PHYSICS_NAMES, make_physics
+from plate_env.identify.estimate import Estimate
+from plate_env.physics import make_physics
 from plate_env.physics.camera import camera_omega_b
-from plate_env.physics.interface import refuse_early
+from plate_env.physics.interface import Physics
 from plate_env.surrogate.conditioning import KnownInputs
 
-#: Mass of the hidden object before ``mass_variation``, kg (the paper's cheese slice).
-MASS_KG = PAPER_SETUP.mass
 #: Keys ``reset(options=...)`` accepts: the hidden object's omega_n (rad/s), alpha (rad), mass (kg).
 RESET_OPTIONS = ("omega_n", "alpha", "mass")
-#: The constructor option that decides each quantity of the probes a backend may refuse (ProbeRefused.quantity).
-OPTION_OF = {"f_p_hz": "f_band_hz", "a_p_deg": "amplitudes_deg", "omega_n": "omega_n_range_pi",
-             "alpha": "alpha_range_deg", "b_p": "b_p_mm", "mass": "mass_variation", "diameter": "physics",
-             "steps": "measure_range_s, settle_s or the physics' dt"}
+__all__ = ["DEFAULT_MAX_PROBES", "MASS_KG", "OPTION_OF", "RESET_OPTIONS", "EnvConfig", "PlateRotationEnv"]
 
 
 class PlateRotationEnv(gym.Env):
@@ -135,8 +127,9 @@ class PlateRotationEnv(gym.Env):
 
     ## Arguments
 
-    ``gym.make("PlateRotation-v0", **kwargs)``; every argument is checked at construction (ValueError naming it
-    and the allowed values), including whether the physics can answer every probe the settings allow:
+    ``gym.make("PlateRotation-v0", **kwargs)``; every argument is checked at construction, once, by
+    :class:`~plate_env.env.config.EnvConfig` (ValueError naming it and the allowed values; ``env.config`` holds the
+    checked values), and whether the physics can answer every probe the settings allow:
 
     | argument | default | meaning |
     |---|---|---|
@@ -212,75 +205,35 @@ class PlateRotationEnv(gym.Env):
     training (``experiments/results/env_ids_speed.md``: steps per second of each).
     """
 
-    metadata = {"render_modes": ["rgb_array", "rgb_array_list", "human"], "render_fps": FPS}
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": FPS}
 
-    def __init__(self, physics: str = "tilelink", physics_options: dict | None = None, method: str = "atlas",
-                 omega_n_range_pi: tuple[float, float] = ObjectPrior.omega_n_range_pi,
-                 alpha_range_deg: tuple[float, float] = ObjectPrior.alpha_range_deg,
-                 mass_variation: float = 0.0, f_band_hz: tuple[float, float] = (10.0, 40.0),
-                 amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = PAPER_SETUP.b_p_mm,
-                 max_probes: int = DEFAULT_MAX_PROBES,
-                 max_sim_s: float | None = None, measure_range_s: tuple[float, float] = (0.25, 2.0),
-                 settle_s: float = 0.5, camera_fps: float = 30.0, angle_noise_deg: float = 0.5,
-                 cost_per_sim_s: float = 0.005, error_cap: float = 1.0, no_estimate_penalty: float = 1.0,
-                 render_mode: str | None = None, calibration=None, reveal_truth: bool = False) -> None:
+    def __init__(self, config: EnvConfig | None = None, shared_physics: Physics | None = None,
+                 **settings: Any) -> None:
+        """``PlateRotationEnv(**settings)`` (what ``gym.make`` calls: the arguments above, checked by
+        :class:`~plate_env.env.config.EnvConfig`), or ``PlateRotationEnv(config)`` from a checked config.
+        ``shared_physics``: a backend built for ``config`` by its owner (the vector env's, shared by its
+        sub-environments), which this env runs but never closes; None: the env builds and owns its own."""
         super().__init__()
-        if not isinstance(reveal_truth, (bool, np.bool_)):
-            raise ValueError(f"reveal_truth = {reveal_truth!r} must be True or False")
-        # every option checked (a ValueError naming it) before the physics is built
-        render_mode = checks.one_of("render_mode", render_mode, (None, *self.metadata["render_modes"]))
-        method = checks.one_of("method", method, METHODS)
-        omega_n_range_pi = checks.pair("omega_n_range_pi", omega_n_range_pi, 0.1, 300.0, "pi rad/s")
-        alpha_range_deg = checks.pair("alpha_range_deg", alpha_range_deg, 1.0, 89.0, "deg")
-        mass_variation = checks.real("mass_variation", mass_variation, 0.0, 1.0, open_hi=True)
-        f_band_hz = checks.pair("f_band_hz", f_band_hz, MIN_PROBE_FREQ_HZ, FREQ_RANGE_HZ[1], "Hz")
-        amplitudes_deg = _amplitudes(amplitudes_deg)
-        b_p_mm = checks.real("b_p_mm", b_p_mm, B_P_RANGE_M[0] * 1e3, B_P_RANGE_M[1] * 1e3, unit="mm")
-        max_probes = checks.integer("max_probes", max_probes, *MAX_PROBES_RANGE)
-        if max_sim_s is not None:
-            max_sim_s = checks.real("max_sim_s", max_sim_s, 0.0, 1e6, open_lo=True, unit="s")
-        measure_range_s = checks.pair("measure_range_s", measure_range_s, 0.01, 60.0, "s")
-        settle_s = checks.real("settle_s", settle_s, *WINDOW_RANGE_S, unit="s")
-        camera_fps = checks.real("camera_fps", camera_fps, 1.0, 1e4, unit="Hz")
-        angle_noise_deg = checks.real("angle_noise_deg", angle_noise_deg, 0.0, 90.0, unit="deg")
-        cost_per_sim_s = checks.real("cost_per_sim_s", cost_per_sim_s, 0.0, 1e3)
-        error_cap = checks.real("error_cap", error_cap, 0.0, 1e3, open_lo=True)
-        no_estimate_penalty = checks.real("no_estimate_penalty", no_estimate_penalty, 0.0, 1e3)
-        physics = checks.one_of("physics", physics, PHYSICS_NAMES)
-        self.calibration = _calibration(calibration, amplitudes_deg, b_p_mm)
-        if physics_options is not None and not isinstance(physics_options, dict):
-            raise ValueError(f"physics_options = {physics_options!r} must be a dict of backend options or None")
-        self.physics_name = physics
-        self.physics_options = dict(physics_options or {})
-        self.physics = _build_physics(physics, self.physics_options)
+        if config is None:
+            unknown = sorted(set(settings) - set(ARGUMENTS))
+            if unknown:
+                raise TypeError(f"PlateRotationEnv got an unexpected keyword argument {unknown[0]!r}; its arguments: "
+                                f"{', '.join(ARGUMENTS)}")
+            config = EnvConfig(**settings)
+        elif not isinstance(config, EnvConfig) or settings:
+            raise TypeError(f"PlateRotationEnv(config) takes an EnvConfig and no other settings, got {config!r} and "
+                            f"{sorted(settings)}")
+        #: The env's checked arguments (:class:`~plate_env.env.config.EnvConfig`); ``env.<argument>`` reads them.
+        self.config = config
+        self._owns_physics = shared_physics is None
+        self.physics = _build_physics(config.physics, config.options()) if shared_physics is None else shared_physics
         # identification uses the calibration/atlas of the physics the probes come from
-        self.source = getattr(self.physics, "source", physics)
-        self.model = getattr(self.physics, "model", physics)
-        self.method = method
-        self.omega_n_range_pi = omega_n_range_pi
-        self.alpha_range_deg = alpha_range_deg
-        self.mass_variation = mass_variation
-        self.f_band_hz = f_band_hz
-        self.amplitudes_deg = amplitudes_deg
-        self.b_p_mm = b_p_mm
-        self.max_probes = max_probes
-        self.max_sim_s = max_sim_s
-        self.measure_range_s = measure_range_s
-        self.settle_s = settle_s
-        self.camera_fps = camera_fps
-        self.angle_noise_deg = angle_noise_deg
-        self.cost_per_sim_s = cost_per_sim_s
-        self.error_cap = error_cap
-        self.no_estimate_penalty = no_estimate_penalty
-        self.render_mode = render_mode
-        if render_mode == "rgb_array":  # one frame per probe: a probe lasts a second of video in every mode
+        self.source = getattr(self.physics, "source", config.physics)
+        self.model = getattr(self.physics, "model", config.physics)
+        self.render_mode = config.render_mode
+        if config.render_mode == "rgb_array":  # one frame per probe: a probe lasts a second of video in every mode
             self.metadata = {**self.metadata, "render_fps": FPS / FRAMES_PER_PROBE}
-        self.reveal_truth = bool(reveal_truth)
-        lo, hi = omega_n_range_pi
-        masses = (MASS_KG * (1.0 - mass_variation), MASS_KG * (1.0 + mass_variation))
-        objects = [ObjectSpec(omega_n=math.pi * w, alpha=math.radians(a), mass=m)
-                   for w in (lo, hi) for a in alpha_range_deg for m in sorted(set(masses))]
-        self._refuse_unanswerable(objects, "option")
+        refuse_unanswerable(config, self.physics, config.corner_objects(), "option")
         #: The observation/action layout (plate_env.env.codec), shared with agents that act from observations.
         self.codec = Codec(self.f_band_hz, self.amplitudes_deg, self.measure_range_s, self.max_probes)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(ACTION_SIZE,), dtype=np.float32)
@@ -296,6 +249,24 @@ class PlateRotationEnv(gym.Env):
         self._renderer = None  # plate_env.env.render.Renderer, made on the first frame (never without render_mode)
         self._posterior = None  # the episode's PosteriorState, False (not incremental) or why none; built lazily
         self._obs_rows = np.zeros(self.codec.obs_dim, dtype=np.float32)  # the probes' rows, each written once
+
+    def __getattr__(self, name: str) -> Any:
+        """``env.<argument>``: the checked value of a constructor argument (``env.max_probes``, ``env.calibration``:
+        the loaded lab calibration)."""
+        config = self.__dict__.get("config")
+        if config is not None and name in ARGUMENTS and name != "physics":
+            return getattr(config, name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    @property
+    def physics_name(self) -> str:
+        """The backend's name (the ``physics`` argument; ``env.physics`` is the backend)."""
+        return self.config.physics
+
+    @property
+    def physics_options(self) -> dict[str, Any]:
+        """The backend's options (the ``physics_options`` argument; empty for none)."""
+        return self.config.options()
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -314,7 +285,7 @@ class PlateRotationEnv(gym.Env):
         except ValueError as exc:
             raise ValueError(f"reset options {options!r}: {exc}") from None
         if given:
-            self._refuse_unanswerable([obj], "reset option")
+            refuse_unanswerable(self.config, self.physics, [obj], "reset option")
         self._obj = obj
         self._rows, self._results = [], []
         self._obs_rows = np.zeros(self.codec.obs_dim, dtype=np.float32)
@@ -424,18 +395,6 @@ class PlateRotationEnv(gym.Env):
     def _check_open(self) -> None:
         if self._closed:
             raise RuntimeError("this PlateRotationEnv is closed; make a new one")
-
-    def _refuse_unanswerable(self, objects: list[ObjectSpec], what: str) -> None:
-        """Refuse (ValueError naming the option) if the physics cannot answer probes this env may ask about
-        ``objects``: every corner of the band, amplitudes and windows (the backends' limits are boxes)."""
-        specs = [ProbeSpec(obj, PlateMotion.from_paper(f, a, self.b_p_mm), settle_s=self.settle_s, measure_s=m)
-                 for obj in objects for f in self.f_band_hz for a in self.amplitudes_deg for m in self.measure_range_s]
-        try:
-            refuse_early(self.physics, specs)
-        except ProbeRefused as exc:
-            option = OPTION_OF.get(exc.quantity, exc.quantity) if what == "option" else exc.quantity
-            raise ValueError(f"PlateRotationEnv {what} {option}: physics {self.physics_name!r} cannot answer the "
-                             f"probes it allows: {exc}") from None
 
     # ------------------------------------------------------------------ views
     def table(self) -> ProbeTable:
@@ -581,7 +540,8 @@ class PlateRotationEnv(gym.Env):
         if self._closed:
             return
         self._closed = True
-        self.physics.close()
+        if self._owns_physics:  # a shared backend is its owner's to close (the vector env's)
+            self.physics.close()
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
@@ -596,6 +556,7 @@ class PlateRotationEnv(gym.Env):
     def __setstate__(self, state):
         self.__dict__.update(state)
         self.physics = make_physics(self.physics_name, **self.physics_options)
+        self._owns_physics = True  # a copy owns its backend, even of an env that shared one
         self._closed = False
 
 
@@ -638,35 +599,3 @@ def _build_physics(name: str, options: dict):
         raise ValueError(f"physics_options {options!r}: physics {name!r} does not take that option ({exc})") from None
     except ValueError as exc:
         raise ValueError(f"physics_options {options!r} for physics {name!r}: {exc}") from None
-
-
-def _amplitudes(values) -> tuple[float, ...]:
-    """The env's plate amplitudes: one or more distinct non-zero values within +-45 deg."""
-    try:
-        items = tuple(values)
-    except TypeError:
-        items = ()
-    if not items:
-        raise ValueError(f"amplitudes_deg = {values!r}: give one or more plate amplitudes in degrees")
-    amps = tuple(checks.real(f"amplitudes_deg[{i}]", a, -45.0, 45.0, unit="deg") for i, a in enumerate(items))
-    if 0.0 in amps or len(set(amps)) != len(amps):
-        raise ValueError(f"amplitudes_deg = {values!r}: amplitudes must be distinct and non-zero")
-    return amps
-
-
-def _calibration(calibration, amplitudes_deg: tuple[float, ...], b_p_mm: float):
-    """The env's lab calibration (None: the estimate's own forward model), checked against the amplitudes and
-    B_p the episodes use (ValueError naming the mismatch)."""
-    if calibration is None:
-        return None
-    from plate_env.identify import lab_calibration_file as lcf
-
-    if not isinstance(calibration, (lcf.LabCalibration, str, os.PathLike)):
-        raise ValueError(f"calibration={calibration!r}: give a LabCalibration, a CAL.json path or 'paper'")
-    cal = calibration if isinstance(calibration, lcf.LabCalibration) else lcf.load(calibration)
-    if tuple(float(a) for a in amplitudes_deg) != (cal.a_p_deg,):
-        raise ValueError(f"calibration holds for A_p = {cal.a_p_deg:g} deg only: set amplitudes_deg=({cal.a_p_deg:g},) "
-                         f"(got {tuple(amplitudes_deg)})")
-    if abs(b_p_mm - cal.known.b_p * 1e3) > 0.02 * cal.known.b_p * 1e3:
-        raise ValueError(f"calibration holds for B_p = {cal.known.b_p * 1e3:g} mm, the env's b_p_mm is {b_p_mm:g}")
-    return cal
