@@ -146,7 +146,11 @@ def test_env_state_missing_forward_model_gives_reason(monkeypatch):
     env = PlateRotationEnv(physics="atlas", max_probes=3)
     env.reset(seed=0)
     env.step(env.encode_action(20.0, 3.0, 1.0))
-    monkeypatch.setattr(env, "model", "no_such_model")
+    import dataclasses
+
+    from plate_env.identify.estimators import ForwardName
+
+    monkeypatch.setattr(env, "task", dataclasses.replace(env.task, forward=ForwardName(env.source, "no_such_model")))
     est = env.estimate()
     assert not est.ok and "no_such_model" in est.reason
 

@@ -26,7 +26,9 @@ from plate_env.env import info as info_schema
 from plate_env.env.codec import ACTION_SIZE, Codec
 from plate_env.env.config import ARGUMENTS, MASS_KG, OPTION_OF, RENDER_MODES, EnvConfig, refuse_unanswerable
 from plate_env.env.render import FPS, FRAMES_PER_PROBE
+from plate_env.env.task import IdentificationTask
 from plate_env.identify.estimate import Estimate
+from plate_env.identify.estimators import ForwardName, fit_or_refuse
 from plate_env.physics import make_physics
 from plate_env.physics.camera import camera_omega_b
 from plate_env.physics.interface import Physics
@@ -228,8 +230,9 @@ class PlateRotationEnv(gym.Env):
         self._owns_physics = shared_physics is None
         self.physics = _build_physics(config.physics, config.options()) if shared_physics is None else shared_physics
         # identification uses the calibration/atlas of the physics the probes come from
-        self.source = getattr(self.physics, "source", config.physics)
-        self.model = getattr(self.physics, "model", config.physics)
+        #: The identification task: reward, termination and estimate (plate_env.env.task).
+        self.task = IdentificationTask(config, ForwardName(getattr(self.physics, "source", config.physics),
+                                                           getattr(self.physics, "model", config.physics)))
         self.render_mode = config.render_mode
         if config.render_mode == "rgb_array":  # one frame per probe: a probe lasts a second of video in every mode
             self.metadata = {**self.metadata, "render_fps": FPS / FRAMES_PER_PROBE}
@@ -257,6 +260,16 @@ class PlateRotationEnv(gym.Env):
         if config is not None and name in ARGUMENTS and name != "physics":
             return getattr(config, name)
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    @property
+    def source(self) -> str:
+        """The physics whose forward model and Eq. (10) lines read the probes (``physics/model``'s first part)."""
+        return self.task.forward.physics
+
+    @property
+    def model(self) -> str:
+        """The model of :attr:`source` that made the probes' data (``physics/model``'s second part)."""
+        return self.task.forward.model
 
     @property
     def physics_name(self) -> str:
@@ -372,17 +385,13 @@ class PlateRotationEnv(gym.Env):
             self._sim_s += result.sim_s
             self._wall_s += result.wall_s
             self._last = result
-            reward -= self.cost_per_sim_s * result.sim_s
-        spent = len(self._rows) >= self.max_probes or (self.max_sim_s is not None and self._sim_s >= self.max_sim_s)
-        terminated = result is None or spent
+            reward -= self.task.probe_cost(result.sim_s)
+        terminated = result is None or self.task.budget_spent(len(self._rows), self._sim_s)
         if terminated:
             self._done = True
             est = self.estimate()
-            error = est.relative_error(self._obj.omega_n) if est.ok else None
-            if error is not None:
-                reward -= min(error, self.error_cap)
-            else:
-                reward -= self.no_estimate_penalty
+            charge, error = self.task.charge(est, self._obj.omega_n)
+            reward -= charge
             info = self._info(final=True, estimate=est, error=error)
             jit.episode_ended()  # a process that runs many episodes loads the compiled kernels (plate_env.core.jit)
         else:
@@ -407,23 +416,18 @@ class PlateRotationEnv(gym.Env):
     def estimator(self):
         """The episode's :class:`~plate_env.identify.estimators.Estimator` (the env's method on the forward model of
         its physics, or its lab calibration), for the episode's known inputs."""
-        from plate_env.identify.estimators import ForwardName, make_estimator
-
-        return make_estimator(self.method, ForwardName(self.source, self.model), self.known_inputs(),
-                              calibration=self.calibration)
+        return self.task.estimator(self.known_inputs())
 
     def estimate(self) -> Estimate:
         """The current omega_n estimate from the probes so far: :meth:`estimator`'s, kept up to date probe by probe
         when it is incremental (the atlas method's :class:`~plate_env.identify.posterior_state.PosteriorState`,
         brought up to date with the probes not in it), else fitted from scratch (the Lorentz method, a lab
         calibration); no estimate with the reason when none can be made."""
-        from plate_env.identify.estimators import fit_or_refuse
-
         if not self._rows:
-            return Estimate(ok=False, method=self.method, reason="no probes")
+            return self.task.no_estimate("no probes")
         state = self.posterior_state()
         if isinstance(state, str):
-            return Estimate(ok=False, method=self.method, reason=state)
+            return self.task.no_estimate(state)
         if state is None:
             return fit_or_refuse(self.estimator(), self.table())
         if state.n_probes < len(self._rows):
@@ -436,11 +440,7 @@ class PlateRotationEnv(gym.Env):
         added by :meth:`estimate`), None for an estimator that refits from scratch, or the reason there is none (a
         str)."""
         if self._posterior is None:
-            try:
-                state = self.estimator().start()
-                self._posterior = False if state is None else state
-            except ValueError as exc:
-                self._posterior = str(exc)
+            self._posterior = self.task.start(self.known_inputs())
         return None if self._posterior is False else self._posterior
 
     def use_estimate_model(self, forward) -> None:
@@ -452,7 +452,7 @@ class PlateRotationEnv(gym.Env):
         from plate_env.identify.posterior_state import PosteriorState
 
         self._check_open()
-        if self.method != "atlas" or self.calibration is not None:
+        if not self.task.reads_forward_model(self.known_inputs()):
             raise ValueError(f"use_estimate_model: the env's estimate is method {self.method!r}"
                              f"{' through a lab calibration' if self.calibration is not None else ''}; a forward "
                              "model is read by method 'atlas' without a calibration only")
