@@ -459,7 +459,7 @@ def test_negative_plate_amplitude_probes_identify_like_positive_ones():
 def test_cli_identify_interrupted_with_json_prints_the_finished_probes(monkeypatch, capsys):
     import json
 
-    import plate_env.env.rotation as env_module
+    import plate_env.env.config as env_module  # where the env builds its backend
 
     real = env_module.make_physics
     monkeypatch.setattr(env_module, "make_physics", lambda name, **kw: Interrupting(real(name, **kw), 4))

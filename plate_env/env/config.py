@@ -13,6 +13,7 @@ import dataclasses
 import math
 import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -23,10 +24,11 @@ from plate_env.core.objects import ObjectPrior, ObjectSpec
 from plate_env.core.probe import MIN_PROBE_FREQ_HZ, WINDOW_RANGE_S, ProbeRefused, ProbeSpec
 from plate_env.core.setup import B_P_RANGE_M, DEFAULT_MAX_PROBES, FREQ_RANGE_HZ, MAX_PROBES_RANGE, PAPER_SETUP
 from plate_env.identify.estimate import METHODS
-from plate_env.physics import PHYSICS_NAMES
+from plate_env.physics import PHYSICS_NAMES, make_physics
 from plate_env.physics.interface import refuse_early
 
 if TYPE_CHECKING:
+    from plate_env.identify.estimators import ForwardName
     from plate_env.identify.lab_calibration_file import LabCalibration
     from plate_env.physics.interface import Physics
 
@@ -71,6 +73,16 @@ class EnvConfig:
         for name, value in _checked(self).items():
             object.__setattr__(self, name, value)
 
+    @classmethod
+    def of(cls, settings: dict[str, Any]) -> EnvConfig:
+        """The config of the env's keyword arguments ``settings`` (TypeError naming an unknown one and the
+        arguments, as a call with it would; ValueError naming a bad value)."""
+        unknown = sorted(set(settings) - set(ARGUMENTS))
+        if unknown:
+            raise TypeError(f"PlateRotationEnv got an unexpected keyword argument {unknown[0]!r}; its arguments: "
+                            f"{', '.join(ARGUMENTS)}")
+        return cls(**settings)
+
     # ------------------------------------------------------------------ derived
     def corner_objects(self) -> list[ObjectSpec]:
         """The objects at the corners of the hidden-object ranges (omega_n, alpha, mass): with the band, amplitudes
@@ -92,6 +104,25 @@ class EnvConfig:
 
 #: The names of the env's arguments, in the constructor's order.
 ARGUMENTS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(EnvConfig))
+
+
+def build_physics(config: EnvConfig) -> Physics:
+    """``make_physics(config.physics, **config.physics_options)``, an option the backend does not take or refuses
+    named as a ``physics_options`` error."""
+    name, options = config.physics, config.options()
+    try:
+        return make_physics(name, **options)
+    except TypeError as exc:  # an unknown keyword
+        raise ValueError(f"physics_options {options!r}: physics {name!r} does not take that option ({exc})") from None
+    except ValueError as exc:
+        raise ValueError(f"physics_options {options!r} for physics {name!r}: {exc}") from None
+
+
+def forward_name(config: EnvConfig, physics: Physics) -> ForwardName:
+    """The model that makes ``physics``' data, ``source/model`` (the backend's name when it declares neither)."""
+    from plate_env.identify.estimators import ForwardName
+
+    return ForwardName(getattr(physics, "source", config.physics), getattr(physics, "model", config.physics))
 
 
 def refuse_unanswerable(config: EnvConfig, physics: Physics, objects: list[ObjectSpec], what: str) -> None:
@@ -162,7 +193,10 @@ def _calibration(calibration: object, amplitudes_deg: tuple[float, ...], b_p_mm:
 
     if not isinstance(calibration, (lcf.LabCalibration, str, os.PathLike)):
         raise ValueError(f"calibration={calibration!r}: give a LabCalibration, a CAL.json path or 'paper'")
-    cal = calibration if isinstance(calibration, lcf.LabCalibration) else lcf.load(calibration)
+    if isinstance(calibration, lcf.LabCalibration):
+        cal = calibration
+    else:
+        cal = lcf.load(calibration if isinstance(calibration, str) else Path(calibration))
     if tuple(float(a) for a in amplitudes_deg) != (cal.a_p_deg,):
         raise ValueError(f"calibration holds for A_p = {cal.a_p_deg:g} deg only: set amplitudes_deg=({cal.a_p_deg:g},) "
                          f"(got {tuple(amplitudes_deg)})")

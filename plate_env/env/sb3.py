@@ -48,7 +48,7 @@ class PlateRotationSB3VecEnv(VecEnv):
         return np.stack(obs)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = self.vec._check_actions(actions)
+        self._actions = self.vec.check_actions(actions)
 
     def step_wait(self):
         if self._actions is None:

@@ -12,15 +12,22 @@ there is none). It holds no episode: the probes and the incremental posterior ar
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from plate_env.env.config import EnvConfig
+import numpy as np
+
+from plate_env.core import checks
+from plate_env.core.objects import ObjectPrior, ObjectSpec
+from plate_env.env.config import MASS_KG, EnvConfig
 from plate_env.identify.estimate import Estimate
 from plate_env.identify.estimators import AtlasEstimator, Estimator, ForwardName, make_estimator
 from plate_env.surrogate.conditioning import KnownInputs
 
 if TYPE_CHECKING:
     from plate_env.identify.posterior_state import PosteriorState
+
+#: Keys ``reset(options=...)`` accepts: the hidden object's omega_n (rad/s), alpha (rad), mass (kg).
+RESET_OPTIONS = ("omega_n", "alpha", "mass")
 
 
 @dataclass(frozen=True)
@@ -30,6 +37,29 @@ class IdentificationTask:
 
     config: EnvConfig
     forward: ForwardName
+
+    @staticmethod
+    def reset_values(options: dict[str, Any] | None) -> dict[str, float]:
+        """``reset(options=...)`` checked: only the keys :data:`RESET_OPTIONS`, each a real number (ValueError
+        naming the option); pure, so a reset is refused before it draws."""
+        known = checks.known_keys("reset options", options, RESET_OPTIONS)
+        return {k: checks.real(f"reset option {k}", v) for k, v in known.items()}
+
+    def hidden_object(self, rng: np.random.Generator, options: dict[str, Any] | None) -> ObjectSpec:
+        """The episode's hidden object: omega_n (rad/s) and alpha (rad) drawn from the prior ranges, the mass (kg)
+        13.6 g times 1 + ``mass_variation`` * U(-1, 1), always drawn in this order from ``rng``; the quantities the
+        reset ``options`` give (:meth:`reset_values`) replace their draws (ValueError naming them when no object
+        has them)."""
+        given = self.reset_values(options)
+        c = self.config
+        drawn_omega, drawn_alpha = ObjectPrior(c.omega_n_range_pi, c.alpha_range_deg).draw(rng)
+        drawn = {"omega_n": drawn_omega, "alpha": drawn_alpha,
+                 "mass": MASS_KG * (1.0 + c.mass_variation * rng.uniform(-1.0, 1.0))}  # drawn either way
+        try:
+            return ObjectSpec(**{**drawn, **given}, name="hidden")
+        except ValueError as exc:
+            raise ValueError(f"reset options {checks.known_keys('reset options', options, RESET_OPTIONS)!r}: "
+                             f"{exc}") from None
 
     def estimator(self, known: KnownInputs) -> Estimator:
         """The episode's estimator for the episode's ``known`` inputs: the env's method on :attr:`forward`'s model,
