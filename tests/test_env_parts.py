@@ -29,6 +29,8 @@ def test_config_is_frozen_checked_once_and_holds_every_argument():
     env = PlateRotationEnv(physics="atlas", max_probes=5)
     assert env.config == EnvConfig(physics="atlas", max_probes=5)
     assert all(getattr(env, name) == getattr(env.config, name) for name in ARGUMENTS if name != "physics")
+    with pytest.raises(AttributeError, match="max_probes"):  # a view, read-only: the codec and spaces are built
+        env.max_probes = 6
     env.close()
 
 

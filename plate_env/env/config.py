@@ -106,6 +106,28 @@ class EnvConfig:
 ARGUMENTS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(EnvConfig))
 
 
+#: The arguments an env shows as attributes of its own (``physics`` is the backend, ``render_mode`` Gymnasium's).
+_VIEWED = frozenset(ARGUMENTS) - {"physics", "render_mode"}
+
+
+class ConfigView:
+    """``obj.<argument>`` of an object with a ``config`` (:class:`EnvConfig`): the checked value of the argument
+    (``env.max_probes``; ``env.calibration``, the loaded lab calibration); read-only (AttributeError: the config is
+    frozen, and the codec, spaces and task were built from it; make a new env)."""
+
+    def __getattr__(self, name: str) -> Any:
+        config = self.__dict__.get("config")
+        if config is not None and name in _VIEWED:
+            return getattr(config, name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in _VIEWED:
+            raise AttributeError(f"{type(self).__name__}.{name} is its config's (EnvConfig, frozen): make a new env "
+                                 f"with {name}={value!r}")
+        super().__setattr__(name, value)
+
+
 def build_physics(config: EnvConfig) -> Physics:
     """``make_physics(config.physics, **config.physics_options)``, an option the backend does not take or refuses
     named as a ``physics_options`` error."""

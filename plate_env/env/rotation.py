@@ -18,7 +18,7 @@ from plate_env.core.setup import DEFAULT_MAX_PROBES
 from plate_env.env import config as _config
 from plate_env.env import info as info_schema
 from plate_env.env.codec import ACTION_SIZE, Codec
-from plate_env.env.config import ARGUMENTS, RENDER_MODES, EnvConfig, build_physics, forward_name, refuse_unanswerable
+from plate_env.env.config import RENDER_MODES, ConfigView, EnvConfig, build_physics, forward_name, refuse_unanswerable
 from plate_env.env.render import FPS, FRAMES_PER_PROBE, Scene
 from plate_env.env.state import EpisodeState, check_action, step_episodes
 from plate_env.env.task import RESET_OPTIONS, IdentificationTask
@@ -31,7 +31,7 @@ MASS_KG, OPTION_OF = _config.MASS_KG, _config.OPTION_OF  # where they were
 __all__ = ["DEFAULT_MAX_PROBES", "MASS_KG", "OPTION_OF", "RESET_OPTIONS", "EnvConfig", "PlateRotationEnv"]
 
 
-class PlateRotationEnv(gym.Env):
+class PlateRotationEnv(ConfigView, gym.Env):
     """Identify a hidden object's bending natural frequency by choosing plate probes.
 
     ## Description
@@ -233,14 +233,6 @@ class PlateRotationEnv(gym.Env):
             self.episode.on_step = self._frame_step
         self._closed = False
         self._renderer: Any = None  # plate_env.env.render.Renderer, made on the first frame (only with render_mode)
-
-    def __getattr__(self, name: str) -> Any:
-        """``env.<argument>``: the checked value of a constructor argument (``env.max_probes``, ``env.calibration``:
-        the loaded lab calibration)."""
-        config = self.__dict__.get("config")
-        if config is not None and name in ARGUMENTS and name != "physics":
-            return getattr(config, name)
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @property
     def task(self) -> IdentificationTask:
