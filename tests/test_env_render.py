@@ -53,7 +53,7 @@ def episode():
         frames[name] = probe(env, f_a)[1]
     out = env.step(env.encode_action(stop=True))
     frames["stop"] = env.render()
-    rows = list(env._rows)
+    rows = list(env.episode.rows)
     assert [r[4] for r in rows] == [False, False, True]  # the probes are what the tests below assume
     yield env, frames, rows, out
     env.close()

@@ -130,14 +130,13 @@ def test_env_episode_end_reads_the_state_and_equals_identify():
         *_, info = env.step(env.encode_action(f, 3.0, 1.0))
     assert "estimate" in info
     ref = identify(env.table(), method="atlas", physics="tilelink", model="pointmass", known=env.known_inputs())
-    from plate_env.env.info import build
-    from plate_env.env.rotation import _estimate_values
+    from plate_env.env.info import build, estimate_values
 
-    assert info["estimate"] == build(_estimate_values(ref))["estimate"]
+    assert info["estimate"] == build(estimate_values(ref))["estimate"]
     assert info["estimate"]["omega_n_rad_s"] == ref.omega_n and info["estimate"]["ok"] == ref.ok
     assert env.posterior_state().n_probes == 5  # one state, each probe added once
     clone = pickle.loads(pickle.dumps(env))  # the state is not pickled: rebuilt from the probes
-    assert clone._posterior is None and clone.estimate().to_dict() == ref.to_dict()
+    assert clone.episode.posterior is None and clone.estimate().to_dict() == ref.to_dict()
 
 
 def test_env_state_missing_forward_model_gives_reason(monkeypatch):
@@ -146,7 +145,12 @@ def test_env_state_missing_forward_model_gives_reason(monkeypatch):
     env = PlateRotationEnv(physics="atlas", max_probes=3)
     env.reset(seed=0)
     env.step(env.encode_action(20.0, 3.0, 1.0))
-    monkeypatch.setattr(env, "model", "no_such_model")
+    import dataclasses
+
+    from plate_env.identify.estimators import ForwardName
+
+    no_model = dataclasses.replace(env.task, forward=ForwardName(env.source, "no_such_model"))
+    monkeypatch.setattr(env.episode, "task", no_model)
     est = env.estimate()
     assert not est.ok and "no_such_model" in est.reason
 

@@ -134,13 +134,11 @@ def parse_suite(content: dict, where: str = "suite") -> Suite:
 def _env_kwargs(kw: object, where: str) -> dict:
     """A suite's ``env_kwargs``: a dict naming the physics, with PlateRotation-v0's constructor arguments only
     (their values are the env's to check) and without ``max_sim_s`` (the budgets' job); ``physics_options`` a dict."""
-    import inspect
-
-    from plate_env.env.rotation import PlateRotationEnv
+    from plate_env.env.config import ARGUMENTS
 
     if not isinstance(kw, dict) or "physics" not in kw or "max_sim_s" in kw:
         raise ValueError(f"{where}: env_kwargs must name the physics and leave max_sim_s to budgets_s")
-    allowed = [k for k in inspect.signature(PlateRotationEnv).parameters if k != "max_sim_s"]
+    allowed = [k for k in ARGUMENTS if k != "max_sim_s"]
     unknown = sorted(k for k in kw if k not in allowed)
     if unknown:
         raise ValueError(f"{where}: env_kwargs {unknown} are not PlateRotation-v0 arguments; allowed: {allowed}")

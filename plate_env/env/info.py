@@ -23,9 +23,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from plate_env.identify.estimate import Estimate
 
 #: When a field holds a value (the words :func:`markdown` shows).
 EVERY, PROBED, FINAL, ESTIMATE, CHECKED = ("every step", "after the first probe", "terminating step",
@@ -177,3 +180,28 @@ def markdown(code: str = "`") -> str:
     rows += [f"| {code}{f.key}{code} | {f.dtype} | {f.unit} | {f.when} | {_shown(empty_value(f), code)} | "
              f"{f.meaning} |" for f in FIELDS]
     return "\n".join(rows)
+
+
+def estimate_values(est: Estimate) -> dict[str, Any]:
+    """The info fields (dotted keys, :mod:`plate_env.env.info`) of an estimate: ``Estimate.to_dict`` with its
+    intervals split into their ends, its bound and check in fixed fields, and without the fields whose keys vary
+    (the posterior's members, the per-amplitude fits: ``env.unwrapped.estimate()`` has them)."""
+    d = est.to_dict()
+    v = {f"estimate.{k}": d[k] for k in ("ok", "method", "reason", "forward", "n_probes", "n_unstable")}
+    if est.omega_n > 0:  # an answer (a rejected one, ok False, keeps its values); 0: none, empty in the info
+        v.update({f"estimate.{k}": d[k] for k in ("omega_n_rad_s", "omega_n_stderr_rad_s", "omega_n_pi")})
+        for level in ("68", "95"):
+            v[f"estimate.omega_n_ci{level}_lo_rad_s"], v[f"estimate.omega_n_ci{level}_hi_rad_s"] = \
+                d[f"omega_n_ci{level}_rad_s"]
+    if est.alpha is not None:
+        v["estimate.alpha_deg"], v["estimate.alpha_stderr_deg"] = d["alpha_deg"], d["alpha_stderr_deg"]
+    if d["bound"] is not None:
+        v["estimate.bound.side"], v["estimate.bound.omega_n_rad_s"] = d["bound"]["side"], d["bound"]["omega_n_rad_s"]
+    check = d["check"]
+    if check is not None:
+        v["estimate.check.ok"] = True
+        v.update({f"estimate.check.{k}": check[k] for k in ("passed", "statistic", "p_value", "p_min", "n_probes",
+                                                            "member")})
+        if check["worst"] is not None:
+            v.update({f"estimate.check.worst.{k}": x for k, x in check["worst"].items()})
+    return v

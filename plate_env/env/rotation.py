@@ -6,46 +6,32 @@ The environment's documentation, in Gymnasium's layout, is :class:`PlateRotation
 
 from __future__ import annotations
 
-import math
-import os
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from plate_env.core import checks, jit
-from plate_env.core.motion import PlateMotion
-from plate_env.core.objects import ObjectPrior, ObjectSpec
-from plate_env.core.probe import (
-    MIN_PROBE_FREQ_HZ,
-    WINDOW_RANGE_S,
-    ProbeRefused,
-    ProbeResult,
-    ProbeSpec,
-)
+from plate_env.core.objects import ObjectSpec
 from plate_env.core.probe_table import ProbeTable
-from plate_env.core.setup import B_P_RANGE_M, DEFAULT_MAX_PROBES, FREQ_RANGE_HZ, MAX_PROBES_RANGE, PAPER_SETUP
+from plate_env.core.setup import DEFAULT_MAX_PROBES
+from plate_env.env import config as _config
 from plate_env.env import info as info_schema
 from plate_env.env.codec import ACTION_SIZE, Codec
-from plate_env.env.render import FPS, FRAMES_PER_PROBE
-from plate_env.identify.estimate import METHODS, Estimate
-from plate_env.physics import PHYSICS_NAMES, make_physics
-from plate_env.physics.camera import camera_omega_b
-from plate_env.physics.interface import refuse_early
+from plate_env.env.config import RENDER_MODES, ConfigView, EnvConfig, build_physics, forward_name, refuse_unanswerable
+from plate_env.env.render import FPS, FRAMES_PER_PROBE, Scene
+from plate_env.env.state import EpisodeState, check_action, step_episodes
+from plate_env.env.task import RESET_OPTIONS, IdentificationTask
+from plate_env.identify.estimate import Estimate
+from plate_env.identify.estimators import Estimator
+from plate_env.physics.interface import Physics
 from plate_env.surrogate.conditioning import KnownInputs
 
-#: Mass of the hidden object before ``mass_variation``, kg (the paper's cheese slice).
-MASS_KG = PAPER_SETUP.mass
-#: Keys ``reset(options=...)`` accepts: the hidden object's omega_n (rad/s), alpha (rad), mass (kg).
-RESET_OPTIONS = ("omega_n", "alpha", "mass")
-#: The constructor option that decides each quantity of the probes a backend may refuse (ProbeRefused.quantity).
-OPTION_OF = {"f_p_hz": "f_band_hz", "a_p_deg": "amplitudes_deg", "omega_n": "omega_n_range_pi",
-             "alpha": "alpha_range_deg", "b_p": "b_p_mm", "mass": "mass_variation", "diameter": "physics",
-             "steps": "measure_range_s, settle_s or the physics' dt"}
+MASS_KG, OPTION_OF = _config.MASS_KG, _config.OPTION_OF  # where they were
+__all__ = ["DEFAULT_MAX_PROBES", "MASS_KG", "OPTION_OF", "RESET_OPTIONS", "EnvConfig", "PlateRotationEnv"]
 
 
-class PlateRotationEnv(gym.Env):
+class PlateRotationEnv(ConfigView, gym.Env):
     """Identify a hidden object's bending natural frequency by choosing plate probes.
 
     ## Description
@@ -135,8 +121,9 @@ class PlateRotationEnv(gym.Env):
 
     ## Arguments
 
-    ``gym.make("PlateRotation-v0", **kwargs)``; every argument is checked at construction (ValueError naming it
-    and the allowed values), including whether the physics can answer every probe the settings allow:
+    ``gym.make("PlateRotation-v0", **kwargs)``; every argument is checked at construction, once, by
+    :class:`~plate_env.env.config.EnvConfig` (ValueError naming it and the allowed values; ``env.config`` holds the
+    checked values), and whether the physics can answer every probe the settings allow:
 
     | argument | default | meaning |
     |---|---|---|
@@ -212,152 +199,90 @@ class PlateRotationEnv(gym.Env):
     training (``experiments/results/env_ids_speed.md``: steps per second of each).
     """
 
-    metadata = {"render_modes": ["rgb_array", "rgb_array_list", "human"], "render_fps": FPS}
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": FPS}
 
-    def __init__(self, physics: str = "tilelink", physics_options: dict | None = None, method: str = "atlas",
-                 omega_n_range_pi: tuple[float, float] = ObjectPrior.omega_n_range_pi,
-                 alpha_range_deg: tuple[float, float] = ObjectPrior.alpha_range_deg,
-                 mass_variation: float = 0.0, f_band_hz: tuple[float, float] = (10.0, 40.0),
-                 amplitudes_deg: tuple[float, ...] = (3.0, 12.0), b_p_mm: float = PAPER_SETUP.b_p_mm,
-                 max_probes: int = DEFAULT_MAX_PROBES,
-                 max_sim_s: float | None = None, measure_range_s: tuple[float, float] = (0.25, 2.0),
-                 settle_s: float = 0.5, camera_fps: float = 30.0, angle_noise_deg: float = 0.5,
-                 cost_per_sim_s: float = 0.005, error_cap: float = 1.0, no_estimate_penalty: float = 1.0,
-                 render_mode: str | None = None, calibration=None, reveal_truth: bool = False) -> None:
+    def __init__(self, config: EnvConfig | None = None, shared_physics: Physics | None = None,
+                 **settings: Any) -> None:
+        """``PlateRotationEnv(**settings)`` (what ``gym.make`` calls: the arguments above, checked by
+        :class:`~plate_env.env.config.EnvConfig`), or ``PlateRotationEnv(config)`` from a checked config.
+        ``shared_physics``: a backend built for ``config`` by its owner (the vector env's, shared by its
+        sub-environments), which this env runs but never closes; None: the env builds and owns its own."""
         super().__init__()
-        if not isinstance(reveal_truth, (bool, np.bool_)):
-            raise ValueError(f"reveal_truth = {reveal_truth!r} must be True or False")
-        # every option checked (a ValueError naming it) before the physics is built
-        render_mode = checks.one_of("render_mode", render_mode, (None, *self.metadata["render_modes"]))
-        method = checks.one_of("method", method, METHODS)
-        omega_n_range_pi = checks.pair("omega_n_range_pi", omega_n_range_pi, 0.1, 300.0, "pi rad/s")
-        alpha_range_deg = checks.pair("alpha_range_deg", alpha_range_deg, 1.0, 89.0, "deg")
-        mass_variation = checks.real("mass_variation", mass_variation, 0.0, 1.0, open_hi=True)
-        f_band_hz = checks.pair("f_band_hz", f_band_hz, MIN_PROBE_FREQ_HZ, FREQ_RANGE_HZ[1], "Hz")
-        amplitudes_deg = _amplitudes(amplitudes_deg)
-        b_p_mm = checks.real("b_p_mm", b_p_mm, B_P_RANGE_M[0] * 1e3, B_P_RANGE_M[1] * 1e3, unit="mm")
-        max_probes = checks.integer("max_probes", max_probes, *MAX_PROBES_RANGE)
-        if max_sim_s is not None:
-            max_sim_s = checks.real("max_sim_s", max_sim_s, 0.0, 1e6, open_lo=True, unit="s")
-        measure_range_s = checks.pair("measure_range_s", measure_range_s, 0.01, 60.0, "s")
-        settle_s = checks.real("settle_s", settle_s, *WINDOW_RANGE_S, unit="s")
-        camera_fps = checks.real("camera_fps", camera_fps, 1.0, 1e4, unit="Hz")
-        angle_noise_deg = checks.real("angle_noise_deg", angle_noise_deg, 0.0, 90.0, unit="deg")
-        cost_per_sim_s = checks.real("cost_per_sim_s", cost_per_sim_s, 0.0, 1e3)
-        error_cap = checks.real("error_cap", error_cap, 0.0, 1e3, open_lo=True)
-        no_estimate_penalty = checks.real("no_estimate_penalty", no_estimate_penalty, 0.0, 1e3)
-        physics = checks.one_of("physics", physics, PHYSICS_NAMES)
-        self.calibration = _calibration(calibration, amplitudes_deg, b_p_mm)
-        if physics_options is not None and not isinstance(physics_options, dict):
-            raise ValueError(f"physics_options = {physics_options!r} must be a dict of backend options or None")
-        self.physics_name = physics
-        self.physics_options = dict(physics_options or {})
-        self.physics = _build_physics(physics, self.physics_options)
-        # identification uses the calibration/atlas of the physics the probes come from
-        self.source = getattr(self.physics, "source", physics)
-        self.model = getattr(self.physics, "model", physics)
-        self.method = method
-        self.omega_n_range_pi = omega_n_range_pi
-        self.alpha_range_deg = alpha_range_deg
-        self.mass_variation = mass_variation
-        self.f_band_hz = f_band_hz
-        self.amplitudes_deg = amplitudes_deg
-        self.b_p_mm = b_p_mm
-        self.max_probes = max_probes
-        self.max_sim_s = max_sim_s
-        self.measure_range_s = measure_range_s
-        self.settle_s = settle_s
-        self.camera_fps = camera_fps
-        self.angle_noise_deg = angle_noise_deg
-        self.cost_per_sim_s = cost_per_sim_s
-        self.error_cap = error_cap
-        self.no_estimate_penalty = no_estimate_penalty
-        self.render_mode = render_mode
-        if render_mode == "rgb_array":  # one frame per probe: a probe lasts a second of video in every mode
+        if config is None:
+            config = EnvConfig.of(settings)
+        elif not isinstance(config, EnvConfig) or settings:
+            raise TypeError(f"PlateRotationEnv(config) takes an EnvConfig and no other settings, got {config!r} and "
+                            f"{sorted(settings)}")
+        #: The env's checked arguments (:class:`~plate_env.env.config.EnvConfig`); ``env.<argument>`` reads them.
+        self.config = config
+        self._owns_physics = shared_physics is None
+        self.physics = build_physics(config) if shared_physics is None else shared_physics
+        self.render_mode = config.render_mode
+        if config.render_mode == "rgb_array":  # one frame per probe: a probe lasts a second of video in every mode
             self.metadata = {**self.metadata, "render_fps": FPS / FRAMES_PER_PROBE}
-        self.reveal_truth = bool(reveal_truth)
-        lo, hi = omega_n_range_pi
-        masses = (MASS_KG * (1.0 - mass_variation), MASS_KG * (1.0 + mass_variation))
-        objects = [ObjectSpec(omega_n=math.pi * w, alpha=math.radians(a), mass=m)
-                   for w in (lo, hi) for a in alpha_range_deg for m in sorted(set(masses))]
-        self._refuse_unanswerable(objects, "option")
+        refuse_unanswerable(config, self.physics, config.corner_objects(), "option")
         #: The observation/action layout (plate_env.env.codec), shared with agents that act from observations.
-        self.codec = Codec(self.f_band_hz, self.amplitudes_deg, self.measure_range_s, self.max_probes)
+        self.codec = Codec(config.f_band_hz, config.amplitudes_deg, config.measure_range_s, config.max_probes)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(ACTION_SIZE,), dtype=np.float32)
         self.observation_space = spaces.Box(-10.0, 10.0, shape=(self.codec.obs_dim,), dtype=np.float32)
-        self._obj: ObjectSpec | None = None
-        self._rows: list[tuple[float, float, float, float, bool, float]] = []
-        self._results: list[ProbeResult] = []
-        self._sim_s = 0.0
-        self._wall_s = 0.0
-        self._done = True
-        self._last: ProbeResult | None = None
+        #: The episode (plate_env.env.state): its probes, its estimate, its step; identification uses the forward
+        #: model of the physics the probes come from (the task's).
+        self.episode = EpisodeState(config, IdentificationTask(config, forward_name(config, self.physics)),
+                                    self.codec)
+        if config.render_mode in ("rgb_array_list", "human"):
+            self.episode.on_step = self._frame_step
         self._closed = False
-        self._renderer = None  # plate_env.env.render.Renderer, made on the first frame (never without render_mode)
-        self._posterior = None  # the episode's PosteriorState, False (not incremental) or why none; built lazily
-        self._obs_rows = np.zeros(self.codec.obs_dim, dtype=np.float32)  # the probes' rows, each written once
+        self._renderer: Any = None  # plate_env.env.render.Renderer, made on the first frame (only with render_mode)
+
+    @property
+    def task(self) -> IdentificationTask:
+        """The identification task (:mod:`plate_env.env.task`): reward, termination, estimator."""
+        return self.episode.task
+
+    @property
+    def source(self) -> str:
+        """The physics whose forward model and Eq. (10) lines read the probes (``physics/model``'s first part)."""
+        return self.task.forward.physics
+
+    @property
+    def model(self) -> str:
+        """The model of :attr:`source` that made the probes' data (``physics/model``'s second part)."""
+        return self.task.forward.model
+
+    @property
+    def physics_name(self) -> str:
+        """The backend's name (the ``physics`` argument; ``env.physics`` is the backend)."""
+        return self.config.physics
+
+    @property
+    def physics_options(self) -> dict[str, Any]:
+        """The backend's options (the ``physics_options`` argument; empty for none)."""
+        return self.config.options()
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Hide a new object (drawn from the seeded ranges; ``options`` may fix its ``omega_n`` rad/s, ``alpha``
         rad and ``mass`` kg). Unknown option keys, bad values and objects the physics cannot answer are refused."""
         self._check_open()
-        options = checks.known_keys("reset options", options, RESET_OPTIONS)
-        given = {k: checks.real(f"reset option {k}", v) for k, v in options.items()}
+        given = self.task.reset_values(options)  # refused before the seed or any draw
         super().reset(seed=seed)
-        rng = self.np_random
-        drawn_omega, drawn_alpha = ObjectPrior(self.omega_n_range_pi, self.alpha_range_deg).draw(rng)
-        drawn = {"omega_n": drawn_omega, "alpha": drawn_alpha,
-                 "mass": MASS_KG * (1.0 + self.mass_variation * rng.uniform(-1.0, 1.0))}  # drawn either way
-        try:
-            obj = ObjectSpec(**{**drawn, **given}, name="hidden")
-        except ValueError as exc:
-            raise ValueError(f"reset options {options!r}: {exc}") from None
+        obj = self.task.hidden_object(self.np_random, options)
         if given:
-            self._refuse_unanswerable([obj], "reset option")
-        self._obj = obj
-        self._rows, self._results = [], []
-        self._obs_rows = np.zeros(self.codec.obs_dim, dtype=np.float32)
-        self._sim_s = self._wall_s = 0.0
-        self._done = False
-        self._last = None
-        self._posterior = None
+            refuse_unanswerable(self.config, self.physics, [obj], "reset option")
+        self.episode.reset(obj)
         if self.render_mode in ("rgb_array_list", "human"):
             self._frames().reset(self._scene())
-        return self._obs(), self._info()
+        return self.episode.observation(), self.episode.info()
 
-    def decode_action(self, action) -> tuple[bool, ProbeSpec | None]:
-        """Check an action and turn it into (stop, probe). Raises ValueError naming a bad value (before any random
-        draw: the placement of the probe is drawn only for a valid action)."""
-        return self._decode(self.check_action(action))
-
-    def _decode(self, a: np.ndarray) -> tuple[bool, ProbeSpec | None]:
-        """:meth:`decode_action` of an action :meth:`check_action` returned."""
-        if a[3] > 0 and self._rows:
-            return True, None
-        f, a_p, window = self.codec.decode(a)
-        motion = PlateMotion.from_paper(f, a_p, self.b_p_mm)
-        spec = ProbeSpec(self._obj, motion, settle_s=self.settle_s, measure_s=window, record_trace=True)
-        return False, spec.perturbed(self.np_random)
+    def step(self, action):
+        self._check_open()
+        out = step_episodes(self.physics, [(self.episode, self.np_random, action)])[0]
+        assert out is not None  # an entry that steps has its step
+        return out
 
     def check_action(self, action) -> np.ndarray:
-        """The action as 4 floats in [-1, 1], or ValueError naming the bad value. Pure: no state changes, no random
-        draw (a vector env checks every sub-env's action with it before any sub-env draws)."""
-        try:
-            a = np.asarray(action)
-            if a.dtype.kind not in "fiu":  # bool, complex, strings, objects: not actions, even if castable
-                raise TypeError
-            a = a.astype(np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"action {action!r} is not an array of 4 real numbers in [-1, 1]") from None
-        if a.shape != (4,):
-            raise ValueError(f"action must have shape (4,), got {a.shape}: {action!r}")
-        values = a.tolist()  # four Python floats: checked without numpy's per-call overhead
-        if not all(math.isfinite(x) for x in values):
-            raise ValueError(f"action {values} contains NaN or inf; allowed: finite values in [-1, 1]")
-        if any(abs(x) > 1.0 + 1e-6 for x in values):
-            raise ValueError(f"action {values} is outside the allowed range [-1, 1]")
-        return np.clip(a, -1.0, 1.0)
+        """:func:`plate_env.env.state.check_action`: the action as 4 floats in [-1, 1], or ValueError."""
+        return check_action(action)
 
     def encode_action(self, f_p_hz: float | None = None, a_p_deg: float | None = None,
                       measure_s: float | None = None, stop: bool = False) -> np.ndarray:
@@ -365,124 +290,36 @@ class PlateRotationEnv(gym.Env):
         ``measure_s`` (s), or that stops. Values are clipped to the band and window range."""
         if stop:
             return np.array([0.0, 0.0, 0.0, 1.0], dtype=np.float32)
-        return self.codec.encode(f_p_hz, self.amplitudes_deg[0] if a_p_deg is None else a_p_deg,
+        if f_p_hz is None:
+            raise ValueError("encode_action: give the plate frequency f_p_hz (Hz), or stop=True")
+        return self.codec.encode(f_p_hz, self.config.amplitudes_deg[0] if a_p_deg is None else a_p_deg,
                                  1.0 if measure_s is None else measure_s)
 
-    def step(self, action):
-        stop, spec = self.prepare(action)
-        result = None if stop else self.physics.run([spec])[0]
-        return self.finish(result)
-
-    def prepare(self, action) -> tuple[bool, ProbeSpec | None]:
-        """First half of a step: validate the action, decide stop or the probe to run (for batched vector envs)."""
-        return self._decode(self.check_step(action))
-
-    def check_step(self, action) -> np.ndarray:
-        """Refuse a step before anything happens: a closed env, an episode not reset or over, a bad action; the
-        checked action (:meth:`check_action`) otherwise."""
-        self._check_open()
-        if self._obj is None or self._done:
-            raise RuntimeError("call reset() before step() (the episode is over)")
-        return self.check_action(action)
-
-    def finish(self, result: ProbeResult | None):
-        """Second half of a step: record the probe (or stop), compute reward, termination and info."""
-        reward = 0.0
-        if result is not None:
-            omega, se = camera_omega_b(result, self.np_random, self.camera_fps, self.angle_noise_deg)
-            if result.unstable:
-                omega, se = 0.0, 0.0
-            spec = result.spec
-            self._rows.append((spec.motion.freq_hz, spec.motion.a_p_deg, omega, se, result.unstable, spec.measure_s))
-            k = len(self._rows) - 1
-            if k < self.max_probes:  # the observation's row of this probe, written once
-                self.codec.put_row(self._obs_rows, k, self._rows[k])
-            self._results.append(result)
-            self._sim_s += result.sim_s
-            self._wall_s += result.wall_s
-            self._last = result
-            reward -= self.cost_per_sim_s * result.sim_s
-        spent = len(self._rows) >= self.max_probes or (self.max_sim_s is not None and self._sim_s >= self.max_sim_s)
-        terminated = result is None or spent
-        if terminated:
-            self._done = True
-            est = self.estimate()
-            error = est.relative_error(self._obj.omega_n) if est.ok else None
-            if error is not None:
-                reward -= min(error, self.error_cap)
-            else:
-                reward -= self.no_estimate_penalty
-            info = self._info(final=True, estimate=est, error=error)
-            jit.episode_ended()  # a process that runs many episodes loads the compiled kernels (plate_env.core.jit)
-        else:
-            info = self._info()
-        if self.render_mode in ("rgb_array_list", "human"):
-            self._frames().step(self._scene(), probed=result is not None, over=terminated)
-        return self._obs(), float(reward), bool(terminated), False, info
-
-    # ------------------------------------------------------------------ checks
     def _check_open(self) -> None:
         if self._closed:
             raise RuntimeError("this PlateRotationEnv is closed; make a new one")
 
-    def _refuse_unanswerable(self, objects: list[ObjectSpec], what: str) -> None:
-        """Refuse (ValueError naming the option) if the physics cannot answer probes this env may ask about
-        ``objects``: every corner of the band, amplitudes and windows (the backends' limits are boxes)."""
-        specs = [ProbeSpec(obj, PlateMotion.from_paper(f, a, self.b_p_mm), settle_s=self.settle_s, measure_s=m)
-                 for obj in objects for f in self.f_band_hz for a in self.amplitudes_deg for m in self.measure_range_s]
-        try:
-            refuse_early(self.physics, specs)
-        except ProbeRefused as exc:
-            option = OPTION_OF.get(exc.quantity, exc.quantity) if what == "option" else exc.quantity
-            raise ValueError(f"PlateRotationEnv {what} {option}: physics {self.physics_name!r} cannot answer the "
-                             f"probes it allows: {exc}") from None
-
     # ------------------------------------------------------------------ views
     def table(self) -> ProbeTable:
         """The probes of this episode as the camera measured them."""
-        if not self._rows:
-            return ProbeTable.from_arrays([], [], [])
-        f, a, w, se, un, _ = zip(*self._rows, strict=True)
-        return ProbeTable.from_arrays(f, a, w, se, un)
+        return self.episode.table()
 
-    def estimator(self):
+    def estimator(self) -> Estimator:
         """The episode's :class:`~plate_env.identify.estimators.Estimator` (the env's method on the forward model of
         its physics, or its lab calibration), for the episode's known inputs."""
-        from plate_env.identify.estimators import ForwardName, make_estimator
-
-        return make_estimator(self.method, ForwardName(self.source, self.model), self.known_inputs(),
-                              calibration=self.calibration)
+        return self.episode.estimator()
 
     def estimate(self) -> Estimate:
         """The current omega_n estimate from the probes so far: :meth:`estimator`'s, kept up to date probe by probe
         when it is incremental (the atlas method's :class:`~plate_env.identify.posterior_state.PosteriorState`,
         brought up to date with the probes not in it), else fitted from scratch (the Lorentz method, a lab
         calibration); no estimate with the reason when none can be made."""
-        from plate_env.identify.estimators import fit_or_refuse
-
-        if not self._rows:
-            return Estimate(ok=False, method=self.method, reason="no probes")
-        state = self.posterior_state()
-        if isinstance(state, str):
-            return Estimate(ok=False, method=self.method, reason=state)
-        if state is None:
-            return fit_or_refuse(self.estimator(), self.table())
-        if state.n_probes < len(self._rows):
-            state.add_table(self.table(), start=state.n_probes)
-        return state.estimate()
+        return self.episode.estimate()
 
     def posterior_state(self):
-        """The episode's incremental posterior (:meth:`estimator`'s ``start()``: a
-        :class:`~plate_env.identify.posterior_state.PosteriorState` conditioned on the episode's known inputs, probes
-        added by :meth:`estimate`), None for an estimator that refits from scratch, or the reason there is none (a
-        str)."""
-        if self._posterior is None:
-            try:
-                state = self.estimator().start()
-                self._posterior = False if state is None else state
-            except ValueError as exc:
-                self._posterior = str(exc)
-        return None if self._posterior is False else self._posterior
+        """The episode's incremental posterior (:meth:`estimator`'s ``start()``, probes added by :meth:`estimate`),
+        None for an estimator that refits from scratch, or the reason there is none (a str)."""
+        return self.episode.posterior_state()
 
     def use_estimate_model(self, forward) -> None:
         """Read this episode's estimate -- the one its reward charges -- through ``forward`` (a
@@ -490,60 +327,18 @@ class PlateRotationEnv(gym.Env):
         the shipped model of the env's physics, until the next reset. Call it after ``reset`` and before the first
         probe; method ``atlas`` without a lab calibration only (ValueError otherwise). ``run_episode`` calls it with
         the agent's estimate model, so the env's reward and the benchmark's score read one estimate."""
-        from plate_env.identify.posterior_state import PosteriorState
-
         self._check_open()
-        if self.method != "atlas" or self.calibration is not None:
-            raise ValueError(f"use_estimate_model: the env's estimate is method {self.method!r}"
-                             f"{' through a lab calibration' if self.calibration is not None else ''}; a forward "
-                             "model is read by method 'atlas' without a calibration only")
-        if self._done or self._rows:
-            raise ValueError(f"use_estimate_model: call it after reset and before the first probe (the episode has "
-                             f"{len(self._rows)} probes{', and has ended' if self._done else ''})")
-        self._posterior = PosteriorState(forward)
+        self.episode.use_forward_model(forward)
 
     def hidden_object(self) -> ObjectSpec | None:
         """The episode's hidden object (None before the first reset), for a scorer or a diagnostic, never for an
         agent: the info shows it on the terminating step only (or on every step with ``reveal_truth=True``)."""
-        return self._obj
+        return self.episode.obj
 
     def known_inputs(self) -> KnownInputs:
         """What a lab would know of this episode's set-up: B_p and the disc's mass and diameter (weighed and
         measured, unlike its stiffness); the paper's set-up before the first reset."""
-        if self._obj is None:
-            return KnownInputs(b_p=self.b_p_mm * 1e-3)
-        return KnownInputs(b_p=self.b_p_mm * 1e-3, mass=self._obj.mass, diameter=self._obj.diameter)
-
-    def _obs(self) -> np.ndarray:
-        """``Codec.observation`` of the probes so far, from the rows written as each probe arrived."""
-        sim_left = 1.0 - self._sim_s / self.max_sim_s if self.max_sim_s else 1.0
-        return self.codec.completed(self._obs_rows, 1.0 - len(self._rows) / self.max_probes, sim_left)
-
-    def _info(self, final: bool = False, estimate: Estimate | None = None, error: float | None = None) -> dict:
-        """The step's info (:mod:`plate_env.env.info`: every key on every step): the hidden object on the
-        terminating step (``final``) or with ``reveal_truth``, the estimate and its error on the terminating step."""
-        truth = (final or self.reveal_truth) and self._obj is not None
-        v: dict[str, Any] = {"truth_revealed": truth, "probes": len(self._rows), "sim_s": self._sim_s,
-                             "estimate.ok": False, "estimate.check.ok": False, "last_probe.ok": self._last is not None}
-        if truth:
-            v.update(omega_n_true_rad_s=self._obj.omega_n, alpha_true_rad=self._obj.alpha, mass_true_kg=self._obj.mass)
-        if self._last is not None:
-            p = self._last.to_dict()
-            _, _, omega, se, unstable, _ = self._rows[-1]  # the camera's measurement: the observation's and the table's
-            v.update({"last_probe.f_p_hz": p["f_p_hz"], "last_probe.a_p_deg": p["a_p_deg"],
-                      "last_probe.b_p_mm": p["b_p_mm"], "last_probe.omega_b_deg_s": omega,
-                      "last_probe.stderr_deg_s": se, "last_probe.unstable": unstable,
-                      "last_probe.reason": p["reason"], "last_probe.sim_s": p["sim_s"],
-                      "last_probe.periods_measured": p["periods_measured"]})
-            if truth:
-                v.update({"last_probe.omega_n_rad_s": p["omega_n_rad_s"], "last_probe.alpha_deg": p["alpha_deg"],
-                          "last_probe.mass_g": p["mass_g"]})
-        if final:
-            v["wall_s"] = self._wall_s
-            v["relative_error"] = error
-            if estimate is not None:
-                v.update(_estimate_values(estimate))
-        return info_schema.build(v)
+        return self.episode.known_inputs()
 
     # ------------------------------------------------------------------ render / close
     def render(self):
@@ -554,34 +349,27 @@ class PlateRotationEnv(gym.Env):
             return None
         return self._frames().render(self._scene())
 
-    def _frames(self):
-        """The renderer (:class:`plate_env.env.render.Renderer`), made on first use."""
+    def _frames(self):  # the renderer (plate_env.env.render.Renderer), made on first use
         if self._renderer is None:
             from plate_env.env.render import Renderer
 
             self._renderer = Renderer(self.render_mode)
         return self._renderer
 
-    def _scene(self):
-        """What a frame shows (:class:`plate_env.env.render.Scene`): the probes as measured, the current estimate
-        (the one the final step's info holds, on the same probes), the truth where the info shows it."""
-        from plate_env.env.render import Scene
+    def _frame_step(self, probed: bool, over: bool) -> None:
+        """The frames of a step (``rgb_array_list``, ``human``): the episode state calls it at each step's end."""
+        self._frames().step(self._scene(), probed=probed, over=over)
 
-        est = self.estimate() if self._rows else None
-        values = None
-        if est is not None and est.ok:
-            values = tuple(x / math.pi for x in (est.omega_n, *est.omega_n_ci68, *est.omega_n_ci95))
-        truth = self._obj.omega_n / math.pi if self._obj is not None and (self._done or self.reveal_truth) else None
-        return Scene(rows=tuple(self._rows), max_probes=self.max_probes, f_band_hz=self.f_band_hz,
-                     omega_n_range_pi=self.omega_n_range_pi, sim_s=self._sim_s, estimate=values,
-                     reason=est.reason if est is not None else "no probes", truth_pi=truth,
-                     done=self._done and self._obj is not None)
+    def _scene(self) -> Scene:
+        """What a frame shows (:meth:`plate_env.env.state.EpisodeState.scene`)."""
+        return self.episode.scene()
 
     def close(self) -> None:
         if self._closed:
             return
         self._closed = True
-        self.physics.close()
+        if self._owns_physics:  # a shared backend is its owner's to close (the vector env's)
+            self.physics.close()
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
@@ -590,83 +378,15 @@ class PlateRotationEnv(gym.Env):
         state = self.__dict__.copy()
         state["physics"] = None
         state["_renderer"] = None
-        state["_posterior"] = None  # rebuilt from the probes when needed
         return state
 
     def __setstate__(self, state):
         self.__dict__.update(state)
-        self.physics = make_physics(self.physics_name, **self.physics_options)
+        self.physics = build_physics(self.config)
+        self._owns_physics = True  # a copy owns its backend, even of an env that shared one
         self._closed = False
 
 
 if PlateRotationEnv.__doc__:  # the info table rendered from its one declaration (None under python -OO)
     PlateRotationEnv.__doc__ = PlateRotationEnv.__doc__.replace(
         "{info_table}", "\n".join("    " + line for line in info_schema.markdown("``").splitlines()))
-
-
-def _estimate_values(est: Estimate) -> dict[str, Any]:
-    """The info fields (dotted keys, :mod:`plate_env.env.info`) of an estimate: ``Estimate.to_dict`` with its
-    intervals split into their ends, its bound and check in fixed fields, and without the fields whose keys vary
-    (the posterior's members, the per-amplitude fits: ``env.unwrapped.estimate()`` has them)."""
-    d = est.to_dict()
-    v = {f"estimate.{k}": d[k] for k in ("ok", "method", "reason", "forward", "n_probes", "n_unstable")}
-    if est.omega_n > 0:  # an answer (a rejected one, ok False, keeps its values); 0: none, empty in the info
-        v.update({f"estimate.{k}": d[k] for k in ("omega_n_rad_s", "omega_n_stderr_rad_s", "omega_n_pi")})
-        for level in ("68", "95"):
-            v[f"estimate.omega_n_ci{level}_lo_rad_s"], v[f"estimate.omega_n_ci{level}_hi_rad_s"] = \
-                d[f"omega_n_ci{level}_rad_s"]
-    if est.alpha is not None:
-        v["estimate.alpha_deg"], v["estimate.alpha_stderr_deg"] = d["alpha_deg"], d["alpha_stderr_deg"]
-    if d["bound"] is not None:
-        v["estimate.bound.side"], v["estimate.bound.omega_n_rad_s"] = d["bound"]["side"], d["bound"]["omega_n_rad_s"]
-    check = d["check"]
-    if check is not None:
-        v["estimate.check.ok"] = True
-        v.update({f"estimate.check.{k}": check[k] for k in ("passed", "statistic", "p_value", "p_min", "n_probes",
-                                                            "member")})
-        if check["worst"] is not None:
-            v.update({f"estimate.check.worst.{k}": x for k, x in check["worst"].items()})
-    return v
-
-
-def _build_physics(name: str, options: dict):
-    """``make_physics(name, **options)``, an option the backend does not take or refuses named as a
-    ``physics_options`` error."""
-    try:
-        return make_physics(name, **options)
-    except TypeError as exc:  # an unknown keyword
-        raise ValueError(f"physics_options {options!r}: physics {name!r} does not take that option ({exc})") from None
-    except ValueError as exc:
-        raise ValueError(f"physics_options {options!r} for physics {name!r}: {exc}") from None
-
-
-def _amplitudes(values) -> tuple[float, ...]:
-    """The env's plate amplitudes: one or more distinct non-zero values within +-45 deg."""
-    try:
-        items = tuple(values)
-    except TypeError:
-        items = ()
-    if not items:
-        raise ValueError(f"amplitudes_deg = {values!r}: give one or more plate amplitudes in degrees")
-    amps = tuple(checks.real(f"amplitudes_deg[{i}]", a, -45.0, 45.0, unit="deg") for i, a in enumerate(items))
-    if 0.0 in amps or len(set(amps)) != len(amps):
-        raise ValueError(f"amplitudes_deg = {values!r}: amplitudes must be distinct and non-zero")
-    return amps
-
-
-def _calibration(calibration, amplitudes_deg: tuple[float, ...], b_p_mm: float):
-    """The env's lab calibration (None: the estimate's own forward model), checked against the amplitudes and
-    B_p the episodes use (ValueError naming the mismatch)."""
-    if calibration is None:
-        return None
-    from plate_env.identify import lab_calibration_file as lcf
-
-    if not isinstance(calibration, (lcf.LabCalibration, str, os.PathLike)):
-        raise ValueError(f"calibration={calibration!r}: give a LabCalibration, a CAL.json path or 'paper'")
-    cal = calibration if isinstance(calibration, lcf.LabCalibration) else lcf.load(calibration)
-    if tuple(float(a) for a in amplitudes_deg) != (cal.a_p_deg,):
-        raise ValueError(f"calibration holds for A_p = {cal.a_p_deg:g} deg only: set amplitudes_deg=({cal.a_p_deg:g},) "
-                         f"(got {tuple(amplitudes_deg)})")
-    if abs(b_p_mm - cal.known.b_p * 1e3) > 0.02 * cal.known.b_p * 1e3:
-        raise ValueError(f"calibration holds for B_p = {cal.known.b_p * 1e3:g} mm, the env's b_p_mm is {b_p_mm:g}")
-    return cal

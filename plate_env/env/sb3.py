@@ -51,7 +51,7 @@ class PlateRotationSB3VecEnv(VecEnv):
         return np.stack(obs)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = self.vec._check_actions(actions)
+        self._actions = self.vec.check_actions(actions)
 
     def step_wait(self) -> VecEnvStepReturn:
         if self._actions is None:

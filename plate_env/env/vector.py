@@ -9,7 +9,9 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
 from plate_env.core import checks
+from plate_env.env.config import EnvConfig, build_physics
 from plate_env.env.rotation import PlateRotationEnv
+from plate_env.env.state import Step, step_episodes
 
 
 class PlateRotationVectorEnv(VectorEnv):
@@ -25,20 +27,23 @@ class PlateRotationVectorEnv(VectorEnv):
             max_episode_steps = checks.integer("max_episode_steps", max_episode_steps, 1, 10**9)
         self.max_episode_steps = max_episode_steps
         self._elapsed = np.zeros(num_envs, dtype=np.int64)
-        self.envs = [PlateRotationEnv(**kwargs) for _ in range(num_envs)]
-        self.physics = self.envs[0].physics
-        for env in self.envs[1:]:
-            env.physics.close()
-            env.physics = self.physics
+        config = EnvConfig.of(kwargs)
+        #: The one backend the sub-environments share (this env owns it: it closes it).
+        self.physics = build_physics(config)
+        try:
+            self.envs = [PlateRotationEnv(config, shared_physics=self.physics) for _ in range(num_envs)]
+        except ValueError:  # the backend cannot answer the probes the settings allow
+            self.physics.close()
+            raise
         self.num_envs = num_envs
-        self.render_mode = kwargs.get("render_mode")
+        self.render_mode = config.render_mode
         self.single_observation_space = self.envs[0].observation_space
         self.single_action_space = self.envs[0].action_space
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._autoreset = np.zeros(num_envs, dtype=bool)
         self._obs = create_empty_array(self.single_observation_space, num_envs, fn=np.zeros)
-        self._closed_physics = False
+        self._closed = False
 
     def reset(self, *, seed=None, options=None):
         if seed is None or isinstance(seed, (int, np.integer)):
@@ -59,7 +64,7 @@ class PlateRotationVectorEnv(VectorEnv):
         return self._obs.copy(), infos
 
     def step(self, actions):
-        actions = self._check_actions(actions)
+        actions = self.check_actions(actions)
         outcomes = self.step_envs(actions, ~self._autoreset)
         obs, infos = [], {}
         rewards = np.zeros(self.num_envs)
@@ -80,41 +85,31 @@ class PlateRotationVectorEnv(VectorEnv):
         self._obs = concatenate(self.single_observation_space, obs, self._obs)
         return self._obs.copy(), rewards, terms, truncs, infos
 
-    def _check_actions(self, actions) -> np.ndarray:
+    def check_actions(self, actions) -> np.ndarray:
+        """The batch of actions as an array of the action space's shape, or ValueError (each action is checked by
+        its sub-environment's episode when it steps)."""
         actions = np.asarray(actions)
         if actions.shape != self.action_space.shape:
             raise ValueError(f"actions must have shape {self.action_space.shape}, got {actions.shape}")
         return actions
 
-    def step_envs(self, actions: np.ndarray, active: np.ndarray) -> list[tuple | None]:
+    def step_envs(self, actions: np.ndarray, active: np.ndarray) -> list[Step | None]:
         """Step the sub-environments where ``active`` is True, their probes in one batched physics call: per
         sub-environment ``(obs, reward, terminated, truncated, info)``, or None where inactive. (The step of this
         vector env and of :class:`plate_env.env.sb3.PlateRotationSB3VecEnv`; they differ in how they reset.)"""
-        # every sub-env's step refused before any draws (a clean rerun matches); check_step is pure, so its checked
-        # action serves the decoding below (what prepare() does: _decode(check_step(action)))
-        checked = [env.check_step(actions[i]) if active[i] else None for i, env in enumerate(self.envs)]
-        plans: list[tuple[str, int | None]] = []
-        specs = []
-        for i, env in enumerate(self.envs):
-            if not active[i]:
-                plans.append(("skip", None))
-                continue
-            stop, spec = env._decode(checked[i])
-            if stop:
-                plans.append(("stop", None))
-            else:
-                plans.append(("probe", len(specs)))
-                specs.append(spec)
-        results = self.physics.run(specs) if specs else []
-        return [None if kind == "skip" else env.finish(results[k] if kind == "probe" else None)
-                for env, (kind, k) in zip(self.envs, plans, strict=True)]
+        if self._closed:
+            raise RuntimeError("this PlateRotationVectorEnv is closed; make a new one")
+        # the one step of every form of the env: every action checked before any draws (a clean rerun matches),
+        # the probes in one batched call of the shared backend
+        return step_episodes(self.physics, [(env.episode, env.np_random, actions[i]) if active[i] else None
+                                            for i, env in enumerate(self.envs)])
 
     def render(self):
         return tuple(env.render() for env in self.envs)
 
     def close_extras(self, **kwargs) -> None:
-        if not self._closed_physics:
-            self._closed_physics = True
-            self.physics.close()
+        if not self._closed:
+            self._closed = True
             for env in self.envs:
-                env._closed = True
+                env.close()  # its renderer; the shared backend is this env's to close
+            self.physics.close()
