@@ -22,8 +22,9 @@ an agent that reads the info (tianshou passes it to the policy) learns nothing i
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
@@ -52,6 +53,8 @@ class Field:
 
 
 _F, _I, _B, _S = "float64", "int64", "bool", "str"
+#: The type of an info value (a leaf of the nested dict): one per dtype.
+InfoValue: TypeAlias = np.float64 | np.int64 | np.bool_ | str
 
 #: Every info key. The order is the info's order.
 FIELDS: tuple[Field, ...] = (
@@ -112,21 +115,21 @@ FIELDS: tuple[Field, ...] = (
 HIDDEN_KEYS = tuple(f.key for f in FIELDS if f.when == HIDDEN)
 _PATHS = tuple((f.key.split("."), f.dtype) for f in FIELDS)
 _KEYS = frozenset(f.key for f in FIELDS)
-_CAST = {_F: np.float64, _I: np.int64, _B: np.bool_, _S: str}
-_EMPTY = {_F: np.float64(0.0), _I: np.int64(0), _B: np.bool_(False), _S: ""}
+_CAST: dict[str, Callable[[Any], InfoValue]] = {_F: np.float64, _I: np.int64, _B: np.bool_, _S: str}
+_EMPTY: dict[str, InfoValue] = {_F: np.float64(0.0), _I: np.int64(0), _B: np.bool_(False), _S: ""}
 
 
-def empty_value(f: Field):
+def empty_value(f: Field) -> InfoValue:
     """The value ``f`` holds without a value: its ``empty``, else its dtype's (0.0, 0, False, "")."""
     return _EMPTY[f.dtype] if f.empty is None else _CAST[f.dtype](f.empty)
 
 
-def _value(v: Any, f: Field):
+def _value(v: Any, f: Field) -> InfoValue:
     """``v`` cast to ``f``'s dtype; None, or a NaN (a number that is no value), gives ``f``'s empty value."""
     if v is None:
         return empty_value(f)
     out = _CAST[f.dtype](v)
-    return empty_value(f) if f.dtype == _F and math.isnan(out) else out
+    return empty_value(f) if isinstance(out, np.float64) and math.isnan(out) else out  # float64: dtype _F
 
 
 def build(values: dict[str, Any]) -> dict[str, Any]:
@@ -169,7 +172,7 @@ def problems(info: dict[str, Any]) -> list[str]:
     return out
 
 
-def _shown(v, code: str) -> str:
+def _shown(v: InfoValue, code: str) -> str:
     return f'{code}""{code}' if isinstance(v, str) else str(v).lower() if isinstance(v, np.bool_) else f"{v:g}"
 
 

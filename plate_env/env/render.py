@@ -334,7 +334,7 @@ class Renderer:
             self.frames.extend([draw_frame(scene, 0.0, 1.0)] * FPS)
         self._show()
 
-    def render(self, scene: Scene):
+    def render(self, scene: Scene) -> np.ndarray | list[np.ndarray] | None:
         if self.mode == "rgb_array":
             return draw_frame(scene)
         if self.mode == "rgb_array_list":

@@ -6,10 +6,11 @@ The environment's documentation, in Gymnasium's layout, is :class:`PlateRotation
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
+import numpy.typing as npt
 from gymnasium import spaces
 
 from plate_env.core.objects import ObjectSpec
@@ -20,18 +21,23 @@ from plate_env.env import info as info_schema
 from plate_env.env.codec import ACTION_SIZE, Codec
 from plate_env.env.config import RENDER_MODES, ConfigView, EnvConfig, build_physics, forward_name, refuse_unanswerable
 from plate_env.env.render import FPS, FRAMES_PER_PROBE, Scene
-from plate_env.env.state import EpisodeState, check_action, step_episodes
+from plate_env.env.state import EpisodeState, Step, check_action, step_episodes
 from plate_env.env.task import RESET_OPTIONS, IdentificationTask
 from plate_env.identify.estimate import Estimate
 from plate_env.identify.estimators import Estimator
 from plate_env.physics.interface import Physics
 from plate_env.surrogate.conditioning import KnownInputs
 
+if TYPE_CHECKING:
+    from plate_env.env.render import Renderer
+    from plate_env.identify.forward import ForwardModel
+    from plate_env.identify.posterior_state import PosteriorState
+
 MASS_KG, OPTION_OF = _config.MASS_KG, _config.OPTION_OF  # where they were
 __all__ = ["DEFAULT_MAX_PROBES", "MASS_KG", "OPTION_OF", "RESET_OPTIONS", "EnvConfig", "PlateRotationEnv"]
 
 
-class PlateRotationEnv(ConfigView, gym.Env):
+class PlateRotationEnv(ConfigView, gym.Env[np.ndarray, np.ndarray]):
     """Identify a hidden object's bending natural frequency by choosing plate probes.
 
     ## Description
@@ -232,7 +238,7 @@ class PlateRotationEnv(ConfigView, gym.Env):
         if config.render_mode in ("rgb_array_list", "human"):
             self.episode.on_step = self._frame_step
         self._closed = False
-        self._renderer: Any = None  # plate_env.env.render.Renderer, made on the first frame (only with render_mode)
+        self._renderer: Renderer | None = None  # made on the first frame (only with a render_mode)
 
     @property
     def task(self) -> IdentificationTask:
@@ -260,7 +266,8 @@ class PlateRotationEnv(ConfigView, gym.Env):
         return self.config.options()
 
     # ------------------------------------------------------------------ episode
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Hide a new object (drawn from the seeded ranges; ``options`` may fix its ``omega_n`` rad/s, ``alpha``
         rad and ``mass`` kg). Unknown option keys, bad values and objects the physics cannot answer are refused."""
         self._check_open()
@@ -274,13 +281,13 @@ class PlateRotationEnv(ConfigView, gym.Env):
             self._frames().reset(self._scene())
         return self.episode.observation(), self.episode.info()
 
-    def step(self, action):
+    def step(self, action: npt.ArrayLike) -> Step:
         self._check_open()
         out = step_episodes(self.physics, [(self.episode, self.np_random, action)])[0]
         assert out is not None  # an entry that steps has its step
         return out
 
-    def check_action(self, action) -> np.ndarray:
+    def check_action(self, action: npt.ArrayLike) -> np.ndarray:
         """:func:`plate_env.env.state.check_action`: the action as 4 floats in [-1, 1], or ValueError."""
         return check_action(action)
 
@@ -316,12 +323,12 @@ class PlateRotationEnv(ConfigView, gym.Env):
         calibration); no estimate with the reason when none can be made."""
         return self.episode.estimate()
 
-    def posterior_state(self):
+    def posterior_state(self) -> PosteriorState | str | None:
         """The episode's incremental posterior (:meth:`estimator`'s ``start()``, probes added by :meth:`estimate`),
         None for an estimator that refits from scratch, or the reason there is none (a str)."""
         return self.episode.posterior_state()
 
-    def use_estimate_model(self, forward) -> None:
+    def use_estimate_model(self, forward: ForwardModel) -> None:
         """Read this episode's estimate -- the one its reward charges -- through ``forward`` (a
         :class:`~plate_env.identify.forward.ForwardModel`, e.g. the one an agent designed its probes on) instead of
         the shipped model of the env's physics, until the next reset. Call it after ``reset`` and before the first
@@ -341,7 +348,9 @@ class PlateRotationEnv(ConfigView, gym.Env):
         return self.episode.known_inputs()
 
     # ------------------------------------------------------------------ render / close
-    def render(self):
+    # gymnasium's Env.render declares list[RenderFrame] (RenderFrame: str | ndarray | tuple of arrays), and list is
+    # invariant: its stub refuses an override returning list[ndarray] though every ndarray is a RenderFrame
+    def render(self) -> np.ndarray | list[np.ndarray] | None:  # type: ignore[override]
         """The frame of the state after the last step (``rgb_array``), the frames collected since the last call
         (``rgb_array_list``: one after reset, ``FRAMES_PER_PROBE`` per probe, ``FPS`` more held at the end), or
         None (``human``: shown as they come; ``render_mode=None``: nothing is drawn)."""
@@ -349,10 +358,11 @@ class PlateRotationEnv(ConfigView, gym.Env):
             return None
         return self._frames().render(self._scene())
 
-    def _frames(self):  # the renderer (plate_env.env.render.Renderer), made on first use
+    def _frames(self) -> Renderer:  # the renderer, made on first use (only with a render_mode)
         if self._renderer is None:
             from plate_env.env.render import Renderer
 
+            assert self.render_mode is not None  # its callers draw nothing without one
             self._renderer = Renderer(self.render_mode)
         return self._renderer
 
@@ -374,13 +384,13 @@ class PlateRotationEnv(ConfigView, gym.Env):
             self._renderer.close()
             self._renderer = None
 
-    def __getstate__(self):
+    def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         state["physics"] = None
         state["_renderer"] = None
         return state
 
-    def __setstate__(self, state):
+    def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
         self.physics = build_physics(self.config)
         self._owns_physics = True  # a copy owns its backend, even of an env that shared one

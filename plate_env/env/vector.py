@@ -4,7 +4,11 @@ to single runs); autoreset follows Gymnasium's default NEXT_STEP mode."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
@@ -14,14 +18,14 @@ from plate_env.env.rotation import PlateRotationEnv
 from plate_env.env.state import Step, step_episodes
 
 
-class PlateRotationVectorEnv(VectorEnv):
+class PlateRotationVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
     """``num_envs`` environments sharing one physics backend; each step's probes run in one batched call.
     ``max_episode_steps`` (the registered spec's, passed by ``gymnasium.make_vec``) truncates a sub-environment's
     episode after that many steps, as ``gymnasium.make``'s TimeLimit does; None: the env's own ending only."""
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"]}
 
-    def __init__(self, num_envs: int = 2, max_episode_steps: int | None = None, **kwargs) -> None:
+    def __init__(self, num_envs: int = 2, max_episode_steps: int | None = None, **kwargs: Any) -> None:
         num_envs = checks.integer("num_envs", num_envs, 1, 10_000)
         if max_episode_steps is not None:
             max_episode_steps = checks.integer("max_episode_steps", max_episode_steps, 1, 10**9)
@@ -42,31 +46,33 @@ class PlateRotationVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._autoreset = np.zeros(num_envs, dtype=bool)
-        self._obs = create_empty_array(self.single_observation_space, num_envs, fn=np.zeros)
+        self._obs = _array(create_empty_array(self.single_observation_space, num_envs, fn=np.zeros))
         self._closed = False
 
-    def reset(self, *, seed=None, options=None):
+    def reset(self, *, seed: int | np.integer | Sequence[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         if seed is None or isinstance(seed, (int, np.integer)):
             seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
         else:
             seeds = list(seed)
             if len(seeds) != self.num_envs:
                 raise ValueError(f"{len(seeds)} seeds for {self.num_envs} environments")
-        infos: dict = {}
-        obs = []
+        infos: dict[str, Any] = {}
+        obs: list[np.ndarray] = []
         for i, (env, s) in enumerate(zip(self.envs, seeds, strict=True)):
             o, info = env.reset(seed=s, options=options)
             obs.append(o)
             infos = self._add_info(infos, info, i)
         self._autoreset[:] = False
         self._elapsed[:] = 0
-        self._obs = concatenate(self.single_observation_space, obs, self._obs)
+        self._obs = _array(concatenate(self.single_observation_space, obs, self._obs))
         return self._obs.copy(), infos
 
-    def step(self, actions):
+    def step(self, actions: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         actions = self.check_actions(actions)
         outcomes = self.step_envs(actions, ~self._autoreset)
-        obs, infos = [], {}
+        obs: list[np.ndarray] = []
+        infos: dict[str, Any] = {}
         rewards = np.zeros(self.num_envs)
         terms = np.zeros(self.num_envs, dtype=bool)
         truncs = np.zeros(self.num_envs, dtype=bool)
@@ -82,10 +88,10 @@ class PlateRotationVectorEnv(VectorEnv):
             obs.append(o)
             infos = self._add_info(infos, info, i)
         self._autoreset = terms | truncs
-        self._obs = concatenate(self.single_observation_space, obs, self._obs)
+        self._obs = _array(concatenate(self.single_observation_space, obs, self._obs))
         return self._obs.copy(), rewards, terms, truncs, infos
 
-    def check_actions(self, actions) -> np.ndarray:
+    def check_actions(self, actions: npt.ArrayLike) -> np.ndarray:
         """The batch of actions as an array of the action space's shape, or ValueError (each action is checked by
         its sub-environment's episode when it steps)."""
         actions = np.asarray(actions)
@@ -104,12 +110,22 @@ class PlateRotationVectorEnv(VectorEnv):
         return step_episodes(self.physics, [(env.episode, env.np_random, actions[i]) if active[i] else None
                                             for i, env in enumerate(self.envs)])
 
-    def render(self):
+    # gymnasium's VectorEnv.render declares tuple[RenderFrame, ...] | None, narrower than what its own
+    # SyncVectorEnv.render returns (each sub-environment's render(): a list of frames in rgb_array_list, None
+    # without a render_mode), which this returns too
+    def render(self) -> tuple[np.ndarray | list[np.ndarray] | None, ...]:  # type: ignore[override]
         return tuple(env.render() for env in self.envs)
 
-    def close_extras(self, **kwargs) -> None:
+    def close_extras(self, **kwargs: Any) -> None:
         if not self._closed:
             self._closed = True
             for env in self.envs:
                 env.close()  # its renderer; the shared backend is this env's to close
             self.physics.close()
+
+
+def _array(batch: object) -> np.ndarray:
+    """``batch`` (gymnasium's ``create_empty_array`` or ``concatenate`` of the env's Box observation space, typed
+    as any space's batch) as the array it is."""
+    assert isinstance(batch, np.ndarray), type(batch)  # a Box space batches into one array
+    return batch
