@@ -88,6 +88,7 @@ def test_the_old_table_script_names_the_builder():
 
 # --------------------------------------------------------------------------------------------------- calibration eq10
 CACHE = ROOT / "experiments" / "cache"
+RIGID = "tilelink/rigid_fast/3"
 SIMULATED = ("sweeps_tilelink_pointmass.jsonl", "evalnuis_tilelink_pointmass_A3_s400.jsonl")
 
 
@@ -105,9 +106,10 @@ def _committed_sweeps(tmp_path) -> Path:
 
 
 def test_build_calibration_eq10_from_the_committed_sweeps_equals_the_recorded_rebuild(tmp_path):
-    """From the committed sweeps (no probe simulated: the caches are unchanged), the three lines equal the rebuild
-    recorded in experiments/results/eq10_rebuild.json bit for bit, in the shipped file's schema; the shipped file
-    differs as that study explains (see docs/build.md)."""
+    """From the committed sweeps (no probe simulated: the caches are unchanged), the point-mass and lab lines equal
+    the rebuild recorded in experiments/results/eq10_rebuild.json bit for bit, in the shipped file's schema (the
+    shipped ones differ as that study explains, see docs/build.md); the faithful physics' line, fitted from its
+    committed input sweeps, equals the shipped one."""
     from plate_env.identify.calibration import load_calibrations
 
     sweeps = _committed_sweeps(tmp_path)
@@ -116,19 +118,42 @@ def test_build_calibration_eq10_from_the_committed_sweeps_equals_the_recorded_re
     assert all((sweeps / n).read_bytes() == (CACHE / n).read_bytes() for n in SIMULATED)  # nothing simulated
     built = json.loads(out.read_text())
     study = json.loads((ROOT / "experiments" / "results" / "eq10_rebuild.json").read_text())
-    assert_close(built, study["rebuilt"])  # bit for bit on the machine that recorded it
     shipped = json.loads(_shipped("calibration.json"))
-    assert built.keys() == shipped.keys() == {"lab/lab/3", "tilelink/pointmass/3", "tilelink/pointmass/12"}
+    assert_close({k: v for k, v in built.items() if k != RIGID}, study["rebuilt"])  # bit for bit where recorded
+    assert_close(built[RIGID], shipped[RIGID])
+    assert built.keys() == shipped.keys() == {"lab/lab/3", "tilelink/pointmass/3", "tilelink/pointmass/12", RIGID}
     for key in built:
         assert built[key].keys() == shipped[key].keys()
-        # provenance: the build command in place of the script and date (those go to the build record)
-        extra = {"date", "plate_env", "script"}
+        # provenance: the build command in place of the script and date (those go to the build record; the
+        # faithful line was made by the builder)
+        extra = {"date", "plate_env", "script", "build"}
         assert set(built[key]["provenance"]) - {"build"} == set(shipped[key]["provenance"]) - extra
         assert built[key]["provenance"]["build"] == "plate-env build calibration eq10"
     assert {k: c.n for k, c in load_calibrations(out).items()} == {k: v["n"] for k, v in built.items()}
     record = json.loads(Path(f"{out}.provenance.json").read_text())
     _record_ok(record, argv, "calibration eq10")
     assert record["inputs"]["read"]["pybullet"].endswith("eval_pybullet_pybullet_A3_s600.jsonl")
+    assert record["inputs"]["read"]["rigid_fast"].endswith("atlas_faithful.jsonl")
+
+
+def test_the_faithful_line_is_read_from_the_faithful_atlas_probes_frozen_as_an_input():
+    """The tilelink/rigid_fast/3 line (issue 33): the first-hump f0 of the faithful atlas's 3-deg sweeps (120 of them:
+    the omega_n nodes in the calibration objects' range x 5 alpha x 2 repeats, B_p 3 mm) with the friction model,
+    read from the frozen input, whose records are the committed atlas cache's; fitted again from them it is the
+    shipped line."""
+    from plate_env.build.eq10 import RIGID_FAST_CACHE, missing_rigid_fast_probes, rigid_fast_line, rigid_fast_specs
+    from plate_env.build.provenance import inputs_dir
+    from plate_env.identify.calibration import get_calibration
+
+    frozen = inputs_dir() / RIGID_FAST_CACHE
+    lines = frozen.read_text().splitlines()
+    assert len(lines) == len(rigid_fast_specs()) == 31 * 12 * 5 * 2
+    assert set(lines) <= set((CACHE / RIGID_FAST_CACHE).read_text().splitlines())
+    assert missing_rigid_fast_probes(inputs_dir()) == 0
+    cal = get_calibration("tilelink", "rigid_fast", 3.0)
+    assert cal.provenance["sweeps_total"] == 120 and cal.n == cal.provenance["sweeps_fitted"] >= 100
+    assert cal.provenance["b_p_mm"] == 3.0 and cal.alpha_coef is not None and cal.a_p_deg == 3.0
+    assert_close(rigid_fast_line(inputs_dir(), cal.provenance["dt_s"]).to_json(), cal.to_json())
 
 
 def test_a_tilelink_calibration_sweep_simulated_again_equals_its_committed_records():
@@ -158,6 +183,13 @@ def test_build_calibration_eq10_refuses_incomplete_lab_sweeps_before_any_probe(t
     err = capsys.readouterr().err
     assert "eval_pybullet_pybullet_A3_s600.jsonl lacks 216" in err and "does not simulate" in err
     assert not out.exists() and not (tmp_path / "sweeps").exists()
+    # the lab families complete, the faithful line's sweeps missing: refused too, naming them
+    (lab / "eval_pybullet_pybullet_A3_s600.jsonl").write_bytes((CACHE / "eval_pybullet_pybullet_A3_s600.jsonl")
+                                                                .read_bytes())
+    assert main(["build", *argv]) == 2
+    err = capsys.readouterr().err
+    assert "atlas_faithful.jsonl lacks 3720" in err and "does not simulate" in err
+    assert not out.exists() and not (tmp_path / "sweeps").exists()
     # without --lab-sweeps the builder reads the sweeps frozen in the package: complete
     from plate_env.build.eq10 import LAB_SETS, LAB_SIMULATED, missing_lab_probes
     from plate_env.build.provenance import inputs_dir
@@ -175,7 +207,9 @@ def test_build_calibration_eq10_simulating_its_sweeps_equals_the_committed_ones(
     argv, out = _eq10(tmp_path, tmp_path / "sweeps")
     assert main(["build", *argv]) == 0
     study = json.loads((ROOT / "experiments" / "results" / "eq10_rebuild.json").read_text())
-    assert json.loads(out.read_text()) == study["rebuilt"]
+    built = json.loads(out.read_text())
+    assert {k: v for k, v in built.items() if k != RIGID} == study["rebuilt"]
+    assert built[RIGID] == json.loads(_shipped("calibration.json"))[RIGID]
     from plate_env.run.sweeps import load_cache
 
     for name in SIMULATED:

@@ -73,10 +73,10 @@ def add_build_parser(sub) -> None:
                    "default: the user cache directory's sweeps/)")
     c.add_argument("--lab-sweeps", default=None, help="eq10: the directory holding the lab line's "
                    "rigid-limit and PyBullet sweeps (eval_tilelink_rigid_limit_A3_s100.jsonl, "
-                   "eval_pybullet_pybullet_A3_s600.jsonl; default: the frozen inputs, plate_env/data/inputs). "
-                   "They are inputs, never "
-                   "simulated by the builder: about a quarter of an hour and hours of simulation here, and their "
-                   "last bits depend on the CPU")
+                   "eval_pybullet_pybullet_A3_s600.jsonl) and the rigid_fast line's (the faithful atlas's probes, "
+                   "atlas_faithful.jsonl); default: the frozen inputs, plate_env/data/inputs. "
+                   "They are inputs, never simulated by the builder: a quarter of an hour to hours of simulation "
+                   "here, and their last bits depend on the CPU")
     add_executor_argument(c)
     c.add_argument("--no-progress", action="store_true", help="eq10: no progress bar (outside a terminal: a few "
                    "plain lines)")
@@ -205,13 +205,14 @@ def run_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
         print(f"wrote {args.out} ({', '.join(reg)}) and {args.out}.provenance.json")
         return 0
     if args.artifact == "calibration" and args.name == "eq10":
-        from plate_env.build.eq10 import LAB_AMP_DEG, LAB_SETS, LAB_SIMULATED, build_eq10
+        from plate_env.build.eq10 import LAB_AMP_DEG, LAB_SETS, LAB_SIMULATED, RIGID_FAST_CACHE, build_eq10
 
         lab = args.lab_sweeps if args.lab_sweeps is not None else inputs_dir()
         cals = build_eq10(args.out, record, _sweeps_dir(args.sweeps), lab, args.executor,
                           progress=not args.no_progress)
-        record_in_manifest(args.out, record, {f: LAB_SETS[f].cache(LAB_AMP_DEG, lab) for f in LAB_SETS
-                                              if f not in LAB_SIMULATED})
+        record_in_manifest(args.out, record, {**{f: LAB_SETS[f].cache(LAB_AMP_DEG, lab) for f in LAB_SETS
+                                                 if f not in LAB_SIMULATED},
+                                              "rigid_fast": Path(lab) / RIGID_FAST_CACHE})
         print("\n".join(f"{c.physics}/{c.model}/{c.a_p_deg:g}: p1 = {c.p1_pi:.2f}, q1 = {c.q1_pi:.1f} pi rad/s, "
                         f"R^2 {c.r2:.2f}, {c.n} sweeps" for c in cals))
         print(f"wrote {args.out} and {args.out}.provenance.json")
