@@ -8,7 +8,8 @@ predictive check passes, p 0.52), and it answered 27.4 pi, 95 % [25.9, 29.1] pi.
 
 The test: the posterior of the same probes under the model *extended* beyond its range (:func:`extended_model`), the
 member's atlas joined by shipped extension atlases of the same physics at omega_n below and above it
-(:data:`EXTENSIONS`, coarser: 2 repeats, 4 friction angles), with a prior log-uniform over the whole extended range
+(:data:`EXTENSIONS`: 0.22-1.4 and 45-217 pi rad/s on the member's frequencies, amplitudes, friction angles and
+repeats, omega_n nodes 1.1-1.2 apart), with a prior log-uniform over the whole extended range
 (each extension member weighted by the log-width of its omega_n range relative to the member's). When more than
 :data:`plate_env.identify.estimate.EDGE_MASS` of the members' own posterior (before the discrepancy smoothing, as the
 edge rule reads it) lies outside the identifiable range, the probes cannot separate the in-range answer from an
