@@ -231,3 +231,27 @@ def test_contract_property_every_agent_over_0p3_to_200pi_many(log_omega, agent, 
     """The property above on 120 objects (~2 min)."""
     omega_pi = math.exp(log_omega)
     _holds(_episode(agent, omega_pi, seed), omega_pi, f"{agent} seed {seed}")
+
+
+def test_item1_the_verdict_reads_mass_outside_the_range_on_each_side():
+    """outside_mass on made-up extended posteriors (range 10-100 rad/s): mass only inside -> no verdict; > EDGE_MASS
+    above -> a bound above at the 2.5 % quantile; below -> below at the 97.5 %; both sides -> no bound."""
+    from plate_env.identify.estimate import EDGE_MASS, Posterior
+    from plate_env.identify.identifiability import outside_mass
+
+    w, a = np.geomspace(1.0, 1000.0, 61), np.linspace(0.5, 1.1, 5)
+
+    def verdict(masses):
+        p = np.full(w.size, 1e-12)
+        for x, m in masses:
+            p[np.argmin(abs(w - x))] += m
+        return outside_mass(Posterior(w, a, np.outer(p / p.sum(), np.ones(5) / 5), identifiable_range=(1.0, 1000.0)),
+                            (10.0, 100.0))
+
+    assert verdict([(30.0, 1.0)]).side is None
+    v = verdict([(30.0, 1 - 2 * EDGE_MASS), (300.0, 2 * EDGE_MASS)])
+    assert v.side == "above" and v.bound[0] == "above" and v.bound[1] < 31.0 and v.above > EDGE_MASS
+    assert verdict([(30.0, 1 - 2 * EDGE_MASS), (3.0, 2 * EDGE_MASS)]).bound[0] == "below"
+    both = verdict([(30.0, 0.5), (3.0, 0.25), (300.0, 0.25)])
+    assert both.side == "both" and both.bound is None and "no bound" in both.reason(30.0, "m")
+    assert verdict([(30.0, 1 - EDGE_MASS / 2), (300.0, EDGE_MASS / 2)]).side is None

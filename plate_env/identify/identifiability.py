@@ -145,9 +145,9 @@ class OutsideMass:
                 f"P(omega_n > {hi / math.pi:.3g} pi) = {self.above:.2f} (> {EDGE_MASS:g})")
         side = self.side
         if side == "above":
-            return head + f": omega_n > {self.q025:.4g} rad/s at 95 %"
+            return head + f": omega_n > {self.q025:.4g} rad/s ({self.q025 / math.pi:.3g} pi) at 95 %"
         if side == "below":
-            return head + f": omega_n < {self.q975:.4g} rad/s at 95 %"
+            return head + f": omega_n < {self.q975:.4g} rad/s ({self.q975 / math.pi:.3g} pi) at 95 %"
         return head + ": no bound either"
 
     @property
