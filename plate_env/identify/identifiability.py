@@ -24,7 +24,6 @@ Measured: experiments/results/estimate_contract.md.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 
 import numpy as np
@@ -39,13 +38,6 @@ EXTENSIONS: dict[str, tuple[str, ...]] = {
     "tilelink/pointmass": ("atlas_tilelink_pointmass_below.npz", "atlas_tilelink_pointmass_above.npz")}
 #: Relative tolerance when matching an extension's known inputs (B_p, mass, diameter) to the member atlas's.
 INPUT_RTOL = 0.02
-
-
-@functools.lru_cache(maxsize=8)
-def _extension_atlas(name: str) -> Atlas:
-    from plate_env.surrogate.atlas import load_atlas_file
-
-    return load_atlas_file(name)
 
 
 def _matches(ext: Atlas, atlas: Atlas) -> bool:
@@ -70,11 +62,13 @@ def member_extensions(member: Member) -> tuple[Member, ...]:
     """The extension members of ``member`` (:data:`EXTENSIONS` whose inputs match its atlas's), each with the
     member's model error and blur and a prior weight ``member.weight`` x its log omega_n width over the member's
     (a log-uniform prior over the joined range). Empty when there is none."""
+    from plate_env.surrogate.atlas import load_atlas_file
+
     names = EXTENSIONS.get(member.label, ())
     out = []
     for name in names:
         try:
-            ext = _extension_atlas(name)
+            ext = load_atlas_file(name)  # package data, loaded once per process
         except (FileNotFoundError, ValueError):
             continue
         if _matches(ext, member.atlas):

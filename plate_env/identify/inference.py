@@ -19,7 +19,8 @@ measured error) and a coherent discrepancy. Given probes:
    evidence times their prior weight (``pooling="evidence"``) or by the prior weight alone (``"fixed"``).
 
 The estimate is the posterior median with equal-tailed intervals (:class:`plate_env.identify.estimate.Posterior`); a
-posterior piled against the edge of the identifiable range is reported as a bound. Works with any probes: mixed
+posterior piled against the edge of the identifiable range is reported as a bound, and so is one that the model
+extended beyond that range places outside it (:mod:`plate_env.identify.identifiability`). Works with any probes: mixed
 amplitudes, one-sided data, curves without a peak; probes outside a member's atlas are left out of that member.
 """
 
