@@ -120,16 +120,16 @@ RANGE_PI = (1.4, 45.0)
 AGENTS = ("grid", "coarse_to_fine", "bayes", "ppo")
 
 
-def _episode(agent: str, omega_pi: float, seed: int):
+def _episode(agent: str, omega_pi: float, seed: int, alpha_deg: float = 45.0, **env_kwargs):
     import gymnasium as gym
 
     from plate_env.env.episode import run_episode
     from plate_env_agents import make_agent
 
-    env = gym.make("PlateRotation-v0", physics="tilelink")
+    env = gym.make("PlateRotation-v0", **{"physics": "tilelink", **env_kwargs})
     try:
         return run_episode(env, make_agent(agent), seed=seed, options={"omega_n": omega_pi * math.pi,
-                                                                       "alpha": math.radians(45.0)}).estimate
+                                                                       "alpha": math.radians(alpha_deg)}).estimate
     finally:
         env.close()
 
@@ -162,6 +162,19 @@ def test_item1_objects_outside_the_range_get_no_estimate_or_a_true_bound(agent, 
     est = _episode(agent, omega_pi, seed)
     _holds(est, omega_pi, f"{agent} seed {seed}")
     assert "cannot tell" in est.reason or "range" in est.reason
+
+
+def test_item1_a_bound_holds_whichever_posterior_the_object_follows():
+    """tilelink-v0 object 37 (27.74 pi, alpha 55 deg) by coarse_to_fine: the in-range posterior read 34.8 pi, its 95 %
+    interval holding the truth, while the extended one put 0.97 above 45 pi with its 2.5 % quantile at 38.2 pi; that
+    quantile alone was a false bound ("omega_n > 38.2 pi"). The bound is the lower of the two quantiles."""
+    from plate_env.bench.suites import load_suite
+
+    suite = load_suite("tilelink-v0")
+    obj = suite.objects[37]
+    est = _episode("coarse_to_fine", obj.omega_n / math.pi, obj.seed, math.degrees(obj.alpha), **suite.env_kwargs)
+    assert not est.ok and est.bound is not None and est.bound[0] == "above"
+    _holds(est, obj.omega_n / math.pi, "coarse_to_fine on tilelink-v0 #37")
 
 
 @pytest.mark.parametrize(("agent", "omega_pi"), [("coarse_to_fine", 10.0), ("bayes", 20.0), ("ppo", 5.0)])

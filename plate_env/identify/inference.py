@@ -604,7 +604,7 @@ def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
     if extended is not None:  # can the probes tell this answer from an object outside the range? (issue 37 item 1)
         from plate_env.identify.identifiability import outside_mass
 
-        verdict = outside_mass(extended(), fm.identifiable_range)
+        verdict = outside_mass(extended(), fm.identifiable_range, om.ci95)
         if verdict.side is not None:
             return Estimate(ok=False, bound=verdict.bound, reason=verdict.reason(om.value, fm.name), **fields)
     return Estimate(ok=True, **fields)
