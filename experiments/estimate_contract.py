@@ -103,7 +103,8 @@ def main() -> None:
         lines.append(f"| {fwd} | {len(honest)} | {n_ok} | {n_check} | {n_other} | {n_cov}/{n_ok} | {med} |")
     lines += ["", "Power of the rule against the wrong model = (refused + bound) / sweeps on the tilelink/rigid_limit "
               "row; its size = the same on the tilelink/pointmass row."]
-    OUT.write_text("\n".join(lines) + "\n")
+    kept = OUT.read_text().partition("\n## 3.")[1:] if OUT.exists() else ("", "")
+    OUT.write_text("\n".join(lines) + "\n" + "".join(kept))  # section 3 (experiments/out_of_range.py) kept
     print("\n".join(lines))
 
 

@@ -19,7 +19,8 @@ measured error) and a coherent discrepancy. Given probes:
    evidence times their prior weight (``pooling="evidence"``) or by the prior weight alone (``"fixed"``).
 
 The estimate is the posterior median with equal-tailed intervals (:class:`plate_env.identify.estimate.Posterior`); a
-posterior piled against the edge of the identifiable range is reported as a bound. Works with any probes: mixed
+posterior piled against the edge of the identifiable range is reported as a bound, and so is one that the model
+extended beyond that range places outside it (:mod:`plate_env.identify.identifiability`). Works with any probes: mixed
 amplitudes, one-sided data, curves without a peak; probes outside a member's atlas are left out of that member.
 """
 
@@ -550,16 +551,24 @@ def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:
     (:func:`predictive_check`: data the model cannot explain) or when alpha piles against the edge of the
     friction angles the model covers (:meth:`Posterior.alpha_edge`). The estimate carries its check. From scratch;
     :class:`plate_env.identify.posterior_state.PosteriorState` gives the same estimate probe by probe."""
+    from plate_env.identify.identifiability import extended_model, grid_size
+
     orphans = sorted({reason for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)
                       if all((reason := member_domain(m, float(f), float(amp))) is not None for m in fm.members)})
-    return atlas_estimate(fm, table, orphans, lambda: posterior(fm, table))
+    wide = extended_model(fm)
+    extended = None if wide is None else (lambda: posterior(wide, table, grid_size(fm, wide, N_OMEGA)))
+    return atlas_estimate(fm, table, orphans, lambda: posterior(fm, table), extended=extended)
 
 
 def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
-                   make_posterior: Callable[[], Posterior], response: Callable = respond) -> Estimate:
+                   make_posterior: Callable[[], Posterior], response: Callable = respond,
+                   extended: Callable[[], Posterior] | None = None) -> Estimate:
     """The estimate of :func:`identify_atlas` from the probes (counted, and read by the predictive check), the
     reasons of probes no member describes (``orphans``: then no estimate) and the posterior (``make_posterior()``,
-    called only when it is needed); ``response`` is passed to :func:`predictive_check`."""
+    called only when it is needed); ``response`` is passed to :func:`predictive_check`. ``extended()``: the
+    posterior of ``fm`` extended beyond its identifiable range
+    (:func:`plate_env.identify.identifiability.extended_model`), read only when the estimate would stand: more
+    than EDGE_MASS of it outside the range makes the estimate a bound (or no estimate when on both sides)."""
     base = {"method": "atlas", "n_probes": len(table), "n_unstable": int(table.unstable.sum()), "forward": fm.name}
     if len(table) == 0:
         return Estimate(ok=False, reason="no probes", **base)
@@ -592,6 +601,12 @@ def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
         return Estimate(ok=False, bound=bound, reason=(
             f"omega_n is {side} the range {fm.name!r} can identify ({lo / math.pi:.3g}-{hi / math.pi:.3g} pi rad/s): "
             f"omega_n {'>' if side == 'above' else '<'} {bound[1]:.4g} rad/s at 95 %"), **fields)
+    if extended is not None:  # can the probes tell this answer from an object outside the range? (issue 37 item 1)
+        from plate_env.identify.identifiability import outside_mass
+
+        verdict = outside_mass(extended(), fm.identifiable_range, om.ci95)
+        if verdict.side is not None:
+            return Estimate(ok=False, bound=verdict.bound, reason=verdict.reason(om.value, fm.name), **fields)
     return Estimate(ok=True, **fields)
 
 

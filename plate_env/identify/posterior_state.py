@@ -52,8 +52,13 @@ class PosteriorState:
 
     def __init__(self, fm: ForwardModel, n_omega: int = N_OMEGA, n_alpha: int = N_ALPHA,
                  grid: tuple[np.ndarray, np.ndarray] | None = None, blurs: Sequence[float] | None = None,
-                 member_rows_only: bool = True, compare_on_common: bool = True) -> None:
+                 member_rows_only: bool = True, compare_on_common: bool = True, extend: bool = True) -> None:
         self.fm = fm
+        # the estimate's test beyond the identifiable range (plate_env.identify.identifiability): a state of the
+        # extended model, fed this state's probes when an estimate needs it; only for the estimate's own posterior
+        self._extend = extend and grid is None and blurs is None and member_rows_only and compare_on_common
+        self._n_omega = int(n_omega)
+        self._wide: PosteriorState | None = None
         self.omega, self.alpha = grid if grid is not None else _shared_grid(fm, n_omega, n_alpha)
         step = math.log(self.omega[1] / self.omega[0])
         blurs = [m.blur for m in fm.members] if blurs is None else list(blurs)
@@ -154,7 +159,31 @@ class PosteriorState:
         a probe lies outside every member's atlas (named, not dropped)."""
         cols = list(zip(*self._probes, strict=True)) if self._probes else [[]] * 5
         table = ProbeTable.from_arrays(*cols)
-        return atlas_estimate(self.fm, table, sorted(self._orphans), self.posterior, self.respond)
+        return atlas_estimate(self.fm, table, sorted(self._orphans), self.posterior, self.respond,
+                              extended=self._extended())
+
+    def _extended(self):
+        """The extended model's posterior of the probes so far, as a function (None when the model has no
+        extension): its state is made once and fed the probes added since it last answered."""
+        if not self._extend:
+            return None
+        if self._wide is None:
+            from plate_env.identify.identifiability import extended_model, grid_size
+
+            wide = extended_model(self.fm)
+            if wide is None:
+                self._extend = False
+                return None
+            self._wide = PosteriorState(wide, n_omega=grid_size(self.fm, wide, self._n_omega),
+                                        n_alpha=len(self.alpha), extend=False)
+        state = self._wide
+
+        def post() -> Posterior:
+            for probe in self._probes[state.n_probes:]:
+                state.add(*probe)
+            return state.posterior()
+
+        return post
 
     def prefix_estimates(self, table: ProbeTable) -> tuple[Estimate, ...]:
         """Add ``table``'s probes one by one; the estimate after each (an episode's estimates as it went)."""
