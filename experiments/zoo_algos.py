@@ -118,6 +118,10 @@ def write_md(r: dict, stem: str = "zoo_algos") -> None:
              *([f"Merged from {', '.join(r['merged_from'])} (`--merge`): separate invocations (the commit column), "
                 "some partly at the same time on the same cores as other jobs, so wall times are comparable only "
                 "with the load beside them.", ""] if r.get("merged_from") else []),
+             *([f"Rescored (`--rescore`): {', '.join(x['algo'] for x in r['runs'] if x.get('rescored'))}, their zips "
+                "played again after their training (the training columns are the first run's)"
+                + (f": {r['rescore_reason']}" if r.get("rescore_reason") else "") + ".", ""]
+               if any(x.get("rescored") for x in r["runs"]) else []),
              "| algorithm | commit | steps trained | train wall s | load before / after | median rel. error | "
              "90th pct | with estimate | mean probes |", "|---|---|---|---|---|---|---|---|---|"]
     for x in r["runs"]:
@@ -146,7 +150,7 @@ def main() -> None:
     if args.rescore:
         doc = json.loads((RESULTS / f"{args.rescore}.json").read_text())
         for run in doc["runs"]:
-            run.update(score(run["algo"], run["zip"], doc["episodes"], doc.get("env_id", ENV_ID)))
+            run.update(score(run["algo"], run["zip"], doc["episodes"], doc.get("env_id", ENV_ID)), rescored=True)
             print(json.dumps(run), flush=True)
         (RESULTS / f"{args.rescore}.json").write_text(json.dumps(doc, indent=1) + "\n")
         write_md(doc, args.rescore)
