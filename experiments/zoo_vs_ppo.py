@@ -44,8 +44,9 @@ def main() -> None:
     lines = ["# SAC and TD3 at SB3's defaults against the shipped PPO, paired on the same episodes", "",
              "`python experiments/zoo_vs_ppo.py`: median over the suite's 100 objects of (agent's error - PPO's "
              "error), errors capped at 100 %, in percentage points with 95 % bootstrap intervals (the leaderboards' "
-             "paired statistic); negative: the off-the-shelf learner is the more accurate. The zips: "
-             "experiments/results/models/{sac,td3}_{atlas,faithful}.json.", ""]
+             "paired statistic); negative: the off-the-shelf learner is the more accurate. The zips "
+             "(slim: data and actor, experiments/zoo_slim.py) and their sidecars: "
+             "experiments/results/models/{sac,td3}_{atlas,faithful}.{zip,json}.", ""]
     for name, per in out.items():
         budgets = list(next(iter(next(iter(per.values())).values())))
         lines += [f"## {name}", "", "| agent - PPO | " + " | ".join(f"@ {b} s" for b in budgets) + " |",
