@@ -222,3 +222,49 @@ def test_a_slim_zip_missing_or_misshaping_an_actor_tensor_is_refused_by_name(zip
     with pytest.raises(ValueError, match="bad.zip") as err:
         load_agent(f"sb3:{algo}:{bad}")
     assert needle in str(err.value), str(err.value)
+
+
+def test_a_zip_without_sidecar_on_an_env_of_other_settings_is_refused_saying_what_to_write(zips, tmp_path):
+    """Without MODEL.json the training settings are unknown: on the env's defaults the zip plays as before, on an
+    env whose amplitudes differ (PlateRotationAtlas-v1's) it is refused, naming the sidecar to write, instead of
+    being scored silently in PlateRotation-v0's coordinates; with the sidecar it plays."""
+    import shutil
+
+    from plate_env.env.protocol import ProbeContext
+
+    path = shutil.copyfile(zips["sac"][0], tmp_path / "sac.zip")
+    agent = load_agent(f"sb3:sac:{path}")
+    default = gym.make("PlateRotationAtlas-v0")
+    default.reset(seed=0)
+    agent.reset(ProbeContext.from_env(default), np.random.default_rng(0))  # the defaults: no sidecar needed
+    default.close()
+    env = gym.make("PlateRotationAtlas-v1")
+    env.reset(seed=0)
+    context = ProbeContext.from_env(env)
+    assert tuple(context.amplitudes_deg) != (3.0, 12.0)
+    with pytest.raises(ValueError, match="has no sidecar sac.json") as err:
+        agent.reset(context, np.random.default_rng(0))
+    assert "env_kwargs" in str(err.value) and "sac.json" in str(err.value)
+    kwargs = {"amplitudes_deg": list(context.amplitudes_deg), "f_band_hz": list(context.f_band_hz),
+              "measure_range_s": list(context.measure_range_s)}
+    path.with_suffix(".json").write_text(json.dumps({"env_kwargs": kwargs}))
+    load_agent(f"sb3:sac:{path}").reset(context, np.random.default_rng(0))
+    env.close()
+
+
+def test_the_record_key_follows_the_sidecars_settings(zips, tmp_path):
+    """The bench's episode cache names an sb3 agent by its zip's hash and the training settings its sidecar gives
+    (the agent's public options): a changed sidecar (other amplitudes) makes a new key, an unchanged setting (a note
+    added) keeps it. (Issue 38's report that an edited sidecar reused stale episodes: it does not; this keeps it
+    so.)"""
+    import shutil
+
+    from plate_env.bench.fingerprint import agent_fingerprint
+
+    path = shutil.copyfile(zips["td3"][0], tmp_path / "td3.zip")
+    bare = agent_fingerprint(load_agent(f"sb3:td3:{path}"))
+    path.with_suffix(".json").write_text(json.dumps({"note": "how it was made", "env_kwargs": {}}))
+    assert agent_fingerprint(load_agent(f"sb3:td3:{path}")) == bare
+    path.with_suffix(".json").write_text(json.dumps({"env_kwargs": {"amplitudes_deg": [2.0, 8.0, 14.0]}}))
+    moved = agent_fingerprint(load_agent(f"sb3:td3:{path}"))
+    assert moved != bare and moved["extra"].startswith(bare["extra"].split()[0])
