@@ -8,7 +8,8 @@ copies its zip to ``DEST/NAME.zip`` and writes ``DEST/NAME.json``: the env_kwarg
 agent reads its observation and action layout there: band, amplitudes, windows), the rl-zoo3 command, the conf
 entry it trained from (plate_env_agents/hyperparams/ALGO.yml), the steps the zip holds, the seed, the wall time
 and load, the versions, the commit, the zip's SHA-256 and size, and the 100-episode score of zoo_algos.py. The zip
-is the file rl-zoo3 saved, unchanged (SB3's ``ALGO.load`` and the bench's ``sb3:ALGO:PATH`` both read it).
+is the file rl-zoo3 saved, unchanged (SB3's ``ALGO.load`` and the bench's ``sb3:ALGO:PATH`` both read it); the
+shipped zips are then slimmed to data and actor by experiments/zoo_slim.py, which updates the sidecar.
 """
 
 from __future__ import annotations
