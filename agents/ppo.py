@@ -26,7 +26,9 @@ None) the agent rebuilds one from the probe table and the windows it chose itsel
 Other band, amplitudes or windows. The model's actions and observation rows are in its training coordinates
 (``ppo_plate.json`` env_kwargs; the env's defaults without one); when the env's differ, the agent translates both
 ways through physical units (Hz, deg, s), clipping to the env's ranges and taking the nearest amplitude (a warning
-names amplitudes the policy never saw). With the training settings the action is the model's, untouched.
+names amplitudes the policy never saw). With the training settings the action is the model's, untouched. A
+model without a sidecar is taken to have trained on the defaults, and an env with other settings is refused
+at reset (the message says which file to write) rather than scored in coordinates guessed for it.
 """
 
 from __future__ import annotations
@@ -125,7 +127,10 @@ class PPOAgent(Agent):
             self._sb3.observation_space.shape[0])
         self.n_slots = Codec.slots_of(self.obs_dim)
         meta = self.path.with_suffix(".json")
-        self.provenance = read_json(meta, "sb3 model provenance") if meta.exists() else {}
+        #: Whether a sidecar (``MODEL.json``) says how the model was trained; without one the env's defaults are
+        #: assumed and an env with other settings is refused (:meth:`reset`).
+        self._has_sidecar = meta.exists()
+        self.provenance = read_json(meta, "sb3 model provenance") if self._has_sidecar else {}
         env_kwargs = self.provenance.get("env_kwargs", {})
         self.method = env_kwargs.get("method", "atlas")
         self.trained_band = tuple(env_kwargs.get("f_band_hz", (10.0, 40.0)))
@@ -153,13 +158,24 @@ class PPOAgent(Agent):
         return "numpy" if self._numpy is not None else "sb3"
 
     def fingerprint(self) -> str:
-        """The model file's SHA-256 (names this policy in benchmark records)."""
+        """The model file's SHA-256 (names this policy in benchmark records; the training settings read from its
+        sidecar are in the record's key too, as public options: tests/test_sb3_zips.py)."""
         return self.model_sha256
 
     def reset(self, context: ProbeContext, rng: np.random.Generator) -> None:
         super().reset(context, rng)
         self._windows = []
         self.env_codec = Codec.of(context)
+        if not self._has_sidecar and not self.codec.same_coordinates(self.env_codec):
+            raise ValueError(
+                f"sb3 model {str(self.path)!r} has no sidecar {self.path.with_suffix('.json').name} saying which "
+                f"settings it was trained with, and this env's differ from the defaults it would assume "
+                f"(band {self.env_codec.f_band_hz} Hz, amplitudes {self.env_codec.amplitudes_deg} deg, windows "
+                f"{self.env_codec.measure_range_s} s; defaults {self.codec.f_band_hz}, {self.codec.amplitudes_deg}, "
+                f"{self.codec.measure_range_s}): write {self.path.with_suffix('.json')} with "
+                "{\"env_kwargs\": {...}}, the env kwargs it trained with (f_band_hz, amplitudes_deg, "
+                "measure_range_s, method; {} for the defaults), e.g. from rl-zoo3's config.yml beside the zip, "
+                "rather than have them guessed")
         foreign = [a for a in context.amplitudes_deg if not np.any(np.isclose(self.trained_amps, a))]
         if foreign:
             warnings.warn(f"PPO policy trained on amplitudes {self.trained_amps} deg, the env offers {foreign}: "

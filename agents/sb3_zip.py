@@ -52,6 +52,12 @@ PLAIN_KWARGS = {"net_arch": (list, dict), "log_std_init": (int, float), "ortho_i
                 "features_extractor_kwargs": (dict,)}
 #: ``policy_kwargs`` entries that only training reads (the optimiser): dropped.
 TRAINING_KWARGS = ("optimizer_class", "optimizer_kwargs")
+#: The submodule of each algorithm's policy that computes the deterministic action (None: the whole policy, whose
+#: value head shares layers with the action's). A zip's ``policy.pth`` may hold only that submodule's tensors (named
+#: ``actor.*``, as in the full policy's state dict): :func:`slim_zip` writes such zips.
+ACTING_MODULE = {"ppo": None, "a2c": None, "sac": "actor", "td3": "actor", "ddpg": "actor"}
+#: The members of an SB3 zip :func:`slim_zip` copies unchanged (``policy.pth`` is rewritten, the rest dropped).
+KEPT_MEMBERS = ("data", "_stable_baselines3_version", "system_info.txt")
 
 
 @dataclass(frozen=True)
@@ -203,14 +209,76 @@ def load_policy(path: str | Path, algo: str | None = None, device: str = "cpu"):
     except pickle.UnpicklingError:  # torch's weights-only loader met something besides tensors
         raise ValueError(f"{where}: its weights (policy.pth) hold pickled objects besides tensors; "
                          "loading them could run code from the file: refused") from None
+    if not isinstance(state, dict) or not all(isinstance(k, str) and isinstance(v, torch.Tensor)
+                                              for k, v in state.items()):
+        raise ValueError(f"{where}: its weights (policy.pth) are not a dict of named tensors")
+    module = ACTING_MODULE[info.algo]
+    slim = module is not None and bool(state) and all(k.startswith(f"{module}.") for k in state)
+    target = getattr(policy, module) if slim else policy
+    prefix = f"{module}." if slim else ""
+    want = {prefix + k: v.shape for k, v in target.state_dict().items()}
+    what = f"the {module} of the {info.policy_class}" if slim else f"the {info.policy_class}"
+    missing = sorted(set(want) - set(state))
+    extra = sorted(set(state) - set(want))
+    shapes = [f"{k} {tuple(state[k].shape)} (needs {tuple(want[k])})" for k in sorted(set(want) & set(state))
+              if tuple(state[k].shape) != tuple(want[k])]
+    for label, names in (("lack", missing), ("have unknown tensors", extra), ("have wrong shapes:", shapes)):
+        if names:
+            raise ValueError(f"{where}: its weights do not fit {what} its data describes: they {label} "
+                             f"{', '.join(names[:6])}{' ...' if len(names) > 6 else ''}")
     try:
-        policy.load_state_dict(state)
+        target.load_state_dict({k.removeprefix(prefix): v for k, v in state.items()}, strict=True)
     except (RuntimeError, TypeError, AttributeError) as exc:
-        raise ValueError(f"{where}: its weights do not fit the {info.policy_class} its data describes: "
+        raise ValueError(f"{where}: its weights do not fit {what} its data describes: "
                          f"{str(exc).splitlines()[0]}") from None
     policy.to(device)
     policy.set_training_mode(False)
     return policy, info
 
 
-__all__ = ["POLICY_CLASSES", "SB3_ALGOS", "ZipPolicy", "inspect_zip", "load_policy", "read_data"]
+def slim_zip(src: str | Path, dest: str | Path, algo: str | None = None) -> dict:
+    """Write ``dest``: the SB3 zip ``src`` with only what the deterministic action needs. Kept: ``data`` (byte for
+    byte), SB3's version and system info, and ``policy.pth`` holding the tensors of :data:`ACTING_MODULE`'s
+    submodule (SAC, TD3, DDPG: the actor; PPO, A2C: the whole policy, unchanged). Dropped: the optimiser states,
+    ``pytorch_variables.pth`` (SAC's entropy coefficient) and, for the off-policy algorithms, the critics and
+    target networks. Nothing is unpickled (``torch.load(weights_only=True)``); the members' dates are fixed, so
+    the same ``src`` gives the same bytes. :func:`load_policy` loads the result into the actor alone and acts as
+    it does with ``src`` (tests/test_sb3_zips.py); SB3's own ``ALGO.load`` does not (it wants every optimiser
+    and network back), so a zip to train on stays the full one. Returns ``{"algo", "kept", "dropped",
+    "tensors", "bytes"}``. ValueError naming ``src`` when it is not a zip :func:`load_policy` reads."""
+    import pickle
+
+    import torch
+
+    info = inspect_zip(src, algo)
+    where = f"sb3 model {str(src)!r}"
+    with zipfile.ZipFile(src) as z:
+        names = z.namelist()
+        members = {n: z.read(n) for n in KEPT_MEMBERS if n in names}
+        try:
+            state = torch.load(io.BytesIO(z.read("policy.pth")), map_location="cpu", weights_only=True)
+        except KeyError:
+            raise ValueError(f"{where}: no policy.pth (the weights) in the zip") from None
+        except pickle.UnpicklingError:
+            raise ValueError(f"{where}: its weights (policy.pth) hold pickled objects besides tensors: "
+                             "refused") from None
+    module = ACTING_MODULE[info.algo]
+    if module is not None:
+        state = {k: v for k, v in state.items() if k.startswith(f"{module}.")}
+        if not state:
+            raise ValueError(f"{where}: its policy.pth has no {module}.* tensors")
+    buf = io.BytesIO()
+    torch.save(state, buf)
+    members["policy.pth"] = buf.getvalue()
+    Path(dest).parent.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(dest, "w", zipfile.ZIP_DEFLATED) as z:
+        for name in ("data", "policy.pth", "_stable_baselines3_version", "system_info.txt"):
+            if name in members:
+                z.writestr(zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0)), members[name],
+                           compress_type=zipfile.ZIP_DEFLATED)
+    return {"algo": info.algo, "kept": sorted(members), "dropped": sorted(set(names) - set(members)),
+            "tensors": sorted(state), "bytes": Path(dest).stat().st_size}
+
+
+__all__ = ["ACTING_MODULE", "POLICY_CLASSES", "SB3_ALGOS", "ZipPolicy", "inspect_zip", "load_policy", "read_data",
+           "slim_zip"]

@@ -1,6 +1,6 @@
 """How long rl-zoo3 takes to train PPO on PlateRotation-v0 with the installed hyperparameters (issue 25).
 
-    pip install -c constraints.txt rl_zoo3
+    pip install -c constraints.txt -e ".[rl]" rl_zoo3
     python experiments/zoo_timing.py [--steps 16384] [--skip-full]
 
 Runs the README's command, ``python -m rl_zoo3.train --algo ppo --env PlateRotation-v0 --gym-packages plate_env
@@ -77,7 +77,7 @@ def main() -> None:
         import rl_zoo3
         import torch
     except ImportError as exc:
-        raise SystemExit(f"{exc}: install rl-zoo3 first (pip install -c constraints.txt rl_zoo3)") from None
+        raise SystemExit(f"{exc}: install rl-zoo3 first (pip install -c constraints.txt -e '.[rl]' rl_zoo3)") from None
     runs = []
     if not args.skip_full:
         runs.append(run(["--num-threads", "1"]))

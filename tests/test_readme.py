@@ -104,6 +104,10 @@ def check_command(argv: list[str]) -> None:
                 unknown = set(m["extras"].split(",")) - _pyproject_extras()
                 assert not unknown, f"pip extras {unknown} are not in pyproject.toml"
         assert "-c" in argv and argv[argv.index("-c") + 1] == "constraints.txt", "pip without constraints.txt"
+        if "rl_zoo3" in argv:  # rl_zoo3 does not install what its enjoy imports (requests); the rl extra does
+            extras = {e for a in argv for m in [re.fullmatch(r"\.\[(?P<extras>[\w,]+)\]", a)] if m
+                      for e in m["extras"].split(",")}
+            assert "rl" in extras, f"pip installs rl_zoo3 without the rl extra: {shlex.join(argv)}"
     else:
         assert argv[0] in ("ruff", "pytest", "mkdocs"), f"unchecked command {argv[0]!r}"
 
@@ -126,6 +130,9 @@ def test_command_checker_can_fail():
         check_command(["plate-env", "identify", "--agent", "nobody"])
     with pytest.raises(AssertionError):
         check_command(["pip", "install", "-c", "constraints.txt", "-e", ".[test,nosuchextra]"])
+    with pytest.raises(AssertionError, match="without the rl extra"):
+        check_command(["pip", "install", "-c", "constraints.txt", "rl_zoo3"])  # enjoy: no module named 'requests'
+    check_command(["pip", "install", "-c", "constraints.txt", "-e", ".[rl]", "rl_zoo3"])
     with pytest.raises(AssertionError):
         check_command(["python", "experiments/no_such_script.py"])
     with pytest.raises(AssertionError):
@@ -195,3 +202,23 @@ def test_named_modules_exist_at_their_current_paths():
             bad.append(f"{name}: {moved[0] if moved else 'does not exist'}")
     assert not bad, bad
     assert not _resolves("plate_env.no_such_module") and not _resolves("plate_env.env.NoSuchThing")
+
+
+def test_rl_extra_gives_a_working_zoo():
+    """rl-zoo3's train and enjoy run from the install lines alone (issue 41 item 3; a fresh venv,
+    experiments/results/zoo_fresh_venv.md): the ``rl`` extra lists what rl_zoo3 imports but does not install
+    (``requests``, for enjoy) and what ``plate_env_agents.zoo`` needs (PyYAML), and every line of the README and
+    the docs that installs rl_zoo3 installs the extra with it."""
+    import tomllib
+
+    rl = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]["rl"]
+    names = {re.match(r"[A-Za-z0-9_.-]+", req)[0].lower().replace("_", "-") for req in rl}
+    assert {"requests", "pyyaml", "stable-baselines3"} <= names, rl
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    lines = [line.strip() for page in pages for line in page.read_text().splitlines()
+             if line.strip().startswith("pip install") and "rl_zoo3" in line]
+    assert len(lines) >= 2, lines  # the README's and docs/training.md's
+    for line in lines:
+        for argv in commands(line):
+            if argv[0] == "pip":
+                check_command(argv)

@@ -146,3 +146,125 @@ def test_an_algorithm_spec_it_does_not_load_is_one_clear_line(zips):
         load_agent(f"sb3:td3:{zips['sac'][0]}")
     assert load_agent(f"sb3:SAC:{zips['sac'][0]}").algo == "sac"
     assert inspect_zip(zips["ddpg"][0]).algo == "ddpg" and inspect_zip(zips["td3"][0]).algo == "td3"
+
+
+def _with_weights(src, dst, change):
+    """``src`` with its policy.pth's state dict changed by ``change`` (tensors only, as SB3 saves them)."""
+    import io
+
+    import torch
+
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w") as zout:
+        for item in zin.namelist():
+            blob = zin.read(item)
+            if item == "policy.pth":
+                state = torch.load(io.BytesIO(blob), weights_only=True)
+                change(state)
+                buf = io.BytesIO()
+                torch.save(state, buf)
+                blob = buf.getvalue()
+            zout.writestr(item, blob)
+    return dst
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3", "ddpg", "ppo"])
+def test_a_slim_zip_holds_only_the_acting_tensors_and_acts_as_the_full_one(zips, algo, tmp_path):
+    """slim_zip (issue 38: the leaderboard's SAC/TD3 zips shipped at a tenth of their size) keeps ``data`` and the
+    actor (SAC, TD3, DDPG) or the whole policy (PPO); load_policy loads the actor alone, and the deterministic
+    action is the full zip's on a few hundred observations."""
+    import io
+
+    import torch
+
+    from plate_env_agents.sb3_zip import load_policy, slim_zip
+
+    path, _ = zips[algo]
+    slim = tmp_path / f"{algo}_slim.zip"
+    info = slim_zip(path, slim)
+    with zipfile.ZipFile(slim) as z, zipfile.ZipFile(path) as zfull:
+        assert set(z.namelist()) == {"data", "policy.pth", "_stable_baselines3_version", "system_info.txt"}
+        assert z.read("data") == zfull.read("data")
+        state = torch.load(io.BytesIO(z.read("policy.pth")), weights_only=True)
+        full_state = torch.load(io.BytesIO(zfull.read("policy.pth")), weights_only=True)
+    if algo == "ppo":
+        assert set(state) == set(full_state)
+    else:
+        assert state and all(k.startswith("actor.") for k in state) and set(state) < set(full_state)
+        assert any(k.startswith("critic") for k in full_state)
+        assert slim.stat().st_size < path.stat().st_size / 2, (slim.stat().st_size, path.stat().st_size)
+    assert info["tensors"] == sorted(state) and "policy.pth" in info["kept"]
+    assert [n for n in info["dropped"] if n.endswith("optimizer.pth")]
+    obs = np.stack(_observations(300))
+    full_pol, slim_pol = load_policy(path)[0], load_policy(slim)[0]
+    np.testing.assert_array_equal(slim_pol.predict(obs, deterministic=True)[0],
+                                  full_pol.predict(obs, deterministic=True)[0])
+    full_agent, slim_agent = load_agent(f"sb3:{algo}:{path}"), load_agent(f"sb3:{slim}")
+    assert slim_agent.algo == algo
+    for o in obs[:20]:
+        assert np.array_equal(slim_agent.act(o), full_agent.act(o))
+
+
+@pytest.mark.parametrize("algo, change, needle", [
+    ("sac", lambda s: s.pop("actor.mu.weight"), "they lack actor.mu.weight"),
+    ("td3", lambda s: s.pop("actor.mu.4.bias"), "they lack actor.mu.4.bias"),
+    ("sac", lambda s: s.__setitem__("actor.mu.bias", s["actor.mu.bias"][:3].clone()),
+     "actor.mu.bias (3,) (needs (4,))"),
+    ("td3", lambda s: s.__setitem__("actor.extra.weight", s["actor.mu.0.bias"].clone()),
+     "unknown tensors actor.extra.weight"),
+    ("sac", lambda s: s.pop("critic.qf0.0.weight"), "its weights do not fit the SACPolicy"),
+])
+def test_a_slim_zip_missing_or_misshaping_an_actor_tensor_is_refused_by_name(zips, tmp_path, algo, change, needle):
+    from plate_env_agents.sb3_zip import slim_zip
+
+    slim = slim_zip(zips[algo][0], tmp_path / "slim.zip") and tmp_path / "slim.zip"
+    src = slim if needle.startswith(("they", "actor", "unknown")) else zips[algo][0]
+    bad = _with_weights(src, tmp_path / "bad.zip", change)
+    with pytest.raises(ValueError, match="bad.zip") as err:
+        load_agent(f"sb3:{algo}:{bad}")
+    assert needle in str(err.value), str(err.value)
+
+
+def test_a_zip_without_sidecar_on_an_env_of_other_settings_is_refused_saying_what_to_write(zips, tmp_path):
+    """Without MODEL.json the training settings are unknown: on the env's defaults the zip plays as before, on an
+    env whose amplitudes differ (PlateRotationAtlas-v1's) it is refused, naming the sidecar to write, instead of
+    being scored silently in PlateRotation-v0's coordinates; with the sidecar it plays."""
+    import shutil
+
+    from plate_env.env.protocol import ProbeContext
+
+    path = shutil.copyfile(zips["sac"][0], tmp_path / "sac.zip")
+    agent = load_agent(f"sb3:sac:{path}")
+    default = gym.make("PlateRotationAtlas-v0")
+    default.reset(seed=0)
+    agent.reset(ProbeContext.from_env(default), np.random.default_rng(0))  # the defaults: no sidecar needed
+    default.close()
+    env = gym.make("PlateRotationAtlas-v1")
+    env.reset(seed=0)
+    context = ProbeContext.from_env(env)
+    assert tuple(context.amplitudes_deg) != (3.0, 12.0)
+    with pytest.raises(ValueError, match="has no sidecar sac.json") as err:
+        agent.reset(context, np.random.default_rng(0))
+    assert "env_kwargs" in str(err.value) and "sac.json" in str(err.value)
+    kwargs = {"amplitudes_deg": list(context.amplitudes_deg), "f_band_hz": list(context.f_band_hz),
+              "measure_range_s": list(context.measure_range_s)}
+    path.with_suffix(".json").write_text(json.dumps({"env_kwargs": kwargs}))
+    load_agent(f"sb3:sac:{path}").reset(context, np.random.default_rng(0))
+    env.close()
+
+
+def test_the_record_key_follows_the_sidecars_settings(zips, tmp_path):
+    """The bench's episode cache names an sb3 agent by its zip's hash and the training settings its sidecar gives
+    (the agent's public options): a changed sidecar (other amplitudes) makes a new key, an unchanged setting (a note
+    added) keeps it. (Issue 38's report that an edited sidecar reused stale episodes: it does not; this keeps it
+    so.)"""
+    import shutil
+
+    from plate_env.bench.fingerprint import agent_fingerprint
+
+    path = shutil.copyfile(zips["td3"][0], tmp_path / "td3.zip")
+    bare = agent_fingerprint(load_agent(f"sb3:td3:{path}"))
+    path.with_suffix(".json").write_text(json.dumps({"note": "how it was made", "env_kwargs": {}}))
+    assert agent_fingerprint(load_agent(f"sb3:td3:{path}")) == bare
+    path.with_suffix(".json").write_text(json.dumps({"env_kwargs": {"amplitudes_deg": [2.0, 8.0, 14.0]}}))
+    moved = agent_fingerprint(load_agent(f"sb3:td3:{path}"))
+    assert moved != bare and moved["extra"].startswith(bare["extra"].split()[0])
