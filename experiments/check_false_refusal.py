@@ -35,48 +35,128 @@ RESULTS = Path(__file__).resolve().parent / "results"
 RUNS = RESULTS / "check_false_refusal"
 
 
+#: The check's rules compared (``inference.CHECK_NODE_SHARE``, ``inference.CHECK_ALPHA_ERROR``): **now**; **node**:
+#: the omega_n node share only (99358cc, issue 38's first fix); **before**: neither (the rule the issue found).
+RULES = {"now": None, "node": (0.5, False), "before": (0.0, False)}
+#: Records written with all three rules carry ``"rules": RULE_VERSION``; older ones are rechecked (``--recheck``).
+RULE_VERSION = 2
+
+
 @contextlib.contextmanager
-def node_share(value: float):
-    """The check's node share set to ``value`` for the block (the rule before issue 38: 0)."""
+def rule(name: str):
+    """The check's rule ``name`` of :data:`RULES` for the block (``now``: the code's own)."""
     from plate_env.identify import inference
 
-    old = inference.CHECK_NODE_SHARE
-    inference.CHECK_NODE_SHARE = value
+    if RULES[name] is None:
+        yield
+        return
+    old = inference.CHECK_NODE_SHARE, inference.CHECK_ALPHA_ERROR
+    inference.CHECK_NODE_SHARE, inference.CHECK_ALPHA_ERROR = RULES[name]
     try:
         yield
     finally:
-        inference.CHECK_NODE_SHARE = old
+        inference.CHECK_NODE_SHARE, inference.CHECK_ALPHA_ERROR = old
+
+
+def checks(fm, table, prefix: str, est=None) -> dict:
+    """``{prefix}_p``, ``{prefix}_p_node``, ``{prefix}_p_before``: the check's p-value of ``fm``'s estimate of
+    ``table`` under each rule (None without a posterior), and ``{prefix}_ok`` / ``{prefix}_error`` placeholders the
+    caller fills. ``est``: the estimate already computed under the rule now (its posterior is reused)."""
+    from plate_env.identify.inference import identify_atlas, predictive_check
+
+    est = identify_atlas(table, fm) if est is None else est
+    out = {f"{prefix}_p": None if est.check is None else est.check.p_value}
+    for name in ("node", "before"):
+        out[f"{prefix}_p_{name}"] = None
+        if est.check is not None and est.posterior is not None:
+            with rule(name):
+                out[f"{prefix}_p_{name}"] = predictive_check(fm, table, est.posterior).p_value
+    return out
 
 
 def episode_record(env, agent, seed: int) -> dict:
-    """One episode: the env's estimate check (now and before), the bench's estimate and its check."""
-    from plate_env.env.episode import run_episode
+    """One episode: the env's estimate check under each rule, the bench's estimate and its check, the shipped
+    forward model's check under each rule."""
+    from plate_env.env.episode import estimate_model_of, run_episode
     from plate_env.identify.forward import load_forward_model
-    from plate_env.identify.inference import identify_atlas, predictive_check
 
     r = run_episode(env, agent, seed=seed)
     e = env.unwrapped
     env_est = e.estimate()  # the estimate the env's reward charged (its own posterior of these probes)
     rec = {"seed": seed, "agent": agent.name, "n_probes": r.n_probes, "omega_n_true_rad_s": r.omega_n_true,
-           "alpha_true_rad": r.alpha_true, "probes": r.probes.to_rows(),
+           "alpha_true_rad": r.alpha_true, "probes": r.probes.to_rows(), "rules": RULE_VERSION,
            "env_ok": env_est.ok, "env_reason": None if env_est.ok else env_est.reason,
            "env_error": env_est.relative_error(r.omega_n_true) if env_est.ok else None,
            "bench_ok": r.estimate.ok, "bench_error": r.relative_error if r.estimate.ok else None,
-           "bench_p": None if r.estimate.check is None else r.estimate.check.p_value,
-           "env_p": None if env_est.check is None else env_est.check.p_value, "env_p_before": None}
+           "bench_p": None if r.estimate.check is None else r.estimate.check.p_value}
+    table = e.table()
+    rec.update(checks(estimate_model_of(agent) or e.posterior_state().fm, table, "env"))
+    rec["env_p"] = None if env_est.check is None else env_est.check.p_value  # the env's own (the same floats)
     # the shipped forward model of the env's physics on the same probes (the env's reward before run_episode handed
-    # it the agent's estimate model), under the current rule and the rule before
-    shipped = load_forward_model(f"{e.source}/{e.model}", e.known_inputs())
-    ship = identify_atlas(e.table(), shipped)
-    rec["shipped_p"] = None if ship.check is None else ship.check.p_value
-    rec["shipped_p_before"] = None
-    if ship.check is not None and ship.posterior is not None:
-        with node_share(0.0):
-            rec["shipped_p_before"] = predictive_check(shipped, e.table(), ship.posterior).p_value
-    if env_est.check is not None and env_est.posterior is not None:
-        with node_share(0.0):
-            rec["env_p_before"] = predictive_check(e.posterior_state().fm, e.table(), env_est.posterior).p_value
+    # it the agent's estimate model)
+    rec.update(checks(load_forward_model(f"{e.source}/{e.model}", e.known_inputs()), table, "shipped"))
     return rec
+
+
+def _written_env_p(d: dict) -> float | None:
+    """The p-value written for the estimate the env's reward charges. Records written before run_episode handed the
+    agent's estimate model to the env (no ``shipped_p``) hold the shipped model's in ``env_p``; for an agent with its
+    own estimate model (bayes) the env's estimate is the bench's."""
+    if "shipped_p" in d or d["agent"] != "bayes":
+        return d["env_p"]
+    return d["bench_p"]
+
+
+def recheck(path: Path) -> tuple[int, int, int]:
+    """Records of ``path`` written before :data:`RULE_VERSION` get each rule's p-values recomputed from their
+    probes (env's estimate model rebuilt from a reset of the env at the record's seed, bayes's estimate model from
+    the agent's reset); the file is rewritten. Returns (rechecked, already, mismatches): a mismatch is a record whose
+    recomputed p-value under the rule it was written with differs from the stored one (it keeps the recomputed)."""
+    import gymnasium as gym
+    import numpy as np
+
+    import plate_env  # noqa: F401
+    from plate_env.core.probe_table import ProbeTable
+    from plate_env.env.episode import estimate_model_of
+    from plate_env.env.protocol import ProbeContext
+    from plate_env.identify.forward import load_forward_model
+    from plate_env_agents import make_agent
+
+    env_id = path.stem
+    env = gym.make(env_id)
+    e = env.unwrapped
+    agents: dict = {}
+    out, n_re, n_old, bad = [], 0, 0, 0
+    for line in path.read_text().splitlines():
+        d = json.loads(line)
+        if d.get("rules") == RULE_VERSION or "error" in d:
+            out.append(d)
+            n_old += 1
+            continue
+        rows = d["probes"]
+        table = ProbeTable.from_arrays(*([r[k] for r in rows] for k in (
+            "f_p_hz", "a_p_deg", "omega_b_deg_s", "stderr_deg_s", "unstable")))
+        env.reset(seed=d["seed"])
+        shipped = load_forward_model(f"{e.source}/{e.model}", e.known_inputs())
+        agent = agents.setdefault(d["agent"], make_agent(d["agent"]))
+        agent.reset(ProbeContext.from_env(env), np.random.default_rng(d["seed"]))
+        fm = estimate_model_of(agent) or shipped
+        written = {"env_p": _written_env_p(d),
+                   "shipped_p": d.get("shipped_p", d["env_p"] if "shipped_p" not in d else None),
+                   "shipped_p_before": d.get("shipped_p_before", d.get("env_p_before"))}
+        new = checks(fm, table, "env")
+        new.update(checks(shipped, table, "shipped") if fm is not shipped else
+                   {k.replace("env", "shipped", 1): v for k, v in new.items()})
+        # written under the node rule (before this version): env_p / shipped_p there are new[*_p_node]
+        same = (written["env_p"] == new["env_p_node"] and written["shipped_p"] == new["shipped_p_node"]
+                and written["shipped_p_before"] == new["shipped_p_before"])
+        bad += not same
+        d.update(new)
+        d["rules"], d["rechecked"], d["recheck_matches_written"] = RULE_VERSION, True, same
+        out.append(d)
+        n_re += 1
+    path.write_text("".join(json.dumps(d) + "\n" for d in out))
+    return n_re, n_old, bad
 
 
 def run(env_id: str, agents: list[str], episodes: int, seed0: int) -> Path:
@@ -114,7 +194,7 @@ def stored(paths: list[Path]) -> Path:
     the shipped model's under the rule now and before. Written as ``PlateRotation-v0-stored.jsonl``."""
     from plate_env.core.probe_table import ProbeTable
     from plate_env.identify.forward import load_forward_model
-    from plate_env.identify.inference import identify_atlas, predictive_check
+    from plate_env.identify.inference import identify_atlas
     from plate_env_agents.bayes import BayesAgent
 
     agent = BayesAgent()
@@ -129,14 +209,11 @@ def stored(paths: list[Path]) -> Path:
                 rows = d["table"]
                 table = ProbeTable.from_arrays(*([r[k] for r in rows] for k in (
                     "f_p_hz", "a_p_deg", "omega_b_deg_s", "stderr_deg_s", "unstable")))
-                rec = {"seed": f"{path.stem}:{d['i']}", "agent": "bayes", "n_probes": len(table), "source": path.name}
+                rec = {"seed": f"{path.stem}:{d['i']}", "agent": "bayes", "n_probes": len(table), "source": path.name,
+                       "rules": RULE_VERSION, "omega_n_true_rad_s": d["omega_n"], "probes": rows}
                 for name, fm in (("env", design), ("shipped", shipped)):
                     est = identify_atlas(table, fm)
-                    rec[f"{name}_p"] = None if est.check is None else est.check.p_value
-                    rec[f"{name}_p_before"] = None
-                    if est.check is not None and est.posterior is not None:
-                        with node_share(0.0):
-                            rec[f"{name}_p_before"] = predictive_check(fm, table, est.posterior).p_value
+                    rec.update(checks(fm, table, name, est))
                     rec[f"{name}_ok"] = est.ok
                     rec[f"{name}_error"] = est.relative_error(d["omega_n"]) if est.ok else None
                 rec.update(bench_p=rec["env_p"], bench_ok=rec["env_ok"], bench_error=rec["env_error"])
@@ -167,28 +244,21 @@ def refused(p: float | None, p_min: float) -> bool:
     return p is not None and p < p_min
 
 
-def _now(d: dict) -> float | None:
-    """The p-value of the check of the estimate the env's reward charges now. Records written before run_episode
-    handed the agent's estimate model to the env (no ``shipped_p``) hold the shipped model's in ``env_p``; for an
-    agent with its own estimate model (bayes) the env's estimate is now the bench's."""
-    if "shipped_p" in d or d["agent"] != "bayes":
-        return d["env_p"]
-    return d["bench_p"]
-
-
 def _columns(d: dict) -> dict[str, float | None]:
-    return {"now": _now(d), "shipped": d.get("shipped_p", d["env_p"] if "shipped_p" not in d else None),
-            "shipped_before": d.get("shipped_p_before", d["env_p_before"])}
+    """The p-values of a record (written or rechecked with every rule, ``"rules": RULE_VERSION``)."""
+    return {"now": d["env_p"], "node": d["env_p_node"], "shipped": d["shipped_p"],
+            "shipped_before": d["shipped_p_before"]}
 
 
 COLUMNS = {"now": "env reward's estimate (= bench score's), rule now",
+           "node": "the same estimate, rule of 99358cc (omega_n node share only, no alpha error)",
            "shipped": "shipped forward model, rule now",
-           "shipped_before": "shipped forward model, rule before (the issue's)"}
+           "shipped_before": "shipped forward model, rule before issue 38 (neither)"}
 
 
 def report() -> None:
     from plate_env.identify.estimate import CHECK_P_MIN
-    from plate_env.identify.inference import CHECK_DRAWS, CHECK_NODE_SHARE
+    from plate_env.identify.inference import CHECK_ALPHA_ERROR, CHECK_DRAWS, CHECK_NODE_SHARE
 
     rows = []
     for path in sorted(RUNS.glob("*.jsonl")):
@@ -198,10 +268,12 @@ def report() -> None:
             recs.setdefault((d["agent"], d["seed"]), d)  # one record per (agent, seed)
         recs = list(recs.values())
         for agent in sorted({d["agent"] for d in recs}):
-            mine = [d for d in recs if d["agent"] == agent and "error" not in d]
+            mine = [d for d in recs if d["agent"] == agent and "error" not in d and d.get("rules") == RULE_VERSION]
             errors = sum(1 for d in recs if d["agent"] == agent and "error" in d)
+            pending = sum(1 for d in recs if d["agent"] == agent and "error" not in d
+                          and d.get("rules") != RULE_VERSION)
             n = len(mine)
-            row = {"env": path.stem, "agent": agent, "episodes": n, "errors": errors,
+            row = {"env": path.stem, "agent": agent, "episodes": n, "errors": errors, "not_rechecked": pending,
                    "seeds": [min((d["seed"] for d in mine), default=None), max((d["seed"] for d in mine),
                                                                                default=None)]}
             cols = [_columns(d) for d in mine]
@@ -215,11 +287,14 @@ def report() -> None:
             shared = [d for d in mine if "shipped_p" in d and agent != "grid"]
             row["env_equals_bench"] = [sum(1 for d in shared if d["env_ok"] == d["bench_ok"] and (
                 not d["env_ok"] or d["env_error"] == d["bench_error"])), len(shared)]
+            row["rechecked"] = [sum(1 for d in mine if d.get("rechecked")),
+                                sum(1 for d in mine if d.get("rechecked") and d.get("recheck_matches_written"))]
             rows.append(row)
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "check_false_refusal.json").write_text(json.dumps(
         {"command": "python experiments/check_false_refusal.py --env ENV --episodes N; ... --report",
-         "p_min": CHECK_P_MIN, "check_draws": CHECK_DRAWS, "check_node_share": CHECK_NODE_SHARE, "columns": COLUMNS,
+         "p_min": CHECK_P_MIN, "check_draws": CHECK_DRAWS, "check_node_share": CHECK_NODE_SHARE,
+         "check_alpha_error": CHECK_ALPHA_ERROR, "columns": COLUMNS,
          "rows": rows}, indent=1) + "\n")
 
     def cell(c: dict) -> str:
@@ -233,21 +308,31 @@ def report() -> None:
              f"An episode is refused when the check's p-value is below {CHECK_P_MIN:g} (replicates: {CHECK_DRAWS}, "
              f"p = (k + 1) / ({CHECK_DRAWS} + 1), smallest {1 / (CHECK_DRAWS + 1):.2g}). Rule now: each probe may "
              f"move along omega_n by max(the member's blur, {CHECK_NODE_SHARE:g} x the atlas's median omega_n node "
-             "interval); rule before: the member's blur only (0 for the shipped point mass). Columns: "
-             + "; ".join(f"**{k}**: {v}" for k, v in COLUMNS.items())
+             f"interval) and{'' if CHECK_ALPHA_ERROR else ' NOT'} has the atlas's alpha interpolation error, measured "
+             "on its own nodes (a quarter of the leave-one-alpha-node-out miss; plate_env/identify/interp_error.py), "
+             "in its scale. Columns: " + "; ".join(f"**{k}**: {v}" for k, v in COLUMNS.items())
              + ". Cells: refused (rate; Clopper-Pearson (CP) and Wilson (W) 95 % intervals). grid estimates by the "
-             "Lorentz method: its bench score has no check, the env's reward reads the atlas.", "",
-             "| env | agent | episodes | " + " | ".join(COLUMNS) + " | smallest p now | env = bench | errors |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "Lorentz method: its bench score has no check, the env's reward reads the atlas. Records written before "
+             "the alpha error were rechecked from their probes (`--recheck ENV`); **rechecked** counts them and how "
+             "many reproduced, under the rule they were written with, the p-values written then.", "",
+             "| env | agent | episodes | " + " | ".join(COLUMNS)
+             + " | smallest p now | env = bench | rechecked (reproduced) | not rechecked | errors |",
+             "|" + "---|" * (len(COLUMNS) + 8)]
     for r in rows:
         if not r["episodes"]:
             continue
         sp = "-" if r["smallest_p_now"] is None else f"{r['smallest_p_now']:.2g}"
         eq = "-" if not r["env_equals_bench"][1] else "{} of {}".format(*r["env_equals_bench"])
+        rc = "{} ({})".format(*r["rechecked"])
         lines.append(f"| {r['env']} | {r['agent']} | {r['episodes']} | "
-                     + " | ".join(cell(r[c]) for c in COLUMNS) + f" | {sp} | {eq} | {r['errors']} |")
+                     + " | ".join(cell(r[c]) for c in COLUMNS)
+                     + f" | {sp} | {eq} | {rc} | {r['not_rechecked']} | {r['errors']} |")
+    lines += ["", NOTES]
     (RESULTS / "check_false_refusal.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
+
+
+NOTES = """(notes: filled in below)"""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -257,12 +342,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--episodes", type=int, default=1000)
     ap.add_argument("--seed0", type=int, default=1000)
     ap.add_argument("--report", action="store_true")
+    ap.add_argument("--recheck", nargs="+", default=None, metavar="ENV",
+                    help="recompute every rule's p-values of records written before the rule now (from their probes)")
     ap.add_argument("--stored", nargs="+", type=Path, default=None,
                     help="recompute the check on stored live bayes episodes (experiments/cache/forward_models_bayes_"
                          "s510.jsonl s520.jsonl)")
     args = ap.parse_args(argv)
     if args.report:
         report()
+        return 0
+    if args.recheck:
+        for env_id in args.recheck:
+            print(env_id, "rechecked, already, not reproduced:", recheck(RUNS / f"{env_id}.jsonl"))
         return 0
     if args.stored:
         print(stored(args.stored))
