@@ -6,17 +6,23 @@ them, or fewer: it checks at the best fit); on the live ``PlateRotation-v0`` the
 point mass the atlas was built from (its interpolation error between nodes is the model's, not the data's fault).
 
 Per episode (``run_episode`` of each shipped agent, seeds ``--seed0 ...``) it records the check of the env's own
-estimate (the one its reward charges) under the current rule and under the rule before issue 38
-(``CHECK_NODE_SHARE = 0``: probes not allowed to move between the atlas's omega_n nodes), and the check of the
-bench's estimate (the agent's estimate model). Episodes go to ``experiments/results/check_false_refusal/<env>.jsonl``
-(appended; a seed already there is skipped, so a run can be resumed or extended); ``--report`` writes
-``experiments/results/check_false_refusal.{md,json}`` with Wilson and Clopper-Pearson 95 % intervals.
+estimate (the one its reward charges) and of the shipped forward model's under each rule of :data:`RULES` (now: the
+omega_n node share and the atlas's alpha interpolation error; node: the node share only, 99358cc; before: neither,
+the rule issue 38 found), and the bench's estimate and its check (the agent's estimate model). Episodes go to
+``experiments/results/check_false_refusal/<env>.jsonl`` (appended; a seed already there is skipped, so a run can be
+resumed or extended); ``--recheck ENV`` recomputes every rule's p-values of records written before (from their
+probes; it says how many reproduced the p-values written then); ``--stored`` recomputes the stored live bayes
+episodes; ``--report`` writes ``experiments/results/check_false_refusal.{md,json}`` with Wilson and Clopper-Pearson
+95 % intervals.
 
 Commands::
 
     python experiments/check_false_refusal.py --env PlateRotationAtlas-v0 --episodes 1000
     python experiments/check_false_refusal.py --env PlateRotationAtlas-v1 --episodes 1000
     python experiments/check_false_refusal.py --env PlateRotation-v0 --episodes 200
+    python experiments/check_false_refusal.py --stored experiments/cache/forward_models_bayes_s510.jsonl \
+        experiments/cache/forward_models_bayes_s520.jsonl
+    python experiments/check_false_refusal.py --recheck PlateRotationAtlas-v0 PlateRotationAtlas-v1 PlateRotation-v0
     python experiments/check_false_refusal.py --report
 """
 
@@ -90,8 +96,7 @@ def episode_record(env, agent, seed: int) -> dict:
            "bench_ok": r.estimate.ok, "bench_error": r.relative_error if r.estimate.ok else None,
            "bench_p": None if r.estimate.check is None else r.estimate.check.p_value}
     table = e.table()
-    rec.update(checks(estimate_model_of(agent) or e.posterior_state().fm, table, "env"))
-    rec["env_p"] = None if env_est.check is None else env_est.check.p_value  # the env's own (the same floats)
+    rec.update(checks(estimate_model_of(agent) or e.posterior_state().fm, table, "env", env_est))
     # the shipped forward model of the env's physics on the same probes (the env's reward before run_episode handed
     # it the agent's estimate model)
     rec.update(checks(load_forward_model(f"{e.source}/{e.model}", e.known_inputs()), table, "shipped"))
@@ -284,6 +289,8 @@ def report() -> None:
                             "refused_seeds": [d["seed"] for d, c in zip(mine, cols, strict=True)
                                               if refused(c[col], CHECK_P_MIN)]}
             row["smallest_p_now"] = min((c["now"] for c in cols if c["now"] is not None), default=None)
+            row["below_0.05"] = {col: sum(1 for c in cols if c[col] is not None and c[col] < 0.05)
+                                 for col in ("now", "node")}
             shared = [d for d in mine if "shipped_p" in d and agent != "grid"]
             row["env_equals_bench"] = [sum(1 for d in shared if d["env_ok"] == d["bench_ok"] and (
                 not d["env_ok"] or d["env_error"] == d["bench_error"])), len(shared)]
@@ -316,8 +323,8 @@ def report() -> None:
              "the alpha error were rechecked from their probes (`--recheck ENV`); **rechecked** counts them and how "
              "many reproduced, under the rule they were written with, the p-values written then.", "",
              "| env | agent | episodes | " + " | ".join(COLUMNS)
-             + " | smallest p now | env = bench | rechecked (reproduced) | not rechecked | errors |",
-             "|" + "---|" * (len(COLUMNS) + 8)]
+             + " | smallest p now | p < 0.05 now / node | env = bench | rechecked (reproduced) | not rechecked "
+             "| errors |", "|" + "---|" * (len(COLUMNS) + 9)]
     for r in rows:
         if not r["episodes"]:
             continue
@@ -326,7 +333,8 @@ def report() -> None:
         rc = "{} ({})".format(*r["rechecked"])
         lines.append(f"| {r['env']} | {r['agent']} | {r['episodes']} | "
                      + " | ".join(cell(r[c]) for c in COLUMNS)
-                     + f" | {sp} | {eq} | {rc} | {r['not_rechecked']} | {r['errors']} |")
+                     + f" | {sp} | {r['below_0.05']['now']} / {r['below_0.05']['node']} | {eq} | {rc} | "
+                     f"{r['not_rechecked']} | {r['errors']} |")
     lines += ["", NOTES]
     (RESULTS / "check_false_refusal.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
