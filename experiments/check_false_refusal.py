@@ -45,7 +45,7 @@ RUNS = RESULTS / "check_false_refusal"
 #: the omega_n node share only (99358cc, issue 38's first fix); **before**: neither (the rule the issue found).
 RULES = {"now": None, "node": (0.5, False), "before": (0.0, False)}
 #: Records written with all three rules carry ``"rules": RULE_VERSION``; older ones are rechecked (``--recheck``).
-RULE_VERSION = 2
+RULE_VERSION = 3
 
 
 @contextlib.contextmanager
@@ -146,17 +146,19 @@ def recheck(path: Path) -> tuple[int, int, int]:
         agent = agents.setdefault(d["agent"], make_agent(d["agent"]))
         agent.reset(ProbeContext.from_env(env), np.random.default_rng(d["seed"]))
         fm = estimate_model_of(agent) or shipped
-        written = {"env_p": _written_env_p(d),
-                   "shipped_p": d.get("shipped_p", d["env_p"] if "shipped_p" not in d else None),
-                   "shipped_p_before": d.get("shipped_p_before", d.get("env_p_before"))}
+        if d.get("rules") == 2:  # written with a quarter of the leave-one-out error: its other rules compared
+            written = {k: d[k] for k in ("env_p_node", "shipped_p_node", "shipped_p_before")}
+        else:  # written under the node share only (99358cc)
+            written = {"env_p_node": _written_env_p(d),
+                       "shipped_p_node": d.get("shipped_p", d["env_p"] if "shipped_p" not in d else None),
+                       "shipped_p_before": d.get("shipped_p_before", d.get("env_p_before"))}
         new = checks(fm, table, "env")
         new.update(checks(shipped, table, "shipped") if fm is not shipped else
                    {k.replace("env", "shipped", 1): v for k, v in new.items()})
-        # written under the node rule (before this version): env_p / shipped_p there are new[*_p_node]
-        same = (written["env_p"] == new["env_p_node"] and written["shipped_p"] == new["shipped_p_node"]
-                and written["shipped_p_before"] == new["shipped_p_before"])
+        same = all(written[k] == new[k] for k in written)
         bad += not same
         d.update(new)
+        d["rechecked_from"] = d.get("rules", 1)
         d["rules"], d["rechecked"], d["recheck_matches_written"] = RULE_VERSION, True, same
         out.append(d)
         n_re += 1
@@ -264,6 +266,7 @@ COLUMNS = {"now": "env reward's estimate (= bench score's), rule now",
 def report() -> None:
     from plate_env.identify.estimate import CHECK_P_MIN
     from plate_env.identify.inference import CHECK_ALPHA_ERROR, CHECK_DRAWS, CHECK_NODE_SHARE
+    from plate_env.identify.interp_error import HALF_GAP_SHARE
 
     rows = []
     for path in sorted(RUNS.glob("*.jsonl")):
@@ -301,10 +304,12 @@ def report() -> None:
     (RESULTS / "check_false_refusal.json").write_text(json.dumps(
         {"command": "python experiments/check_false_refusal.py --env ENV --episodes N; ... --report",
          "p_min": CHECK_P_MIN, "check_draws": CHECK_DRAWS, "check_node_share": CHECK_NODE_SHARE,
-         "check_alpha_error": CHECK_ALPHA_ERROR, "columns": COLUMNS,
+         "check_alpha_error": CHECK_ALPHA_ERROR, "half_gap_share": HALF_GAP_SHARE, "columns": COLUMNS,
          "rows": rows}, indent=1) + "\n")
 
     def cell(c: dict) -> str:
+        if c["rate"] is None:
+            return "-"
         lo, hi = c["clopper_pearson95"]
         wl, wh = c["wilson95"]
         return f"{c['refused']} ({c['rate']:.3g}; CP {lo:.2g}-{hi:.2g}; W {wl:.2g}-{wh:.2g})"
@@ -316,7 +321,8 @@ def report() -> None:
              f"p = (k + 1) / ({CHECK_DRAWS} + 1), smallest {1 / (CHECK_DRAWS + 1):.2g}). Rule now: each probe may "
              f"move along omega_n by max(the member's blur, {CHECK_NODE_SHARE:g} x the atlas's median omega_n node "
              f"interval) and{'' if CHECK_ALPHA_ERROR else ' NOT'} has the atlas's alpha interpolation error, measured "
-             "on its own nodes (a quarter of the leave-one-alpha-node-out miss; plate_env/identify/interp_error.py), "
+             f"on its own nodes ({HALF_GAP_SHARE:g} of the leave-one-alpha-node-out miss; "
+             "plate_env/identify/interp_error.py), "
              "in its scale. Columns: " + "; ".join(f"**{k}**: {v}" for k, v in COLUMNS.items())
              + ". Cells: refused (rate; Clopper-Pearson (CP) and Wilson (W) 95 % intervals). grid estimates by the "
              "Lorentz method: its bench score has no check, the env's reward reads the atlas. Records written before "
@@ -326,7 +332,7 @@ def report() -> None:
              + " | smallest p now | p < 0.05 now / node | env = bench | rechecked (reproduced) | not rechecked "
              "| errors |", "|" + "---|" * (len(COLUMNS) + 9)]
     for r in rows:
-        if not r["episodes"]:
+        if not r["episodes"] and not r["not_rechecked"]:
             continue
         sp = "-" if r["smallest_p_now"] is None else f"{r['smallest_p_now']:.2g}"
         eq = "-" if not r["env_equals_bench"][1] else "{} of {}".format(*r["env_equals_bench"])

@@ -36,7 +36,7 @@ def test_a_cubic_response_has_no_interpolation_error():
 
 def test_a_peak_at_one_node_is_missed_by_the_others_spline():
     """A response zero at every alpha node but one (value 8 deg/s there): the spline through the others is zero,
-    so the leave-one-out miss at that node is 8 and the error a quarter of it; its neighbours' misses are smaller
+    so the leave-one-out miss at that node is 8 and the error HALF_GAP_SHARE of it; its neighbours' misses are smaller
     but not zero; the end nodes take their inner neighbour's."""
     mean = np.zeros((3, 2, 4, 6))
     mean[1, 0, 2, 3] = 8.0
@@ -55,7 +55,8 @@ def test_a_probes_error_reads_the_nearest_nodes_and_the_larger_of_the_two_f_node
     a = ALPHA[[3, 3]] + np.radians([0.5, -0.5])
     for f_hz in (10.5, 11.0, 11.5, 12.0):  # the f_p interval around it (at a node: the one below) holds node 11
         e = alpha_error(atlas, 3.0, f_hz, w, a)
-        assert e.shape == (3, 2) and e[1, 0] == e[2, 1] == pytest.approx(2.0) and e[0, 0] < 2.0, f_hz
+        peak = HALF_GAP_SHARE * 8.0
+        assert e.shape == (3, 2) and e[1, 0] == e[2, 1] == pytest.approx(peak) and e[0, 0] < peak, f_hz
     assert np.all(alpha_error(atlas, 3.0, 12.5, w, a) == 0)  # nodes 12-13
     assert np.all(alpha_error(atlas, 12.0, 11.0, w, a) == 0)  # the other amplitude
 
