@@ -374,8 +374,9 @@ Tried and not kept (same 200 episodes, `tests/test_hardening.py` item 1's 60pi o
 
 The price of the alpha error is power against data no atlas object makes: `python experiments/check_power_scaled.py
 --episodes 100 --scales 0.8 0.9 1.1 1.25` (the first 100 stored s510 episodes, every rate scaled, the bayes estimate
-model) refuses x0.8: 73 (node share only 81), x0.9: 49 (56), x1.1: 71 (76), x1.25: 96 (96); unscaled 0 (2). Impossible data (x100, all zero; tests/test_check_false_refusal.py,
-tests/test_hardening.py item 3) and the 60pi object are still refused.
+model) refuses x0.8: 73 (node share only 81), x0.9: 49 (56), x1.1: 71 (76), x1.25: 96 (96); unscaled 0 (2).
+Impossible data (x100, all zero; tests/test_check_false_refusal.py, tests/test_hardening.py item 3) and the 60pi
+object are still refused.
 
 On the atlas envs the probes are drawn from the atlas itself (no interpolation error in the data): 0 refusals under
 every rule, smallest p 0.38-0.53 per agent (the check at the best fit is conservative there). Records written
