@@ -362,6 +362,10 @@ The 200 stored live bayes episodes (`PlateRotation-v0-stored`, in-model: probes 
 atlas was built from): refused 12 before issue 38, 3 with the node share alone (1.5 %, CP 0.0031-0.043, above the
 level), **0 now** (CP 0-0.018, containing 0.001; smallest p 0.0047; 3 of 200 below 0.05, so still conservative).
 
+Live `PlateRotation-v0`, 1000 episodes per agent (seeds 1000-1999): bayes refused 45 before issue 38, 8 with the
+node share alone (CP 0.0035-0.016, above the level), **2 now** (seeds 1445, 1958; 0.002, CP 0.00024-0.0072,
+containing 0.001); coarse_to_fine 2 / 1 / 0; grid 1 / 0 / 0; ppo 0 / 0 / 0.
+
 Tried and not kept (same 200 episodes, `tests/test_hardening.py` item 1's 60pi object, outside the atlas):
 
 | rule | stored live refused | smallest p | 60pi object p | rates x0.9 / x1.1 refused of 100 |
@@ -385,7 +389,7 @@ probes (`--recheck`): **rechecked (reproduced)** counts those whose p-values und
 came out the same floats (all did). PlateRotationAtlas-v1 bayes seeds 1239-1274 were written by a run that started
 while the alpha error was being added (in its first, 1/4 form); the first recheck found their written p-values were
 not the node rule's (33 of them differ), the second recomputed every rule; all their p-values are the recomputed
-ones. The live `PlateRotation-v0` rows are short of 1,000 (the physics runs per probe).
+ones. The live `PlateRotation-v0` rows: 1000 episodes per agent (seeds 1000-1999), the first 33-34 rechecked.
 **env = bench**: the env reward's estimate and the bench's score have the same ok and the same relative error (the
 same floats) on every episode where both read the atlas (grid's bench score is the Lorentz method's).
 """
