@@ -358,6 +358,11 @@ CHECK_BLURS = 1.0
 #: mass) refused live in-model episodes whose probes sat on a steep flank between nodes, tens of model scales off
 #: the spline at the truth (issue 38 item 3; rates in experiments/results/check_false_refusal.md).
 CHECK_NODE_SHARE = 0.5
+#: Whether each probe's scale in the check holds the atlas's interpolation error along alpha, measured on its own
+#: nodes (:mod:`plate_env.identify.interp_error`): the node share covers omega_n, not a response that peaks in alpha
+#: between alpha nodes (issue 38 item 3: 3 of 200 live bayes episodes refused without it; a reach along alpha let
+#: the 60pi object of tests/test_hardening.py item 1 through, this does not).
+CHECK_ALPHA_ERROR = True
 
 
 def _surprise(z2: np.ndarray, stable: np.ndarray, p: np.ndarray, nu: float = NU) -> np.ndarray:
@@ -411,6 +416,8 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
     i = int(np.argmax(post.member_weights)) if post.member_weights else 0
     m = fm.members[i]
     w, a = post.omega_n, post.alpha
+    if CHECK_ALPHA_ERROR:
+        response = _with_alpha_error(response)
     sub = w[member_rows(m, w)]
     places = {(float(f), float(amp)) for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)}
     in_m = {fa: member_domain(m, *fa) is None for fa in places}
@@ -483,6 +490,19 @@ def predictive_check(fm: ForwardModel, table: ProbeTable, post: Posterior,
         j = int(np.argmax(np.where(stable, np.abs(z), -1.0)))
         worst = (float(table.f_p_hz[idx[j]]), float(table.a_p_deg[idx[j]]), float(z[j]))
     return PredictiveCheck(statistic=t_obs, p_value=p_value, n_probes=n, member=m.label, worst=worst)
+
+
+def _with_alpha_error(response: Callable) -> Callable:
+    """``response`` with the atlas's alpha interpolation error (:func:`~plate_env.identify.interp_error.alpha_error`)
+    added in quadrature to its spread: the check's scale of a stable probe becomes
+    ``sqrt(spread^2 + alpha_error^2 + stderr^2 + sigma_model^2)``."""
+    from plate_env.identify.interp_error import alpha_error
+
+    def with_error(m: Member, a_p_deg: float, w: np.ndarray, a: np.ndarray, f_hz: float):
+        mk, sk, pk = response(m, a_p_deg, w, a, f_hz)
+        return mk, np.hypot(sk, alpha_error(m.atlas, a_p_deg, f_hz, w, a)), pk
+
+    return with_error
 
 
 def _surprise_into(fast, total: np.ndarray, count: int, m: Member, key: tuple, response):
