@@ -307,3 +307,27 @@ def test_bench_plot_reaches_down_to_its_smallest_value(tmp_path, monkeypatch, ca
     assert ys.min() < 0.5, "this case was chosen for an error bar reaching below 0.5 %"
     y0, y1 = ax.get_ylim()
     assert y0 <= ys.min() and ys.max() <= y1
+
+
+def test_only_an_atlas_estimate_has_a_model_curve():
+    """predicted_curve reads the atlas at an estimate that carries its posterior: a Lorentz reading with the same
+    omega_n and alpha (no posterior) and no estimate get no curve; the atlas estimate of the same probes gets one."""
+    import dataclasses
+
+    from plate_env.core.probe_table import ProbeTable
+    from plate_env.identify import identify
+    from plate_env.identify.forward import load_forward_model
+    from plate_env.identify.inference import predicted_curve
+
+    fm = load_forward_model("tilelink/pointmass")
+    atlas = fm.members[0].atlas
+    f = np.arange(12.0, 30.5, 1.0)
+    mean, _, p_un = atlas.predict(f, 3.0, 20 * np.pi, np.radians(45.0))
+    stable = p_un < 0.5
+    n = int(stable.sum())
+    table = ProbeTable.from_arrays(f[stable], 3.0, mean[stable], np.full(n, 0.5), np.zeros(n, bool))
+    est = identify(table, forward="tilelink/pointmass")
+    assert est.ok and est.posterior is not None and predicted_curve(fm, est, f, 3.0) is not None
+    lorentz = dataclasses.replace(est, method="lorentz", posterior=None)
+    assert lorentz.alpha is not None and predicted_curve(fm, lorentz, f, 3.0) is None
+    assert predicted_curve(fm, dataclasses.replace(est, ok=False), f, 3.0) is None

@@ -549,11 +549,12 @@ def predicted_curve(fm: ForwardModel, est: Estimate, f_hz: np.ndarray, a_p_deg: 
     """The forward model's response (mean omega_B and p_unstable) at the estimate (omega_n_hat, alpha_hat) and
     amplitude ``a_p_deg``, from the member of highest posterior weight (the curve the estimate says the data
     follow). None when ``est`` is not an atlas point estimate (no estimate, a bound, the Lorentz method) or that
-    member has no atlas at this amplitude."""
-    if not est.ok or est.method != "atlas" or est.alpha is None:
-        return None
+    member has no atlas at this amplitude. An atlas estimate is the one that carries its posterior (the Lorentz and
+    the calibrated readings carry none)."""
     post = est.posterior
-    i = int(np.argmax(post.member_weights)) if post is not None and post.member_weights else 0
+    if not est.ok or post is None or est.alpha is None:
+        return None
+    i = int(np.argmax(post.member_weights)) if post.member_weights else 0
     m = fm.members[i]
     if not np.any(np.isclose(m.atlas.a_p_deg, abs(a_p_deg), atol=1e-6)):
         return None
