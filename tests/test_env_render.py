@@ -132,8 +132,25 @@ def test_the_yaw_marker_ends_at_the_measured_rotation_and_leaves_a_trail(episode
     assert not mask(frames["u38"][-1], render.TRAIL[-1], top).any()  # no rotation measured: no trail
 
 
-def test_the_estimate_and_its_interval_and_the_truth_only_at_the_end(episode):
-    env, frames, rows, (_, _, _, _, info) = episode
+@pytest.fixture(scope="module")
+def estimated():
+    """Four stable 3-deg probes at 14-26 Hz and a stop, a frame after each: enough probes that the estimate stands
+    (the episode above's two stable probes cannot place the object inside the identifiable range, so since the
+    estimate contract of issue 37 its end shows a bound, not an interval)."""
+    env = env_list()
+    env.reset(seed=SEED)
+    frames = {"reset": env.render()}
+    for f in (14.0, 18.0, 22.0, 26.0):
+        frames[f"s{f:g}"] = probe(env, (f, 3.0))[1]
+    out = env.step(env.encode_action(stop=True))
+    frames["stop"] = env.render()
+    assert not any(r[4] for r in env.episode.rows)  # the probes are stable, as the test assumes
+    yield env, frames, out
+    env.close()
+
+
+def test_the_estimate_and_its_interval_and_the_truth_only_at_the_end(estimated):
+    env, frames, (_, _, _, _, info) = estimated
     x0, y, x1 = STRIP
     end = frames["stop"][-1]
     bar = mask(end, render.CI68, (x0 - 2, y - 4, x1 + 2, y + 4))
@@ -148,7 +165,7 @@ def test_the_estimate_and_its_interval_and_the_truth_only_at_the_end(episode):
     truth = mask(end, render.TRUTH, (x0 - 10, y - 20, x1 + 10, y))
     _, tx = np.nonzero(truth)
     assert abs(tx.min() + x0 - 10 + 6 - strip_x(info["omega_n_true_rad_s"] / math.pi, prior)) <= 2
-    for name in ("reset", "s20", "s12", "u38"):  # the truth is hidden while the episode runs
+    for name in ("reset", "s14", "s18", "s22", "s26"):  # the truth is hidden while the episode runs
         assert not mask(frames[name][-1], render.TRUTH).any(), name
     assert not mask(frames["reset"][0], render.CI68).any()  # no probe, no estimate
 

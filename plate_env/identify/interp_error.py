@@ -37,13 +37,16 @@ MIN_ALPHA_NODES = 5
 def alpha_error_field(atlas: Atlas) -> np.ndarray:
     """``HALF_GAP_SHARE`` x the leave-one-alpha-node-out error of the atlas's mean (deg/s), the mean's shape
     (f_p, A_p, omega_n, alpha); zeros for an atlas with fewer than ``MIN_ALPHA_NODES`` alpha nodes. Read-only,
-    built once per atlas."""
+    built once per atlas and kept in the disk cache (:func:`plate_env.core.cache.cached_arrays`), so that a warm
+    process does not import scipy.interpolate for it."""
+    from plate_env.core.cache import cached_arrays, content_key
 
-    def build() -> np.ndarray:
+    alpha = np.asarray(atlas.alpha, float)
+    mean = np.nan_to_num(np.asarray(atlas.mean, float))
+
+    def build() -> dict[str, np.ndarray]:
         from scipy.interpolate import make_interp_spline
 
-        alpha = np.asarray(atlas.alpha, float)
-        mean = np.nan_to_num(np.asarray(atlas.mean, float))
         err = np.zeros(mean.shape)
         if alpha.size >= MIN_ALPHA_NODES:
             for j in range(1, alpha.size - 1):
@@ -51,10 +54,15 @@ def alpha_error_field(atlas: Atlas) -> np.ndarray:
                 miss = make_interp_spline(alpha[keep], mean[..., keep], k=3, axis=-1)(alpha[j]) - mean[..., j]
                 err[..., j] = HALF_GAP_SHARE * np.abs(miss)
             err[..., 0], err[..., -1] = err[..., 1], err[..., -2]
+        return {"err": err}
+
+    def field() -> np.ndarray:
+        key = content_key("alpha-error", alpha, mean, HALF_GAP_SHARE, MIN_ALPHA_NODES)
+        err = np.array(cached_arrays("alpha-error", key, build)["err"], float)
         err.flags.writeable = False
         return err
 
-    return atlas.cached(("alpha_error_field",), build)
+    return atlas.cached(("alpha_error_field",), field)
 
 
 def alpha_error(atlas: Atlas, a_p_deg: float, f_hz: float, w: np.ndarray, a: np.ndarray) -> np.ndarray:
