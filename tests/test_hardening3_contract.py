@@ -187,9 +187,9 @@ def test_item1_objects_inside_the_range_keep_their_estimate(agent, omega_pi):
 
 
 def test_item1_the_extended_model_and_its_verdict():
-    """The extension atlases lie outside the member's range and touch it; the extended model is made only where
-    every member has one (not the lab pool, not a disc of another mass); the incremental state gives the bound
-    identify_atlas gives."""
+    """The extension atlases lie outside the member's range and touch it; the extended model joins the extensions
+    of the members that have one (the lab pool's nominal point mass; not a disc of another mass, not the PyBullet
+    sheet); the incremental state gives the bound identify_atlas gives."""
     from plate_env.identify.forward import load_forward_model
     from plate_env.identify.identifiability import extended_model
     from plate_env.identify.inference import identify_atlas
@@ -204,8 +204,17 @@ def test_item1_the_extended_model_and_its_verdict():
     assert w_lo < 0.3 * math.pi and w_hi > 200 * math.pi
     assert [round(float(m.atlas.omega_n[k]) / math.pi, 3) for m, k in zip(wide.members[1:], (-1, 0), strict=True)] \
         == [round(lo / math.pi, 3), round(hi / math.pi, 3)]
-    assert extended_model(load_forward_model("lab")) is None
+    lab = load_forward_model("lab")
+    wide_lab = extended_model(lab)  # each member with an extension brings its own (same joint values), once
+    assert wide_lab is not None and wide_lab.members[:len(lab.members)] == lab.members
+    added = wide_lab.members[len(lab.members):]
+    pm = [m for m in added if m.label == "tilelink/pointmass"]
+    backends = [str(m.atlas.provenance["backend"]) for m in lab.members if m.label == "tilelink/pointmass"]
+    assert len(set(backends)) == 9 and len(pm) == 2 * 9  # nominal and 8 nuisance members, below and above
+    assert sorted(str(m.atlas.provenance["backend"]) for m in pm) == sorted(2 * backends)
+    assert all(m.label != "pybullet/pybullet" for m in added)
     assert extended_model(load_forward_model("tilelink/pointmass", KnownInputs(mass=0.03))) is None
+    assert extended_model(load_forward_model("pybullet/pybullet")) is None
     # coarse_to_fine's 12 probes of a 60 pi object (seed 0): explained by 27.4 pi, and by objects above 45 pi
     rows = [(10.0, 12.07, False), (16.0, 104.46, False), (22.0, 439.79, False), (28.0, 634.32, False),
             (34.0, 0.0, True), (40.0, 0.0, True), (30.0, 657.2, False), (28.25, 641.99, False), (32.0, 0.0, True),
@@ -268,3 +277,45 @@ def test_item1_the_verdict_reads_mass_outside_the_range_on_each_side():
     both = verdict([(30.0, 0.5), (3.0, 0.25), (300.0, 0.25)])
     assert both.side == "both" and both.bound is None and "no bound" in both.reason(30.0, "m")
     assert verdict([(30.0, 1 - EDGE_MASS / 2), (300.0, EDGE_MASS / 2)]).side is None
+
+
+# ------------------------------------------------------------------ every method on sweeps beyond the range
+def _live_sweeps(omega_pis, alpha_deg: float = 45.0, seed: int = 0) -> list[ProbeTable]:
+    """Live point-mass sweeps (16 probes, 10-40 Hz, 3 deg) of 13.6 g discs at ``omega_pis`` (pi rad/s), placed."""
+    from plate_env.build.eval_sets import placed_sweeps
+    from plate_env.core.objects import ObjectSpec
+    from plate_env.physics import make_physics
+
+    objs = [ObjectSpec(omega_n=w * math.pi, alpha=math.radians(alpha_deg)) for w in omega_pis]
+    physics = make_physics("tilelink", model="pointmass")
+    try:
+        res = physics.run(placed_sweeps(objs, F_HZ, 3.0, np.random.default_rng(seed)))
+    finally:
+        physics.close()
+    return [ProbeTable.from_results(res[i * F_HZ.size:(i + 1) * F_HZ.size]) for i in range(len(objs))]
+
+
+@pytest.mark.parametrize("which", ["atlas lab", "calibrated paper", "lorentz lab", "atlas tilelink/pointmass"])
+def test_item1_every_method_gives_no_estimate_beyond_the_range(which):
+    """Point-mass sweeps of 0.3, 100 and 200 pi objects read by the lab pool, through the paper's calibration and by
+    the Lorentz method on the lab lines: `fit pm_100pi.csv --calibration paper` answered 7.2 pi, 95 % [3.3, 54.7] pi,
+    and 200 pi 35.4 pi [12.6, 74.7] pi, before the lab pool was extended beyond its range (its point-mass member's
+    extension atlases); now no estimate, and a bound only on the truth's side."""
+    omegas = (0.3, 100.0, 200.0)
+    for w, t in zip(omegas, _live_sweeps(omegas), strict=True):
+        _holds(_fit(which, t), w, f"{which} at {w} pi")
+
+
+@settings(max_examples=10, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow],
+          phases=[Phase.explicit, Phase.generate])  # no shrinking: each example is a live sweep and six fits
+@given(log_omega=st.floats(math.log(0.3), math.log(200.0)), alpha_deg=st.floats(30.0, 60.0),
+       seed=st.integers(0, 2 ** 16))
+@example(log_omega=math.log(100.0), alpha_deg=45.0, seed=0)
+def test_contract_property_every_method_over_0p3_to_200pi(log_omega, alpha_deg, seed):
+    """Property over live point-mass sweeps of objects 0.3-200 pi rad/s (log-uniform), alpha 30-60 deg, read by
+    every estimator a user reaches on such data (atlas on the point mass and on the lab pool, Lorentz on three line
+    sets, the paper's calibration): outside 1.4-45 pi no estimate, and a stated bound always on the truth's side."""
+    omega_pi = math.exp(log_omega)
+    (t,) = _live_sweeps([omega_pi], alpha_deg, seed)
+    for which in sorted(ESTIMATORS):
+        _holds(_fit(which, t), omega_pi, f"{which}, alpha {alpha_deg:.1f} deg, seed {seed}")

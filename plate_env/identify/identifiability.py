@@ -17,9 +17,18 @@ out-of-range object: no estimate, with the stated bound on the side the mass lie
 the extended and the in-range posteriors' 2.5 % quantiles, or ``<`` the higher of their 97.5 % ones: true whichever
 of the two the object follows), or no bound when mass lies on both sides.
 
-Applied where every member of the forward model has an extension for its known inputs (the shipped tile-link point
-mass at 13.6 g, the env's default disc); elsewhere (other masses, the ``lab`` pool) the estimate is as before.
-Measured: experiments/results/estimate_contract.md.
+Applied where a member of the forward model has an extension for its known inputs and its set-up (backend and its
+options, time step and windows): the tile-link point mass and the rigid tiles (``rigid_fast``, the faithful physics;
+also the ``tilelink/rigid_limit`` model, which reads the same atlas) at 13.6 g, the env's default disc, and the
+point mass's eight nuisance members of the ``lab`` pool. In a pool the members with an extension bring it, the
+others (the PyBullet sheet, other masses) stay inside their range: the test is then as strong as the extended
+members make it, and an object whose probes only an unextended member explains is read as before. No member with an
+extension (other masses, PyBullet alone): no test.
+
+The test runs when alpha piles at the edge of the friction angles too (that answer is no estimate already): an
+object beyond the omega_n range then gets the verdict's bound, so a reading that corrects the models' discrepancy
+(a calibration, Eq. (10) lines; :func:`plate_env.identify.estimators.gated_unknown_origin`), which does not take
+the alpha edge from its gate, does not read it either. Measured: experiments/results/estimate_contract.md.
 """
 
 from __future__ import annotations
@@ -33,12 +42,21 @@ from plate_env.identify.estimate import EDGE_MASS, Posterior
 from plate_env.identify.forward import ForwardModel, Member
 from plate_env.surrogate.atlas import Atlas
 
+#: The lab pool's nuisance members of the point mass (zeta_bending, k_inplane): each has its extensions
+#: (``plate-env build atlas --grid pointmass_member_below`` / ``_above --nuisance zeta_bending=ZB,k_inplane=KI``).
+NUISANCE_MEMBERS = (("0.05", "100"), ("0.05", "300"), ("0.05", "1000"), ("0.1", "100"), ("0.1", "1000"),
+                    ("0.2", "100"), ("0.2", "300"), ("0.2", "1000"))
 #: Extension atlases per member atlas (``"physics/model"``): the same physics at omega_n outside the member's range
 #: (package data, ``plate-env build atlas --grid pointmass_below_m13.6`` / ``pointmass_above_m13.6``).
 EXTENSIONS: dict[str, tuple[str, ...]] = {
-    "tilelink/pointmass": ("atlas_tilelink_pointmass_below.npz", "atlas_tilelink_pointmass_above.npz")}
+    "tilelink/pointmass": ("atlas_tilelink_pointmass_below.npz", "atlas_tilelink_pointmass_above.npz") + tuple(
+        f"atlas_tilelink_pointmass_zb{zb}_ki{ki}_{side}.npz" for zb, ki in NUISANCE_MEMBERS
+        for side in ("below", "above")),
+    "tilelink/rigid_fast": ("atlas_tilelink_rigid_fast_below.npz", "atlas_tilelink_rigid_fast_above.npz")}
 #: Relative tolerance when matching an extension's known inputs (B_p, mass, diameter) to the member atlas's.
 INPUT_RTOL = 0.02
+#: Set-up values an extension shares with its member atlas exactly (provenance keys: s).
+_SETUP = ("dt_s", "ramp_s", "settle_s", "measure_s")
 
 
 def _matches(ext: Atlas, atlas: Atlas) -> bool:
@@ -46,6 +64,11 @@ def _matches(ext: Atlas, atlas: Atlas) -> bool:
     outside its omega_n range (touching it at most)."""
     fa, fb = ext.fixed(), atlas.fixed()
     if set(fa) != set(fb) or not all(math.isclose(fa[k], fb[k], rel_tol=INPUT_RTOL) for k in fa):
+        return False
+    pa, pb = ext.provenance or {}, atlas.provenance or {}
+    if str(pa.get("backend")) != str(pb.get("backend")):  # the same model with the same joint and contact values
+        return False
+    if any(not math.isclose(float(pa.get(k, math.nan)), float(pb.get(k, math.nan)), rel_tol=1e-9) for k in _SETUP):
         return False
     if ext.a_p_deg.shape != atlas.a_p_deg.shape or not np.allclose(ext.a_p_deg, atlas.a_p_deg):
         return False
@@ -63,35 +86,66 @@ def member_extensions(member: Member) -> tuple[Member, ...]:
     """The extension members of ``member`` (:data:`EXTENSIONS` whose inputs match its atlas's), each with the
     member's model error and blur and a prior weight ``member.weight`` x its log omega_n width over the member's
     (a log-uniform prior over the joined range). Empty when there is none."""
+    return tuple(m for _, m in _named_extensions(member))
+
+
+def _named_extensions(member: Member) -> list[tuple[str, Member]]:
     from plate_env.surrogate.atlas import load_atlas_file
 
-    names = EXTENSIONS.get(member.label, ())
     out = []
-    for name in names:
+    for name in EXTENSIONS.get(member.label, ()):
         try:
             ext = load_atlas_file(name)  # package data, loaded once per process
         except (FileNotFoundError, ValueError):
             continue
         if _matches(ext, member.atlas):
-            out.append(Member(ext, member.sigma_model, member.weight * _log_width(ext) / _log_width(member.atlas),
-                              member.blur))
-    return tuple(out)
+            out.append((name, Member(ext, member.sigma_model,
+                                     member.weight * _log_width(ext) / _log_width(member.atlas), member.blur)))
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class ExtendedModel(ForwardModel):
+    """A forward model joined by extension members (:func:`extended_model`), whose posterior grid is ``base``'s
+    grid continued outward at its step: the in-range members' rows are ``base``'s own nodes, so their responses
+    (cached per atlas and grid) are the ones the in-range posterior computed, not a second set on shifted nodes."""
+
+    base: ForwardModel | None = None
+
+    def grid(self, n_omega: int, n_alpha: int) -> tuple[np.ndarray, np.ndarray]:
+        """``base.grid(n_omega, n_alpha)`` (``n_omega``: the base's count) continued at its log step to cover
+        :attr:`omega_range` with the base's padding beyond it."""
+        assert self.base is not None
+        w, a = self.base.grid(n_omega, n_alpha)
+        step = math.log(w[1] / w[0])
+        b_lo, b_hi = self.base.omega_range
+        lo, hi = self.omega_range
+        k_lo = max(0, math.ceil(math.log(b_lo / lo) / step - 1e-9))
+        k_hi = max(0, math.ceil(math.log(hi / b_hi) / step - 1e-9))
+        below = w[0] * np.exp(-step * np.arange(k_lo, 0, -1))
+        above = w[-1] * np.exp(step * np.arange(1, k_hi + 1))
+        return np.concatenate([below, w, above]), a
 
 
 def extended_model(fm: ForwardModel) -> ForwardModel | None:
-    """``fm`` with every member joined by its extensions (:func:`member_extensions`), pooled by evidence; None when
-    some member has none (the test needs the whole model beyond its range) or ``fm`` pools with fixed weights."""
+    """``fm`` with its members joined by their extensions (:func:`member_extensions`; an extension shared by several
+    members is one member carrying their summed prior weight), pooled by evidence; None when no member has one or
+    ``fm`` pools with fixed weights."""
     if fm.pooling != "evidence":
         return None
     key = ("extended", id(fm))
     hit = _EXTENDED.get(key)
     if hit is not None and hit[0] is fm:
         return hit[1]
-    extra = [member_extensions(m) for m in fm.members]
+    joined: dict[str, Member] = {}
+    for m in fm.members:
+        for k, e in _named_extensions(m):
+            joined[k] = e if k not in joined else dataclasses.replace(joined[k], weight=joined[k].weight + e.weight)
     wide = None
-    if all(extra):
-        wide = dataclasses.replace(fm, name=f"{fm.name} (extended)",
-                                   members=fm.members + tuple(e for ext in extra for e in ext))
+    if joined:
+        fields = {f.name: getattr(fm, f.name) for f in dataclasses.fields(ForwardModel)}
+        wide = ExtendedModel(**dict(fields, name=f"{fm.name} (extended)", members=fm.members + tuple(joined.values())),
+                             base=fm)
     if len(_EXTENDED) >= 32:
         _EXTENDED.clear()
     _EXTENDED[key] = (fm, wide)
@@ -100,14 +154,6 @@ def extended_model(fm: ForwardModel) -> ForwardModel | None:
 
 #: extended_model per forward model (kept with the model: an id is unique only while it lives).
 _EXTENDED: dict[tuple, tuple[ForwardModel, ForwardModel | None]] = {}
-
-
-def grid_size(fm: ForwardModel, wide: ForwardModel, n_omega: int) -> int:
-    """Points of ``wide``'s omega_n grid at the step ``fm``'s grid of ``n_omega`` points has (the in-range part is
-    resolved as finely as the estimate's own posterior)."""
-    lo, hi = fm.omega_range
-    w_lo, w_hi = wide.omega_range
-    return int(math.ceil((n_omega - 1) * math.log(w_hi / w_lo) / math.log(hi / lo))) + 1
 
 
 @dataclasses.dataclass(frozen=True)

@@ -572,12 +572,12 @@ def identify_atlas(table: ProbeTable, fm: ForwardModel) -> Estimate:
     (:func:`predictive_check`: data the model cannot explain) or when alpha piles against the edge of the
     friction angles the model covers (:meth:`Posterior.alpha_edge`). The estimate carries its check. From scratch;
     :class:`plate_env.identify.posterior_state.PosteriorState` gives the same estimate probe by probe."""
-    from plate_env.identify.identifiability import extended_model, grid_size
+    from plate_env.identify.identifiability import extended_model
 
     orphans = sorted({reason for f, amp in zip(table.f_p_hz, table.a_p_deg, strict=True)
                       if all((reason := member_domain(m, float(f), float(amp))) is not None for m in fm.members)})
     wide = extended_model(fm)
-    extended = None if wide is None else (lambda: posterior(wide, table, grid_size(fm, wide, N_OMEGA)))
+    extended = None if wide is None else (lambda: posterior(wide, table, N_OMEGA))
     return atlas_estimate(fm, table, orphans, lambda: posterior(fm, table), extended=extended)
 
 
@@ -612,23 +612,33 @@ def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
         a_lo, a_hi = fm.alpha_range
         also = "" if side is None else (f"; omega_n piles at the {side} edge only with alpha at its edge, so no "
                                         "bound is given")
+        head = (f"alpha is {alpha_side} the friction angles {fm.name!r} covers ({math.degrees(a_lo):.0f}-"
+                f"{math.degrees(a_hi):.0f} deg)")
+        if side is None and (verdict := _beyond(fm, om.ci95, extended)) is not None:  # beyond the omega_n range too
+            return Estimate(ok=False, bound=verdict.bound, reason=f"{head}, and {verdict.reason(om.value, fm.name)}",
+                            **fields)
         return Estimate(ok=False, reason=(
-            f"alpha is {alpha_side} the friction angles {fm.name!r} covers ({math.degrees(a_lo):.0f}-"
-            f"{math.degrees(a_hi):.0f} deg): the posterior piles at that edge, so its omega_n cannot be trusted"
-            + also), **fields)
+            f"{head}: the posterior piles at that edge, so its omega_n cannot be trusted" + also), **fields)
     if side is not None:
         lo, hi = post.identifiable_range
         bound = ("above", om.ci95[0]) if side == "above" else ("below", om.ci95[1])
         return Estimate(ok=False, bound=bound, reason=(
             f"omega_n is {side} the range {fm.name!r} can identify ({lo / math.pi:.3g}-{hi / math.pi:.3g} pi rad/s): "
             f"omega_n {'>' if side == 'above' else '<'} {bound[1]:.4g} rad/s at 95 %"), **fields)
-    if extended is not None:  # can the probes tell this answer from an object outside the range? (issue 37 item 1)
-        from plate_env.identify.identifiability import outside_mass
-
-        verdict = outside_mass(extended(), fm.identifiable_range, om.ci95)
-        if verdict.side is not None:
-            return Estimate(ok=False, bound=verdict.bound, reason=verdict.reason(om.value, fm.name), **fields)
+    if (verdict := _beyond(fm, om.ci95, extended)) is not None:  # an object outside the range? (issue 37 item 1)
+        return Estimate(ok=False, bound=verdict.bound, reason=verdict.reason(om.value, fm.name), **fields)
     return Estimate(ok=True, **fields)
+
+
+def _beyond(fm: ForwardModel, ci95: tuple[float, float], extended: Callable[[], Posterior] | None):
+    """The extended posterior's verdict (:func:`plate_env.identify.identifiability.outside_mass`) when it places
+    the probes' object beyond ``fm``'s identifiable range, else None (also without an extended model)."""
+    if extended is None:
+        return None
+    from plate_env.identify.identifiability import outside_mass
+
+    verdict = outside_mass(extended(), fm.identifiable_range, ci95)
+    return verdict if verdict.side is not None else None
 
 
 # ----------------------------------------------------------------------------------------------- estimation

@@ -168,13 +168,13 @@ class PosteriorState:
         if not self._extend:
             return None
         if self._wide is None:
-            from plate_env.identify.identifiability import extended_model, grid_size
+            from plate_env.identify.identifiability import extended_model
 
             wide = extended_model(self.fm)
             if wide is None:
                 self._extend = False
                 return None
-            self._wide = PosteriorState(wide, n_omega=grid_size(self.fm, wide, self._n_omega),
+            self._wide = PosteriorState(wide, n_omega=self._n_omega,
                                         n_alpha=len(self.alpha), extend=False)
         state = self._wide
 
