@@ -202,6 +202,37 @@ def test_uncalibrated_fit_says_so(calibrated, capsys):
     assert quoted == pytest.approx(max(hi / w, w / lo), rel=1e-2)
 
 
+def test_uncalibrated_refusal_names_its_forward_model_and_points_to_a_calibration(tmp_path, capsys):
+    """Issue 36: the paper's Fig. 7(a) curve (a real plate's sweep) read by ``fit`` without a calibration is refused
+    by the ``lab`` forward model's predictive check; the message names ``lab`` (the model that was used), not only its
+    best-fitting member, and, the sweep showing a resonance hump, points to --calibration paper and plate-env
+    calibrate. Random noise gets the refusal without the pointer (it is no plate's sweep)."""
+    from plate_env.build.calibration import paper_curve
+
+    t = paper_curve(598.7, 25.1, 5.1)
+    path = tmp_path / "fig7a.csv"
+    path.write_text("f_p_hz,omega_b_deg_s,stderr_deg_s,a_p_deg,unstable\n" + "".join(
+        f"{f:g},{w:.6g},10,3,0\n" for f, w in zip(t.f_p_hz, t.omega_b_deg_s, strict=True)))
+    assert main(["fit", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "no estimate" in out and "forward model 'lab'" in out, out
+    assert "--calibration paper" in out and "plate-env calibrate" in out, out
+    # Fig. 7(c) gets lab's wide interval; its note names both calibrated readings too
+    t = paper_curve(520.9, 24.6, 5.8)
+    path.write_text("f_p_hz,omega_b_deg_s,stderr_deg_s,a_p_deg,unstable\n" + "".join(
+        f"{f:g},{w:.6g},10,3,0\n" for f, w in zip(t.f_p_hz, t.omega_b_deg_s, strict=True)))
+    assert main(["fit", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "uncalibrated" in out and "--calibration paper" in out and "plate-env calibrate" in out, out
+    rng = np.random.default_rng(3)
+    noise = tmp_path / "noise.csv"
+    noise.write_text("f_p_hz,omega_b_deg_s,stderr_deg_s,a_p_deg,unstable\n" + "".join(
+        f"{f:g},{w:.6g},10,3,0\n" for f, w in zip(t.f_p_hz, rng.uniform(0, 600, t.f_p_hz.size), strict=True)))
+    main(["fit", str(noise)])
+    out = capsys.readouterr().out
+    assert "no estimate" in out and "--calibration paper" not in out, out
+
+
 def _refused(argv, capsys, match: str) -> None:
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
