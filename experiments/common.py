@@ -626,7 +626,8 @@ def boot_indices(labs: np.ndarray, rng: np.random.Generator, n_boot: int) -> np.
     return np.array(rows)
 
 
-def summarize(blocks: list[dict[str, np.ndarray]], rng: np.random.Generator, n_boot: int = 1000) -> dict:
+def summarize(blocks: list[dict[str, np.ndarray]], rng: np.random.Generator, n_boot: int = 1000,
+              stats: dict | None = None) -> dict:
     """Statistics over every (object, draw) pair with 95 % bootstrap intervals (an object carries all its draws):
     labs resampled within each source, then objects within each lab (:func:`boot_indices`). ``blocks``: per source,
     arrays (n_objects, n_draws) with NaN where the object was a reference, and ``lab`` labels."""
@@ -634,7 +635,7 @@ def summarize(blocks: list[dict[str, np.ndarray]], rng: np.random.Generator, n_b
     n = arrays["error"].shape[0]
     idx = boot_indices(arrays["lab"], rng, n_boot)
     out = {"objects": int(n), "pairs": int(np.isfinite(arrays["in95"]).sum())}
-    for name, (key, fn) in STATS.items():
+    for name, (key, fn) in (STATS if stats is None else stats).items():
         v = arrays[key].astype(float)
         value = float(fn(v.reshape(1, -1))[0])
         boot = np.array([fn(v[i].reshape(1, -1))[0] for i in idx])
@@ -830,6 +831,10 @@ def width95_of_sd(sd: float) -> float:
     return math.exp(1.96 * sd) - math.exp(-1.96 * sd)
 
 
+#: The share of a source's discs a map must read for its in-sample scatter to be the source's information limit.
+LIMIT_SHARE = 0.9
+
+
 def information_limit(labs: list[Lab], fams: list[str], family: str) -> dict:
     """What the data of one source allow, in-sample (an oracle: every disc of each lab is a reference and is
     scored, no reference budget): per map, the residual scatter (sd of log omega_n, root mean square over the labs,
@@ -838,8 +843,9 @@ def information_limit(labs: list[Lab], fams: list[str], family: str) -> dict:
     ``features``: least squares of log omega_n on (1, f0, log omega_Brmax) per lab, over its discs with a Lorentzian
     fit (``n`` of ``of``); ``readings``: the member-likelihood map (member weights + offset, b = 1; the members of
     ``family`` left out) fitted to every disc of the lab with a flat scatter prior, its posterior mean scatter and
-    the median error of its in-sample predictions. ``best``: the smaller scatter of the two and its 95 % width
-    (:func:`width95_of_sd`), the narrowest calibrated 95 % interval these data could support."""
+    the median error of its in-sample predictions. ``best``: the smaller scatter of the two maps that read at least
+    :data:`LIMIT_SHARE` of the discs, and its 95 % width (:func:`width95_of_sd`), the narrowest calibrated 95 %
+    interval these data could support."""
     from plate_env.identify.lab_calibration import ScatterPrior, fit_lab, predict
 
     out = {}
@@ -868,7 +874,9 @@ def information_limit(labs: list[Lab], fams: list[str], family: str) -> dict:
         errs += [abs(p.omega_n / w - 1) if p.ok else math.inf
                  for p, w in zip((predict(post, r) for r in rd), lab.truth, strict=True)]
     out["readings"] = {"sd": math.sqrt(ss / n), "median_error": float(np.median(errs)), "n": n, "of": n}
-    best = min(("features", "readings"), key=lambda k: out[k]["sd"] if k in out else math.inf)
+    # a feature line that fits too few of the discs (the Lorentzian fails) is no limit for the source: the readings
+    best = min(("features", "readings"), key=lambda k: out[k]["sd"] if k in out and out[k]["n"] >= LIMIT_SHARE *
+               out[k]["of"] else math.inf)
     out["best"] = {"map": best, "sd": out[best]["sd"], "width95": width95_of_sd(out[best]["sd"])}
     return out
 
@@ -877,3 +885,42 @@ def limit_text(lim: dict) -> str:
     """An information limit in a table cell: the best map's scatter and 95 % width, and each map's scatter."""
     parts = [f"{k} {lim[k]['sd']:.3f}" for k in ("features", "readings") if k in lim]
     return f"{lim['best']['width95']:.0%} (sd {lim['best']['sd']:.3f}; " + ", ".join(parts) + ")"
+
+
+# ---- The lab-adaptive feature line and scores with the discs without an estimate (calibration_adaptive,
+# calibration_plans); from calibration_adaptive.py
+def learn_feat_prior_wide(pseudo: list[Lab], log_sd: float) -> tuple[FeatPrior, dict]:
+    """:func:`learn_feat_prior`, with the scatter prior's spread max(``log_sd``, the pseudo-labs' spread of log sd):
+    a wide hierarchical prior over labs, so that the references' own residuals decide a lab's scatter."""
+    prior, info = learn_feat_prior(pseudo, log_sd)
+    sds = []
+    for lab in pseudo:
+        ok = lab.features[:, 0] == 1
+        if ok.sum() < 5:
+            continue
+        x, y = feat_x(lab.features[ok]), np.log(lab.truth[ok])
+        beta, *_ = np.linalg.lstsq(x, y, rcond=None)
+        sds.append(float(np.sqrt(np.mean((y - x @ beta) ** 2))))
+    spread = float(np.std(np.log(sds))) if len(sds) > 1 else 0.0
+    lsd = max(log_sd, spread)
+    info["log_sd"] = lsd
+    return FeatPrior(prior.m0, prior.c0, prior.sigma_median, lsd), info
+
+
+#: Beside the study's statistics: the share of discs without an estimate and the coverage among the discs with one
+#: (``coverage95`` counts a disc without an estimate as a miss).
+STATS_MISS = {**STATS, "no_estimate": ("miss", lambda x: np.nanmean(x, axis=-1)),
+              "coverage95_given": ("in95g", lambda x: np.nanmean(x, axis=-1)),
+              "coverage68_given": ("in68g", lambda x: np.nanmean(x, axis=-1))}
+SCORE_KEYS = ("error", "in68", "in95", "width95", "miss", "in95g", "in68g")
+
+
+def scores_with_miss(truth: np.ndarray, preds) -> dict[str, np.ndarray]:
+    """:func:`per_object_scores` plus ``miss`` (1: no estimate) and the coverages with NaN where there is no
+    estimate."""
+    out = per_object_scores(truth, preds)
+    ok = np.array([p.ok for p in preds])
+    out["miss"] = (~ok).astype(float)
+    out["in95g"] = np.where(ok, out["in95"], np.nan)
+    out["in68g"] = np.where(ok, out["in68"], np.nan)
+    return out
