@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from pathlib import Path
@@ -66,120 +65,45 @@ def load_sources(executor: str) -> tuple[dict[str, list[Lab]], list[str]]:
 
 
 # --------------------------------------------------------------------------------------------------- candidates
-GRID = common.FEAT_Y  # log omega_n (rad/s) on which the candidates' predictive CDFs are mixed
+def as_features(F: np.ndarray, i: int):
+    """Row ``i`` of :func:`common.features_of` as ``adaptive_calibration.Features``."""
+    return (float(F[i, 1]), float(F[i, 3])) if F[i, 0] == 1 else None
 
 
-def feat_cdf(post, f_row: np.ndarray) -> np.ndarray | None:
-    """The feature line's predictive CDF on :data:`GRID` (None without hump features)."""
-    from scipy.stats import norm
+def package_prior(p: common.FeatPrior):
+    from plate_env.identify.adaptive_calibration import FeaturePrior
 
-    if f_row[0] != 1:
-        return None
-    wt, parts = post
-    x = common.feat_x(f_row[None])[0]
-    cdf = np.zeros_like(GRID)
-    for w, sg, (mn, cn) in zip(wt, common.FEAT_SIGMAS, parts, strict=True):
-        if w >= 1e-8:
-            cdf += w * norm.cdf(GRID, x @ mn, math.sqrt(sg ** 2 + x @ cn @ x))
-    return cdf / cdf[-1]
-
-
-def feat_logpdf(post, f_row: np.ndarray, y: float) -> float | None:
-    """The feature line's predictive log density at log omega_n ``y`` (None without hump features)."""
-    if f_row[0] != 1:
-        return None
-    wt, parts = post
-    x = common.feat_x(f_row[None])[0]
-    dens = 0.0
-    for w, sg, (mn, cn) in zip(wt, common.FEAT_SIGMAS, parts, strict=True):
-        sd = math.sqrt(sg ** 2 + x @ cn @ x)
-        dens += w * math.exp(-0.5 * ((y - x @ mn) / sd) ** 2) / (sd * math.sqrt(2 * math.pi))
-    return math.log(max(dens, 1e-300))
-
-
-def readings_cdf(post, reading) -> np.ndarray | None:
-    """The readings map's predictive CDF on :data:`GRID` (None when no chosen member reads the sweep)."""
-    from plate_env.identify.lab_calibration import predictive_density
-
-    y, dens = predictive_density(post, reading)
-    if dens.sum() <= 0:
-        return None
-    return np.interp(GRID, y, np.cumsum(dens) / dens.sum(), left=0.0, right=1.0)
-
-
-def readings_logpdf(post, reading, yk: float) -> float | None:
-    from plate_env.identify.lab_calibration import PRED_STEP, predictive_density
-
-    y, dens = predictive_density(post, reading)
-    if dens.sum() <= 0:
-        return None
-    return math.log(max(float(np.interp(yk, y, dens)) / PRED_STEP, 1e-300))
-
-
-def prediction(cdf: np.ndarray | None):
-    """A :class:`~plate_env.identify.lab_calibration.Prediction` from a CDF on :data:`GRID`."""
-    from plate_env.identify.lab_calibration import Prediction
-
-    if cdf is None:
-        return Prediction(False, reason="no estimate")
-
-    def q(level: float) -> float:
-        return float(math.exp(np.interp(level, cdf, GRID)))
-
-    return Prediction(True, q(0.5), (q(0.16), q(0.84)), (q(0.025), q(0.975)))
-
-
-def loo_scores(F: np.ndarray, rd: list, y: np.ndarray, names, fprior, rprior) -> tuple[float, float, int]:
-    """The K references' leave-one-out predictive log scores of the feature line and the readings map, summed over
-    the references both candidates predict; and how many those are."""
-    from plate_env.identify.lab_calibration import fit_lab
-
-    sf = sr = 0.0
-    n = 0
-    for k in range(len(y)):
-        rest = [i for i in range(len(y)) if i != k]
-        lf = feat_logpdf(common.feat_fit(fprior, F[rest], y[rest]), F[k], float(y[k]))
-        lr = readings_logpdf(fit_lab([rd[i] for i in rest], y[rest], names, rprior), rd[k], float(y[k]))
-        if lf is None or lr is None:
-            continue
-        sf, sr, n = sf + lf, sr + lr, n + 1
-    return sf, sr, n
+    return FeaturePrior(tuple(float(x) for x in p.m0), tuple(tuple(float(x) for x in r) for r in p.c0),
+                        float(p.sigma_median), float(p.log_sd))
 
 
 def run_draw(lab: Lab, ref: np.ndarray, others: list[int], rd: list, names, priors: dict, methods) -> dict:
-    """Each method's predictions of the discs ``others`` from the references ``ref``; and the adaptive weight."""
+    """Each method's predictions of the discs ``others`` from the references ``ref`` (the candidates through the
+    package's functions, :mod:`plate_env.identify.adaptive_calibration`); and the adaptive weight."""
+    from plate_env.identify import adaptive_calibration as ac
     from plate_env.identify.lab_calibration import fit_lab, predict
 
     y = np.log(lab.truth[ref])
+    feats = [as_features(lab.features, i) for i in range(len(lab.truth))]
     out: dict = {}
     if "offset" in methods:
         post = fit_lab([rd[i] for i in ref], y, names, priors["offset"])
         out["offset"] = [predict(post, rd[i]) for i in others]
-    need_r = {"readings", "adaptive"} & set(methods)
-    need_f = {"features", "adaptive"} & set(methods)
-    rpost = fit_lab([rd[i] for i in ref], y, names, priors["readings"]) if need_r else None
-    fpost = common.feat_fit(priors["features"], lab.features[ref], y) if need_f else None
-    rc = {i: readings_cdf(rpost, rd[i]) for i in others} if need_r else {}
-    fc = {i: feat_cdf(fpost, lab.features[i]) for i in others} if need_f else {}
+    if not {"readings", "features", "adaptive"} & set(methods):
+        return out
+    weight = None if "adaptive" in methods else 0.5
+    lab_post = ac.fit_adaptive([rd[i] for i in ref], [feats[i] for i in ref], y, names, priors["readings"],
+                               priors["features"], weight=weight)
+    rc = {i: ac.readings_cdf(lab_post.readings, rd[i]) for i in others}
+    fc = {i: ac.feature_cdf(lab_post.line, feats[i]) for i in others}
     if "readings" in methods:
-        out["readings"] = [prediction(rc[i]) for i in others]
+        out["readings"] = [ac.mixed_prediction(None, rc[i], 0.0) for i in others]
     if "features" in methods:
-        out["features"] = [prediction(fc[i]) for i in others]
+        out["features"] = [ac.mixed_prediction(fc[i], None, 1.0) if fc[i] is not None
+                           else ac.mixed_prediction(None, None, 1.0) for i in others]
     if "adaptive" in methods:
-        w = 0.5
-        if len(ref) >= 2:
-            sf, sr, n = loo_scores(lab.features[ref], [rd[i] for i in ref], y, names, priors["features"],
-                                   priors["readings"])
-            if n:
-                w = 1.0 / (1.0 + math.exp(min(max(sr - sf, -700.0), 700.0)))
-        mix = []
-        for i in others:
-            if fc[i] is None or rc[i] is None:
-                mix.append(rc[i] if fc[i] is None else fc[i])
-            else:
-                mix.append(w * fc[i] + (1 - w) * rc[i])
-        out["adaptive"] = [prediction(c) for c in mix]
-        out["_w"] = w
+        out["adaptive"] = [ac.mixed_prediction(fc[i], rc[i], lab_post.feature_weight) for i in others]
+        out["_w"] = lab_post.feature_weight
     return out
 
 
@@ -198,7 +122,7 @@ def study(args) -> dict:
         fprior, finfo = common.learn_feat_prior_wide(pseudo, args.log_sd)
         oprior, oinfo = common.learn_scatter_prior(s, data, fams, 0.75)
         rprior, rinfo = common.learn_scatter_prior(s, data, fams, args.log_sd)
-        priors[s] = {"features": fprior, "offset": oprior, "readings": rprior}
+        priors[s] = {"features": package_prior(fprior), "offset": oprior, "readings": rprior}
         res["priors"][s] = {"features": finfo, "offset": oinfo, "readings": rinfo}
     for K in args.ks:
         t0 = time.perf_counter()
@@ -365,9 +289,30 @@ def plot(res: dict, out: Path = IMG) -> None:
     print(f"wrote {out}")
 
 
+def shipped_priors(args) -> dict:
+    """The priors a real lab's calibration ships with: learned from the labs of EVERY family (nothing is left out:
+    a real plate is none of them), each lab read through the members of the other families (the readings map's
+    scatter) or fitted by its own feature line; written into the JSON as ``shipped_priors`` (the constants of
+    ``plate_env.identify.adaptive_calibration`` cite them)."""
+    data, fams = load_sources(args.executor)
+    labs = [lab for ls in data.values() for lab in ls]
+    fprior, finfo = common.learn_feat_prior_wide(labs, args.log_sd)
+    found = {}
+    from plate_env.identify.lab_calibration import ScatterPrior, fit_lab
+
+    for s, ls in data.items():
+        for lab in ls:
+            rd, names = common.lab_readings(lab.readings, fams, {SOURCE_FAMILY[s]})
+            found[lab.name] = fit_lab(rd, np.log(lab.truth), names, ScatterPrior(0.2, 5.0)).summary()["sigma_mean"]
+    med = float(np.exp(np.mean(np.log(list(found.values())))))
+    return {"command": "python " + " ".join(sys.argv), "commit": common.git_commit(dirty=False),
+            "features": {**finfo, "c0": fprior.c0.tolist()},
+            "readings": {"pseudo_labs": found, "median": med, "log_sd": args.log_sd}}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("stage", choices=("study", "md", "plot"))
+    ap.add_argument("stage", choices=("study", "md", "plot", "priors"))
     ap.add_argument("--draws", type=int, default=8)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--log-sd", type=float, default=1.5, help="spread (sd of log sigma) of the wide scatter priors")
@@ -380,9 +325,17 @@ def main() -> None:
     path = RESULTS / f"calibration_plans{args.tag}.json"
     if args.stage == "study":
         res = study(args)
+        old = json.loads(path.read_text()) if path.exists() else {}
+        if "shipped_priors" in old:
+            res["shipped_priors"] = old["shipped_priors"]  # its own command and commit
         path.write_text(json.dumps(res, indent=1) + "\n")
     else:
         res = json.loads(path.read_text())
+    if args.stage == "priors":
+        res["shipped_priors"] = shipped_priors(args)
+        path.write_text(json.dumps(res, indent=1) + "\n")
+        print(json.dumps(res["shipped_priors"], indent=1))
+        return
     if args.stage == "plot":
         plot(res)
         return
