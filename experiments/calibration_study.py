@@ -360,7 +360,8 @@ def stage_paper(args) -> None:
     from plate_env.identify import lab_calibration_file as lcf
 
     argv = ["calibration", "paper", "--out", str(Path("plate_env/data") / lcf.PAPER_FILE)]
-    run_build(argparse.Namespace(artifact="calibration", name="paper", out=argv[-1]), argv)
+    run_build(argparse.Namespace(artifact="calibration", name="paper", out=argv[-1], sweeps=None, lab_sweeps=None),
+              argv)
     cal = lcf.load(lcf.PAPER)
     refs = paper_references()
     rows = []
