@@ -357,3 +357,21 @@ def _write(tmp_path, text):
     path = tmp_path / "ok.csv"
     path.write_text(text)
     return path
+
+
+def test_a_calibration_file_from_before_the_feature_line_is_refused_by_name(tmp_path):
+    """Issue 36: schema 2 adds the feature line; a schema-1 file (the readings map alone) is refused naming the
+    command that makes a new one, not read as if its feature line were the prior's."""
+    d = lcf.load(lcf.PAPER).to_json()
+    old = {k: v for k, v in d.items() if k not in ("feature_prior", "reference_features", "feature_weight",
+                                                   "content_sha256")}
+    old["schema_version"] = 1
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps({**old, "content_sha256": lcf.content_hash(old)}))
+    with pytest.raises(lcf.CalibrationError, match="schema_version 1.*run plate-env calibrate again"):
+        lcf.load(path)
+    del d["feature_weight"]  # schema 2 without one of its fields: malformed, by name
+    d.pop("content_sha256")
+    path.write_text(json.dumps({**d, "content_sha256": lcf.content_hash(d)}))
+    with pytest.raises(lcf.CalibrationError, match="malformed calibration.*feature_weight"):
+        lcf.load(path)
