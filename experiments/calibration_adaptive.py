@@ -89,23 +89,6 @@ def oracle(labs: list[common.Lab]) -> dict:
             "median_error": float(np.median(np.abs(np.expm1(r))))}
 
 
-def learn_prior(pseudo: list[common.Lab], log_sd: float) -> tuple[common.FeatPrior, dict]:
-    """common.learn_feat_prior, with the scatter prior's spread max(log_sd, the pseudo-labs' spread of log sd)."""
-    prior, info = common.learn_feat_prior(pseudo, log_sd)
-    sds = []
-    for lab in pseudo:
-        ok = lab.features[:, 0] == 1
-        if ok.sum() < 5:
-            continue
-        x, y = common.feat_x(lab.features[ok]), np.log(lab.truth[ok])
-        beta, *_ = np.linalg.lstsq(x, y, rcond=None)
-        sds.append(float(np.sqrt(np.mean((y - x @ beta) ** 2))))
-    spread = float(np.std(np.log(sds))) if len(sds) > 1 else 0.0
-    lsd = max(log_sd, spread)
-    info["log_sd"] = lsd
-    return common.FeatPrior(prior.m0, prior.c0, prior.sigma_median, lsd), info
-
-
 def feat_predict_t(post, f_row: np.ndarray, nu: float):
     """:func:`calibration_study.feat_predict` with each scatter's normal replaced by a Student-t of ``nu`` degrees of
     freedom and the same scale (nu = inf: the normal): heavier tails for sweeps whose features are outliers."""
@@ -129,25 +112,6 @@ def feat_predict_t(post, f_row: np.ndarray, nu: float):
         return float(math.exp(np.interp(level, cdf, common.FEAT_Y)))
 
     return Prediction(True, q(0.5), (q(0.16), q(0.84)), (q(0.025), q(0.975)))
-
-
-#: Beside the study's statistics: the share of discs without an estimate (no hump features) and the coverage among
-#: the discs with one (the study's coverage counts a disc without an estimate as a miss).
-common.STATS["no_estimate"] = ("miss", lambda x: np.nanmean(x, axis=-1))
-common.STATS["coverage95_given"] = ("in95g", lambda x: np.nanmean(x, axis=-1))
-common.STATS["coverage68_given"] = ("in68g", lambda x: np.nanmean(x, axis=-1))
-SCORE_KEYS = ("error", "in68", "in95", "width95", "miss", "in95g", "in68g")
-
-
-def scores(truth: np.ndarray, preds) -> dict[str, np.ndarray]:
-    """:func:`calibration_study.per_object_scores` plus ``miss`` (1: no estimate) and the coverages with NaN where
-    there is no estimate."""
-    out = common.per_object_scores(truth, preds)
-    ok = np.array([p.ok for p in preds])
-    out["miss"] = (~ok).astype(float)
-    out["in95g"] = np.where(ok, out["in95"], np.nan)
-    out["in68g"] = np.where(ok, out["in68"], np.nan)
-    return out
 
 
 def feat_fit_ev(prior: common.FeatPrior, F: np.ndarray, y: np.ndarray):
@@ -209,7 +173,7 @@ def run(args) -> dict:
     priors = {}
     for s in args.sources:
         pseudo = [lab for t, labs in data.items() if common.SOURCE_FAMILY[t] != common.SOURCE_FAMILY[s] for lab in labs]
-        priors[s], out["priors"][s] = learn_prior(pseudo, args.log_sd)
+        priors[s], out["priors"][s] = common.learn_feat_prior_wide(pseudo, args.log_sd)
     for K in KS:
         blocks = {}
         for s in args.sources:
@@ -217,7 +181,7 @@ def run(args) -> dict:
             bl = []
             for lab in data[s]:
                 n = len(lab.truth)
-                res = {k: np.full((n, args.draws), np.nan) for k in SCORE_KEYS}
+                res = {k: np.full((n, args.draws), np.nan) for k in common.SCORE_KEYS}
                 res["lab"] = np.array([f"{s}/{lab.name}"] * n)
                 if K >= n - 1:
                     continue
@@ -231,14 +195,15 @@ def run(args) -> dict:
                     else:
                         post = common.feat_fit(priors[s], lab.features[ref], y)
                         preds = [feat_predict_t(post, lab.features[i], args.nu) for i in others]
-                    for k, v in scores(lab.truth[others], preds).items():
+                    for k, v in common.scores_with_miss(lab.truth[others], preds).items():
                         res[k][others, d] = v
                 bl.append(res)
             if bl:
                 blocks[s] = {k: np.concatenate([b[k] for b in bl]) for k in bl[0]}
         brng = np.random.default_rng([args.seed, K, 99])
-        out["by_k"][str(K)] = {"pooled": common.summarize(list(blocks.values()), brng, args.n_boot),
-                               **{s: common.summarize([b], brng, args.n_boot) for s, b in blocks.items()}}
+        out["by_k"][str(K)] = {"pooled": common.summarize(list(blocks.values()), brng, args.n_boot, common.STATS_MISS),
+                               **{s: common.summarize([b], brng, args.n_boot, common.STATS_MISS)
+                                  for s, b in blocks.items()}}
         print(K, {k: (round(v["median_error"]["value"], 3), round(v["coverage95"]["value"], 3),
                       round(v["width95"]["value"], 2)) for k, v in out["by_k"][str(K)].items()}, flush=True)
     return out

@@ -15,7 +15,6 @@ Writes ``experiments/results/calibration_study.json`` (the source of truth) and 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import sys
@@ -25,28 +24,33 @@ from pathlib import Path
 import common
 import numpy as np
 from common import (
+    FAMILY_ORDER,
+    LAB_N,
+    LAB_SEEDS,
     SOURCE_FAMILY,
     Lab,
+    all_members,
     cell,
     feat_fit,
     feat_predict,
     features_of,
+    information_limit,
+    lab_readings,
+    lab_sets,
     learn_feat_prior,
+    learn_scatter_prior,
+    limit_text,
     per_object_scores,
     prior_text,
+    readings_of,
     source_data,
     summarize,
 )
 
-from plate_env.build.eval_sets import EvalSet
-from plate_env.build.forward_models import FAMILIES
 from plate_env.identify.forward import ForwardModel  # noqa: E402
 from plate_env.identify.lab_calibration import (  # noqa: E402
-    SHAPE_SCALES,
-    Readings,
     ScatterPrior,
     fit_lab,
-    member_readings,
     predict,
 )
 from plate_env.run.executor import add_executor_argument
@@ -54,64 +58,8 @@ from plate_env.run.executor import add_executor_argument
 RESULTS = Path("experiments/results")
 CACHE = Path("experiments/cache")
 KS = (1, 2, 3, 5)
-SOURCES = ("pointmass", "rigid", "pybullet")
-MEMBER_FILES = [f for fam in SOURCES for f in FAMILIES[fam]]
-
-
-@dataclasses.dataclass(frozen=True)
-class LabEvalSet(EvalSet):
-    """A simulated lab (regime "lab-level nuisance"): point-mass objects that all share ONE draw of the unknown
-    joint and contact values from ``plate_env.physics.nuisance.PRIOR`` (``default_rng(seed + 2)``), the references
-    and the test discs alike; objects and placements as :class:`plate_env.build.eval_sets.EvalSet`."""
-
-    def nuisances(self) -> list:
-        from plate_env.physics.nuisance import PRIOR
-
-        shared = PRIOR.draw(np.random.default_rng(self.seed + 2))
-        return [shared] * self.n
-
-    def cache(self, a_p_deg: float, root: str | Path = "experiments/cache") -> str:
-        return f"{Path(root).as_posix()}/evallab_{self.source}_A{a_p_deg:g}_s{self.seed}.jsonl"
-
-
-#: The lab-level-nuisance source: several simulated labs (seeded), each its own nuisance draw shared by its discs.
-LAB_SEEDS = (500, 510, 520, 530, 540, 550, 560, 570)
-LAB_N = 20
-
-
-def lab_sets(n_labs: int = len(LAB_SEEDS), n: int = LAB_N) -> list[LabEvalSet]:
-    return [LabEvalSet("tilelink_pointmass", n, s, (3.0,), nuisance=True) for s in LAB_SEEDS[:n_labs]]
-
-
-def all_members() -> tuple[ForwardModel, list[str]]:
-    """Every member of every family (the ``lab`` forward model's members at 13.6 g) and each one's family."""
-    members, fams = [], []
-    for fam in SOURCES:
-        for f in FAMILIES[fam]:
-            members.append(common.member(f))
-            fams.append(fam)
-    return ForwardModel("all", tuple(members)), fams
-
-
+SOURCES = FAMILY_ORDER
 ALL_SOURCES = (*SOURCES, "pmlab")
-
-
-def readings_of(name: str, tables, fm: ForwardModel, shape: bool = False, only=None) -> list[Readings]:
-    """Every member's reading of every sweep of a lab (cached: the readings depend on the data and atlases);
-    ``shape``: the shape-only reading (amplitude marginalised over :data:`SHAPE_SCALES`), of the members ``only``
-    (those outside the lab's family: the only ones the study uses)."""
-    path = CACHE / f"calibration_readings{'_shape' if shape else ''}_{name}_n{len(tables)}.npz"
-    if path.exists():
-        z = np.load(path)
-        return [Readings(z["log_w"], p, lz) for p, lz in zip(z["prob"], z["log_z"], strict=True)]
-    t0 = time.perf_counter()
-    out = [member_readings(fm, t, amplitude_scales=SHAPE_SCALES if shape else None, only=only) for t in tables]
-    CACHE.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, log_w=out[0].log_w, prob=np.stack([r.prob for r in out]),
-                        log_z=np.stack([r.log_z for r in out]))
-    print(f"readings {name}: {len(tables)} sweeps x {len(fm.members)} members in {time.perf_counter() - t0:.0f} s",
-          file=sys.stderr, flush=True)
-    return out
 
 
 def load_labs(src: str, args, fm: ForwardModel) -> list[Lab]:
@@ -128,16 +76,6 @@ def load_labs(src: str, args, fm: ForwardModel) -> list[Lab]:
             for name, (truth, tables) in got]
 
 
-def lab_readings(readings: list[Readings], fams: list[str], exclude: set[str], pooling: str) -> tuple[list, list]:
-    """The readings of the members outside the families ``exclude``: each member alone (``pooling="member"``) or
-    each family's members pooled by evidence (``"family"``); and their names."""
-    if pooling == "member":
-        idx = [i for i, f in enumerate(fams) if f not in exclude]
-        return [r.subset(idx) for r in readings], [MEMBER_FILES[i] for i in idx]
-    groups = {f: [i for i, g in enumerate(fams) if g == f] for f in SOURCES if f not in exclude}
-    return [r.pooled(list(groups.values())) for r in readings], list(groups)
-
-
 # --------------------------------------------------------------------------------------------------- study
 def prior_labs(src: str, data: dict, regime: bool = False) -> list[Lab]:
     """The labs a prior for ``src`` may learn from: every lab of another physics family (default), or, with
@@ -146,25 +84,6 @@ def prior_labs(src: str, data: dict, regime: bool = False) -> list[Lab]:
     if regime:
         return list(data[src])
     return [lab for s, labs in data.items() if SOURCE_FAMILY[s] != SOURCE_FAMILY[src] for lab in labs]
-
-
-def learn_prior(src: str, data: dict, fams: list[str], method: dict, log_sd: float) -> tuple[ScatterPrior, dict]:
-    """The scatter prior for ``src`` from labs of other families read through members of neither the lab's nor their
-    own family: each such pseudo-lab fitted with all its objects as references (a flat scatter prior), its posterior
-    mean scatter with b = 1; the prior's median is their geometric mean, ``log_sd`` its spread."""
-    flat = ScatterPrior(0.2, 5.0)
-    found = {}
-    for s, labs in data.items():
-        if SOURCE_FAMILY[s] == SOURCE_FAMILY[src]:
-            continue
-        for lab in labs:
-            refs, names = lab_readings(lab.shape_readings if method.get("shape") else lab.readings, fams,
-                                       {SOURCE_FAMILY[src], SOURCE_FAMILY[s]}, method["pooling"])
-            # the scatter left with b = 1: a prior learned with the slope made K = 1 over-confident (coverage 0.79)
-            post = fit_lab(refs, np.log(lab.truth), names, flat, slope=False)
-            found[lab.name] = post.summary()["sigma_mean"]
-    med = float(np.exp(np.mean(np.log(list(found.values())))))
-    return ScatterPrior(med, log_sd), {"pseudo_labs": found, "median": med, "log_sd": log_sd}
 
 
 def run_lab(src: str, K: int, data: dict, fams: list[str], prior, method: dict, draws: int,
@@ -249,7 +168,8 @@ def stage_study(args) -> None:
         priors = {}
         for src in srcs:
             if method["kind"] == "readings":
-                priors[src], res["priors"][src] = learn_prior(src, data, fams, method, args.log_sd)
+                priors[src], res["priors"][src] = learn_scatter_prior(src, data, fams, args.log_sd, method["pooling"],
+                                                                      bool(method.get("shape")))
             elif method.get("regime"):
                 priors[src], res["priors"][src] = None, {"pseudo_labs": "the other labs of the source"}
             else:
@@ -337,6 +257,17 @@ def write_md(results: dict) -> None:
                      f"{es.get('source')} seed {es.get('seed')}.")
     lines += ["", "## Summary at K = 3 (median error / 95 % coverage / median 95 % width)", "",
               "| method | pooled | " + " | ".join(srcs) + " |", "|---|---|" + "---|" * len(srcs)]
+    lims = results.get("limits", {}).get("sources", {})
+
+    def lim(src: str) -> str:
+        """The information limit of ``src`` (pooled: the median over the sources' discs), or '-'."""
+        if src == "pooled" and lims:
+            return f"{results['limits']['pooled']['width95']:.0%}"
+        return limit_text(lims[src]) if src in lims else "-"
+
+    if lims:
+        lines.append("| information limit: 95 % width (in-sample sd of the best map; feature line, readings map) | "
+                     + " | ".join(lim(s_) for s_ in ["pooled", *srcs]) + " |")
     for mname, res in ms.items():
         byk = res["by_k"].get("3")
         if byk is None:
@@ -347,6 +278,10 @@ def write_md(results: dict) -> None:
             cells.append("-" if st is None else f"{st['median_error']['value']:.1%} / "
                          f"{st['coverage95']['value']:.2f} / {st['width95']['value']:.0%}")
         lines.append(f"| `{mname}` | " + " | ".join(cells) + " |")
+    if lims:
+        lm = results["limits"]
+        lines += ["", "Information limit (issue 36): " + INFORMATION_LIMIT + f" Command: `{lm['command']}` at commit "
+                  f"{lm['commit']}."]
     lines += ["", "Lowest 95 % coverage over K = 1, 2, 3, 5 and sources (honesty needs >= 0.90): " + "; ".join(
         f"`{m}` {min_coverage(r):.2f}" for m, r in ms.items()) + ".", ""]
     if "oracle" in results:
@@ -369,13 +304,13 @@ def write_md(results: dict) -> None:
                   f"{res.get('commit', results.get('commit'))}.", "",
                   "Priors per lab: " + "; ".join(f"{lab}: {prior_text(p)}" for lab, p in res["priors"].items()), "",
                   "| K | lab | objects (pairs) | median error | p90 error | 68 % coverage | 95 % coverage | "
-                  "median 95 % width |", "|---|---|---|---|---|---|---|---|"]
+                  "median 95 % width | information limit: 95 % width (sd) |", "|---|---|---|---|---|---|---|---|---|"]
         for k, byk in res["by_k"].items():
             for lab in ["pooled", *res.get("sources", srcs)]:
                 st = byk[lab]
                 lines.append(f"| {k} | {lab} | {st['objects']} ({st['pairs']}) | {cell(st['median_error'], 100, 1)}"
                              f" | {cell(st['p90_error'])} | {cell(st['coverage68'], 1, 2, '')} | "
-                             f"{cell(st['coverage95'], 1, 2, '')} | {cell(st['width95'])} |")
+                             f"{cell(st['coverage95'], 1, 2, '')} | {cell(st['width95'])} | {lim(lab)} |")
         lines.append("")
     if SHIPPED in ms:
         lines += ["## Choice", "", choice_text(ms, SHIPPED), ""]
@@ -425,7 +360,8 @@ def stage_paper(args) -> None:
     from plate_env.identify import lab_calibration_file as lcf
 
     argv = ["calibration", "paper", "--out", str(Path("plate_env/data") / lcf.PAPER_FILE)]
-    run_build(argparse.Namespace(artifact="calibration", name="paper", out=argv[-1]), argv)
+    run_build(argparse.Namespace(artifact="calibration", name="paper", out=argv[-1], sweeps=None, lab_sweeps=None),
+              argv)
     cal = lcf.load(lcf.PAPER)
     refs = paper_references()
     rows = []
@@ -480,9 +416,35 @@ def stage_oracle(args) -> None:
     write_md(results)
 
 
+#: What the information limit column says (the report prints it beside the tables).
+INFORMATION_LIMIT = ("each source's discs fitted in-sample by the best of two maps, every disc a reference and scored "
+                     "(no reference budget: what these data allow a calibrated map at best): the feature line (least "
+                     "squares of log omega_n on 1, f0, log omega_Brmax per lab) and the member-likelihood readings "
+                     "map (member weights + offset, flat scatter prior, its posterior mean scatter); the 95 % width "
+                     "of a normal of that scatter, e^1.96sd - e^-1.96sd. Pooled: the median over the discs of their "
+                     "source's width.")
+
+
+def stage_limits(args) -> None:
+    """Each source's information limit (:func:`common.information_limit`) into ``calibration_study.json``."""
+    fm, fams = all_members()
+    args.methods = []
+    path = RESULTS / "calibration_study.json"
+    results = json.loads(path.read_text())
+    srcs = list(results["sources"])
+    if args.n_rigid is None and "rigid" in srcs:  # the sources the study's tables were measured on
+        args.n_rigid = results["sources"]["rigid"]["objects"]
+    limits = {src: information_limit(load_labs(src, args, fm), fams, SOURCE_FAMILY[src]) for src in srcs}
+    widths = np.concatenate([np.full(results["sources"][s]["objects"], limits[s]["best"]["width95"]) for s in srcs])
+    results["limits"] = {"command": "python " + " ".join(sys.argv), "commit": common.git_commit(dirty=False),
+                         "sources": limits, "pooled": {"width95": float(np.median(widths))}}
+    path.write_text(json.dumps(results, indent=1) + "\n")
+    write_md(results)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("stage", choices=("study", "paper", "md", "oracle"))
+    ap.add_argument("stage", choices=("study", "paper", "md", "oracle", "limits"))
     ap.add_argument("--draws", type=int, default=20, help="random reference sets per source and K")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
@@ -502,6 +464,8 @@ def main() -> None:
         stage_paper(args)
     elif args.stage == "oracle":
         stage_oracle(args)
+    elif args.stage == "limits":
+        stage_limits(args)
     else:
         stage_study(args)
 

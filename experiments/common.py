@@ -535,6 +535,31 @@ def compare(rows: list[dict], results) -> dict:
 SOURCE_FAMILY = {"pointmass": "pointmass", "rigid": "rigid", "pybullet": "pybullet", "pmlab": "pointmass"}
 
 
+@dataclass(frozen=True)
+class LabEvalSet(EvalSet):
+    """A simulated lab (regime "lab-level nuisance"): point-mass objects that all share ONE draw of the unknown
+    joint and contact values from ``plate_env.physics.nuisance.PRIOR`` (``default_rng(seed + 2)``), the references
+    and the test discs alike; objects and placements as :class:`plate_env.build.eval_sets.EvalSet`."""
+
+    def nuisances(self) -> list:
+        from plate_env.physics.nuisance import PRIOR
+
+        shared = PRIOR.draw(np.random.default_rng(self.seed + 2))
+        return [shared] * self.n
+
+    def cache(self, a_p_deg: float, root: str | Path = "experiments/cache") -> str:
+        return f"{Path(root).as_posix()}/evallab_{self.source}_A{a_p_deg:g}_s{self.seed}.jsonl"
+
+
+#: The lab-level-nuisance source: several simulated labs (seeded), each its own nuisance draw shared by its discs.
+LAB_SEEDS = (500, 510, 520, 530, 540, 550, 560, 570)
+LAB_N = 20
+
+
+def lab_sets(n_labs: int = len(LAB_SEEDS), n: int = LAB_N) -> list[LabEvalSet]:
+    return [LabEvalSet("tilelink_pointmass", n, s, (3.0,), nuisance=True) for s in LAB_SEEDS[:n_labs]]
+
+
 def source_data(fam: str, n: int | None, executor) -> tuple[list[float], list]:
     es = DATA[fam] if n is None else replace(DATA[fam], n=n)
     return data_of(fam, executor, es)
@@ -601,7 +626,8 @@ def boot_indices(labs: np.ndarray, rng: np.random.Generator, n_boot: int) -> np.
     return np.array(rows)
 
 
-def summarize(blocks: list[dict[str, np.ndarray]], rng: np.random.Generator, n_boot: int = 1000) -> dict:
+def summarize(blocks: list[dict[str, np.ndarray]], rng: np.random.Generator, n_boot: int = 1000,
+              stats: dict | None = None) -> dict:
     """Statistics over every (object, draw) pair with 95 % bootstrap intervals (an object carries all its draws):
     labs resampled within each source, then objects within each lab (:func:`boot_indices`). ``blocks``: per source,
     arrays (n_objects, n_draws) with NaN where the object was a reference, and ``lab`` labels."""
@@ -609,7 +635,7 @@ def summarize(blocks: list[dict[str, np.ndarray]], rng: np.random.Generator, n_b
     n = arrays["error"].shape[0]
     idx = boot_indices(arrays["lab"], rng, n_boot)
     out = {"objects": int(n), "pairs": int(np.isfinite(arrays["in95"]).sum())}
-    for name, (key, fn) in STATS.items():
+    for name, (key, fn) in (STATS if stats is None else stats).items():
         v = arrays[key].astype(float)
         value = float(fn(v.reshape(1, -1))[0])
         boot = np.array([fn(v[i].reshape(1, -1))[0] for i in idx])
@@ -718,3 +744,183 @@ def prior_text(p: dict) -> str:
         return (f"coefficients {', '.join(f'{x:.3g}' for x in p['m0'])} (sd {', '.join(f'{x:.3g}' for x in p['sd0'])}),"
                 f" scatter median {p['median']:.3f}, sd(log) {p['log_sd']:g}, from {', '.join(p['pseudo_labs'])}")
     return str(p.get("pseudo_labs"))
+
+
+# ---- The member-likelihood readings of a calibration study's labs, the readings map's scatter prior and each
+# source's information limit (calibration_study, calibration_adaptive); from calibration_study.py
+#: The physics families, in the order of the ``lab`` forward model's members (:func:`all_members`).
+FAMILY_ORDER = ("pointmass", "rigid", "pybullet")
+
+
+def member_files() -> list[str]:
+    """The atlas file of every member of every family, in :data:`FAMILY_ORDER`."""
+    from plate_env.build.forward_models import FAMILIES
+
+    return [f for fam in FAMILY_ORDER for f in FAMILIES[fam]]
+
+
+def all_members() -> tuple[ForwardModel, list[str]]:
+    """Every member of every family (the ``lab`` forward model's members at 13.6 g) and each one's family."""
+    from plate_env.build.forward_models import FAMILIES
+
+    members, fams = [], []
+    for fam in FAMILY_ORDER:
+        for f in FAMILIES[fam]:
+            members.append(member(f))
+            fams.append(fam)
+    return ForwardModel("all", tuple(members)), fams
+
+
+def readings_of(name: str, tables, fm: ForwardModel, shape: bool = False, only=None) -> list:
+    """Every member's reading of every sweep of a lab (:func:`plate_env.identify.lab_calibration.member_readings`;
+    cached in ``experiments/cache/calibration_readings[_shape]_{name}_n{len}.npz``: they depend on the data and the
+    atlases only); ``shape``: the shape-only reading (amplitude marginalised over ``SHAPE_SCALES``), of the members
+    ``only``."""
+    from plate_env.identify.lab_calibration import SHAPE_SCALES, Readings, member_readings
+
+    path = Path(CACHE) / f"calibration_readings{'_shape' if shape else ''}_{name}_n{len(tables)}.npz"
+    if path.exists():
+        z = np.load(path)
+        return [Readings(z["log_w"], p, lz) for p, lz in zip(z["prob"], z["log_z"], strict=True)]
+    t0 = time.perf_counter()
+    out = [member_readings(fm, t, amplitude_scales=SHAPE_SCALES if shape else None, only=only) for t in tables]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, log_w=out[0].log_w, prob=np.stack([r.prob for r in out]),
+                        log_z=np.stack([r.log_z for r in out]))
+    print(f"readings {name}: {len(tables)} sweeps x {len(fm.members)} members in {time.perf_counter() - t0:.0f} s",
+          file=sys.stderr, flush=True)
+    return out
+
+
+def lab_readings(readings: list, fams: list[str], exclude: set[str], pooling: str = "member") -> tuple[list, list]:
+    """The readings of the members outside the families ``exclude``: each member alone (``pooling="member"``) or
+    each family's members pooled by evidence (``"family"``); and their names."""
+    names = member_files()
+    if pooling == "member":
+        idx = [i for i, f in enumerate(fams) if f not in exclude]
+        return [r.subset(idx) for r in readings], [names[i] for i in idx]
+    groups = {f: [i for i, g in enumerate(fams) if g == f] for f in FAMILY_ORDER if f not in exclude}
+    return [r.pooled(list(groups.values())) for r in readings], list(groups)
+
+
+def learn_scatter_prior(src: str, data: dict, fams: list[str], log_sd: float, pooling: str = "member",
+                        shape: bool = False):
+    """The readings map's scatter prior for ``src`` (a ``ScatterPrior`` and a report) from the labs of other families
+    read through members of neither the lab's nor their own family: each such pseudo-lab fitted with all its objects
+    as references (a flat scatter prior), its posterior mean scatter with b = 1; the prior's median is their
+    geometric mean, ``log_sd`` its spread. ``data``: source -> labs (:class:`Lab`)."""
+    from plate_env.identify.lab_calibration import ScatterPrior, fit_lab
+
+    flat = ScatterPrior(0.2, 5.0)
+    found = {}
+    for s, labs in data.items():
+        if SOURCE_FAMILY[s] == SOURCE_FAMILY[src]:
+            continue
+        for lab in labs:
+            refs, names = lab_readings(lab.shape_readings if shape else lab.readings, fams,
+                                       {SOURCE_FAMILY[src], SOURCE_FAMILY[s]}, pooling)
+            # the scatter left with b = 1: a prior learned with the slope made K = 1 over-confident (coverage 0.79)
+            post = fit_lab(refs, np.log(lab.truth), names, flat, slope=False)
+            found[lab.name] = post.summary()["sigma_mean"]
+    med = float(np.exp(np.mean(np.log(list(found.values())))))
+    return ScatterPrior(med, log_sd), {"pseudo_labs": found, "median": med, "log_sd": log_sd}
+
+
+def width95_of_sd(sd: float) -> float:
+    """The 95 % width (share of omega_n) of a normal scatter ``sd`` in log omega_n: e^(1.96 sd) - e^(-1.96 sd)."""
+    return math.exp(1.96 * sd) - math.exp(-1.96 * sd)
+
+
+#: The share of a source's discs a map must read for its in-sample scatter to be the source's information limit.
+LIMIT_SHARE = 0.9
+
+
+def information_limit(labs: list[Lab], fams: list[str], family: str) -> dict:
+    """What the data of one source allow, in-sample (an oracle: every disc of each lab is a reference and is
+    scored, no reference budget): per map, the residual scatter (sd of log omega_n, root mean square over the labs,
+    weighted by their discs) and the median absolute error.
+
+    ``features``: least squares of log omega_n on (1, f0, log omega_Brmax) per lab, over its discs with a Lorentzian
+    fit (``n`` of ``of``); ``readings``: the member-likelihood map (member weights + offset, b = 1; the members of
+    ``family`` left out) fitted to every disc of the lab with a flat scatter prior, its posterior mean scatter and
+    the median error of its in-sample predictions. ``best``: the smaller scatter of the two maps that read at least
+    :data:`LIMIT_SHARE` of the discs, and its 95 % width (:func:`width95_of_sd`), the narrowest calibrated 95 %
+    interval these data could support."""
+    from plate_env.identify.lab_calibration import ScatterPrior, fit_lab, predict
+
+    out = {}
+    ss, errs, n_ok, n_all = 0.0, [], 0, 0
+    for lab in labs:
+        ok = lab.features[:, 0] == 1
+        n_all += int(ok.size)
+        if ok.sum() < 4:
+            continue
+        x, y = feat_x(lab.features[ok]), np.log(lab.truth[ok])
+        beta, *_ = np.linalg.lstsq(x, y, rcond=None)
+        r = y - x @ beta
+        ss += float(np.sum(r ** 2))
+        n_ok += int(ok.sum())
+        errs += list(np.abs(np.expm1(r)))
+    if n_ok:
+        out["features"] = {"sd": math.sqrt(ss / n_ok), "median_error": float(np.median(errs)), "n": n_ok,
+                           "of": n_all}
+    ss, errs, n = 0.0, [], 0
+    for lab in labs:
+        rd, names = lab_readings(lab.readings, fams, {family})
+        post = fit_lab(rd, np.log(lab.truth), names, ScatterPrior(0.2, 5.0), slope=False)
+        sg = post.summary()["sigma_mean"]
+        ss += sg ** 2 * len(rd)
+        n += len(rd)
+        errs += [abs(p.omega_n / w - 1) if p.ok else math.inf
+                 for p, w in zip((predict(post, r) for r in rd), lab.truth, strict=True)]
+    out["readings"] = {"sd": math.sqrt(ss / n), "median_error": float(np.median(errs)), "n": n, "of": n}
+    # a feature line that fits too few of the discs (the Lorentzian fails) is no limit for the source: the readings
+    best = min(("features", "readings"), key=lambda k: out[k]["sd"] if k in out and out[k]["n"] >= LIMIT_SHARE *
+               out[k]["of"] else math.inf)
+    out["best"] = {"map": best, "sd": out[best]["sd"], "width95": width95_of_sd(out[best]["sd"])}
+    return out
+
+
+def limit_text(lim: dict) -> str:
+    """An information limit in a table cell: the best map's scatter and 95 % width, and each map's scatter."""
+    parts = [f"{k} {lim[k]['sd']:.3f}" for k in ("features", "readings") if k in lim]
+    return f"{lim['best']['width95']:.0%} (sd {lim['best']['sd']:.3f}; " + ", ".join(parts) + ")"
+
+
+# ---- The lab-adaptive feature line and scores with the discs without an estimate (calibration_adaptive,
+# calibration_plans); from calibration_adaptive.py
+def learn_feat_prior_wide(pseudo: list[Lab], log_sd: float) -> tuple[FeatPrior, dict]:
+    """:func:`learn_feat_prior`, with the scatter prior's spread max(``log_sd``, the pseudo-labs' spread of log sd):
+    a wide hierarchical prior over labs, so that the references' own residuals decide a lab's scatter."""
+    prior, info = learn_feat_prior(pseudo, log_sd)
+    sds = []
+    for lab in pseudo:
+        ok = lab.features[:, 0] == 1
+        if ok.sum() < 5:
+            continue
+        x, y = feat_x(lab.features[ok]), np.log(lab.truth[ok])
+        beta, *_ = np.linalg.lstsq(x, y, rcond=None)
+        sds.append(float(np.sqrt(np.mean((y - x @ beta) ** 2))))
+    spread = float(np.std(np.log(sds))) if len(sds) > 1 else 0.0
+    lsd = max(log_sd, spread)
+    info["log_sd"] = lsd
+    return FeatPrior(prior.m0, prior.c0, prior.sigma_median, lsd), info
+
+
+#: Beside the study's statistics: the share of discs without an estimate and the coverage among the discs with one
+#: (``coverage95`` counts a disc without an estimate as a miss).
+STATS_MISS = {**STATS, "no_estimate": ("miss", lambda x: np.nanmean(x, axis=-1)),
+              "coverage95_given": ("in95g", lambda x: np.nanmean(x, axis=-1)),
+              "coverage68_given": ("in68g", lambda x: np.nanmean(x, axis=-1))}
+SCORE_KEYS = ("error", "in68", "in95", "width95", "miss", "in95g", "in68g")
+
+
+def scores_with_miss(truth: np.ndarray, preds) -> dict[str, np.ndarray]:
+    """:func:`per_object_scores` plus ``miss`` (1: no estimate) and the coverages with NaN where there is no
+    estimate."""
+    out = per_object_scores(truth, preds)
+    ok = np.array([p.ok for p in preds])
+    out["miss"] = (~ok).astype(float)
+    out["in95g"] = np.where(ok, out["in95"], np.nan)
+    out["in68g"] = np.where(ok, out["in68"], np.nan)
+    return out

@@ -58,7 +58,9 @@ def test_item1_an_object_above_the_identifiable_range_gets_no_confident_number()
     est = identify(_table(ABOVE_RANGE_60PI), forward=agent.estimate_model())
     assert not est.ok, f"a confident {est.omega_n / math.pi:.2f}pi for an object at 60pi"
     assert est.check is not None and not est.check.passed
-    assert "not a sweep 'tilelink/pointmass' can explain" in est.reason and "p-value" in est.reason
+    # the reason names the forward model that read the probes and the member checked (issue 36)
+    assert f"not a sweep the forward model {agent.estimate_model().name!r} can explain" in est.reason
+    assert "its best-fitting member 'tilelink/pointmass'" in est.reason and "p-value" in est.reason
 
 
 def test_item1_why_no_bound_the_estimate_models_posterior_is_not_at_the_edge():

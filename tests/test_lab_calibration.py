@@ -18,8 +18,9 @@ import pytest
 from plate_env.cli import main
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify import lab_calibration_file as lcf
+from plate_env.identify.adaptive_calibration import FEATURE_SIGMAS, fit_adaptive, hump_features, predict_adaptive
 from plate_env.identify.forward import ForwardModel, Member
-from plate_env.identify.lab_calibration import SHAPE_SCALES, ScatterPrior, fit_lab, member_readings, predict
+from plate_env.identify.lab_calibration import SHAPE_SCALES, ScatterPrior, fit_lab, member_readings
 from plate_env.surrogate.atlas import load_atlas_file
 from plate_env.surrogate.conditioning import KnownInputs
 
@@ -49,17 +50,30 @@ def rigid_source():
     return truth, tables, [member_readings(fm, t) for t in tables]
 
 
-def test_coverage_over_references_from_a_source_left_out(rigid_source):
-    """K = 3 references of the rigid source teach the offset from the point-mass reading; the other discs' 95 %
-    intervals hold their truth, and the calibrated error is below the uncalibrated point mass's."""
+@pytest.fixture(scope="module")
+def rigid_features(rigid_source):
+    """Each rigid sweep's Lorentzian features (the feature line's input), None where the fit fails."""
+    return [hump_features(t) for t in rigid_source[1]]
+
+
+def shipped(readings, feats, idx, y):
+    """The shipped calibrated reading (issue 36) fitted to the references ``idx`` with known log omega_n ``y``."""
+    return fit_adaptive([readings[i] for i in idx], [feats[i] for i in idx], y, ["pointmass"], lcf.SCATTER_PRIOR,
+                        lcf.FEATURE_PRIOR)
+
+
+def test_coverage_over_references_from_a_source_left_out(rigid_source, rigid_features):
+    """K = 3 references of the rigid source (a physics family the forward model leaves out: read through the point
+    mass) through the shipped reading; the other discs' 95 % intervals hold their truth, and the calibrated error
+    is below the uncalibrated point mass's."""
     truth, _, readings = rigid_source
     rng = np.random.default_rng(0)
     covered, errors, raw = [], [], []
     for _ in range(4):
         ref = rng.choice(truth.size, 3, replace=False)
-        post = fit_lab([readings[i] for i in ref], np.log(truth[ref]), ["pointmass"], lcf.SCATTER_PRIOR)
+        lab = shipped(readings, rigid_features, ref, np.log(truth[ref]))
         for i in set(range(truth.size)) - set(ref.tolist()):
-            p = predict(post, readings[i])
+            p = predict_adaptive(lab, readings[i], rigid_features[i])
             assert p.ok and p.ci95[0] <= p.ci68[0] <= p.omega_n <= p.ci68[1] <= p.ci95[1]
             covered.append(p.ci95[0] <= truth[i] <= p.ci95[1])
             errors.append(abs(p.omega_n / truth[i] - 1))
@@ -69,35 +83,32 @@ def test_coverage_over_references_from_a_source_left_out(rigid_source):
     assert np.median(errors) < 0.8 * np.median(raw)
 
 
-def test_k1_is_honest_and_wider_than_k5(rigid_source):
-    """With the shipped scatter prior one reference gives honest (wide) intervals, five narrower ones."""
+def test_k1_is_honest_and_wider_than_k5(rigid_source, rigid_features):
+    """With the shipped priors one reference gives honest (wide) intervals, five narrower ones."""
     truth, _, readings = rigid_source
-    prior = lcf.SCATTER_PRIOR
     widths = {}
     for k in (1, 5):
-        post = fit_lab(readings[:k], np.log(truth[:k]), ["pointmass"], prior)
-        preds = [predict(post, r) for r in readings[10:]]
+        lab = shipped(readings, rigid_features, range(k), np.log(truth[:k]))
+        preds = [predict_adaptive(lab, r, f) for r, f in zip(readings[10:], rigid_features[10:], strict=True)]
         widths[k] = np.median([(p.ci95[1] - p.ci95[0]) / w for p, w in zip(preds, truth[10:], strict=True)])
         assert np.mean([p.ci95[0] <= w <= p.ci95[1] for p, w in zip(preds, truth[10:], strict=True)]) >= 0.85
     assert widths[1] > widths[5]
 
 
-def test_references_that_disagree_widen_the_intervals(rigid_source):
+def test_references_that_disagree_widen_the_intervals(rigid_source, rigid_features):
     """Issue 36: an adversarial lab, five references whose known omega_n disagree with their sweeps (each truth moved
-    by a factor e^+-0.7, alternating), gets intervals much wider than the same five references told the truth: the
-    scatter is learned from the references' residuals, not fixed by the prior."""
+    by a factor e^+-0.7, alternating), gets intervals much wider than the same five references told the truth: both
+    maps' scatters are learned from the references' residuals, not fixed by the priors."""
     truth, _, readings = rigid_source
-    prior = lcf.SCATTER_PRIOR
     lie = np.log(truth[:5]) + 0.7 * np.array([1, -1, 1, -1, 1])
     widths, sigmas = {}, {}
     for name, y in (("agree", np.log(truth[:5])), ("disagree", lie)):
-        post = fit_lab(readings[:5], y, ["pointmass"], prior)
-        sigmas[name] = post.summary()["sigma_mean"]
-        preds = [predict(post, r) for r in readings[10:]]
+        lab = shipped(readings, rigid_features, range(5), y)
+        sigmas[name] = (lab.readings.summary()["sigma_mean"], float(lab.line.weight @ FEATURE_SIGMAS))
+        preds = [predict_adaptive(lab, r, f) for r, f in zip(readings[10:], rigid_features[10:], strict=True)]
         widths[name] = np.median([(p.ci95[1] - p.ci95[0]) / w for p, w in zip(preds, truth[10:], strict=True)])
-    # measured: sigma 0.55 -> 0.82, width x 2.1; with the scatter held at the prior's median (log_sd 0.01) the
-    # sigma stays and the width grows x 1.5 only (the offset's spread): both bounds fail there
-    assert sigmas["disagree"] > 1.3 * sigmas["agree"]
+    assert sigmas["disagree"][0] > 1.3 * sigmas["agree"][0]  # the readings map's scatter
+    assert sigmas["disagree"][1] > 1.3 * sigmas["agree"][1]  # the feature line's
     assert widths["disagree"] > 1.8 * widths["agree"]
 
 
@@ -200,6 +211,37 @@ def test_uncalibrated_fit_says_so(calibrated, capsys):
     (lo, hi), w = fit["omega_n_ci95_rad_s"], fit["omega_n_rad_s"]
     quoted = float(re.search(r"a factor of ([\d.e+]+) either way", out)[1])
     assert quoted == pytest.approx(max(hi / w, w / lo), rel=1e-2)
+
+
+def test_uncalibrated_refusal_names_its_forward_model_and_points_to_a_calibration(tmp_path, capsys):
+    """Issue 36: the paper's Fig. 7(a) curve (a real plate's sweep) read by ``fit`` without a calibration is refused
+    by the ``lab`` forward model's predictive check; the message names ``lab`` (the model that was used), not only its
+    best-fitting member, and, the sweep showing a resonance hump, points to --calibration paper and plate-env
+    calibrate. Random noise gets the refusal without the pointer (it is no plate's sweep)."""
+    from plate_env.build.calibration import paper_curve
+
+    t = paper_curve(598.7, 25.1, 5.1)
+    path = tmp_path / "fig7a.csv"
+    path.write_text("f_p_hz,omega_b_deg_s,stderr_deg_s,a_p_deg,unstable\n" + "".join(
+        f"{f:g},{w:.6g},10,3,0\n" for f, w in zip(t.f_p_hz, t.omega_b_deg_s, strict=True)))
+    assert main(["fit", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "no estimate" in out and "forward model 'lab'" in out, out
+    assert "--calibration paper" in out and "plate-env calibrate" in out, out
+    # Fig. 7(c) gets lab's wide interval; its note names both calibrated readings too
+    t = paper_curve(520.9, 24.6, 5.8)
+    path.write_text("f_p_hz,omega_b_deg_s,stderr_deg_s,a_p_deg,unstable\n" + "".join(
+        f"{f:g},{w:.6g},10,3,0\n" for f, w in zip(t.f_p_hz, t.omega_b_deg_s, strict=True)))
+    assert main(["fit", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "uncalibrated" in out and "--calibration paper" in out and "plate-env calibrate" in out, out
+    rng = np.random.default_rng(3)
+    noise = tmp_path / "noise.csv"
+    noise.write_text("f_p_hz,omega_b_deg_s,stderr_deg_s,a_p_deg,unstable\n" + "".join(
+        f"{f:g},{w:.6g},10,3,0\n" for f, w in zip(t.f_p_hz, rng.uniform(0, 600, t.f_p_hz.size), strict=True)))
+    main(["fit", str(noise)])
+    out = capsys.readouterr().out
+    assert "no estimate" in out and "--calibration paper" not in out, out
 
 
 def _refused(argv, capsys, match: str) -> None:
@@ -315,3 +357,21 @@ def _write(tmp_path, text):
     path = tmp_path / "ok.csv"
     path.write_text(text)
     return path
+
+
+def test_a_calibration_file_from_before_the_feature_line_is_refused_by_name(tmp_path):
+    """Issue 36: schema 2 adds the feature line; a schema-1 file (the readings map alone) is refused naming the
+    command that makes a new one, not read as if its feature line were the prior's."""
+    d = lcf.load(lcf.PAPER).to_json()
+    old = {k: v for k, v in d.items() if k not in ("feature_prior", "reference_features", "feature_weight",
+                                                   "content_sha256")}
+    old["schema_version"] = 1
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps({**old, "content_sha256": lcf.content_hash(old)}))
+    with pytest.raises(lcf.CalibrationError, match="schema_version 1.*run plate-env calibrate again"):
+        lcf.load(path)
+    del d["feature_weight"]  # schema 2 without one of its fields: malformed, by name
+    d.pop("content_sha256")
+    path.write_text(json.dumps({**d, "content_sha256": lcf.content_hash(d)}))
+    with pytest.raises(lcf.CalibrationError, match="malformed calibration.*feature_weight"):
+        lcf.load(path)

@@ -46,5 +46,6 @@ def run(args: argparse.Namespace) -> int:
     top = max(s["member_weights"].items(), key=lambda kv: kv[1])
     print(f"calibration of {len(objects)} reference disc(s) at A_p = {amps[0]:g} deg written to {args.out}: "
           f"offset {s['a_mean']:+.2f}, slope {s['b_mean']:.2f}, scatter {s['sigma_mean']:.2f} (log omega_n), "
-          f"member {top[0]} ({top[1]:.0%})", flush=True)
+          f"member {top[0]} ({top[1]:.0%}); the feature line's weight {cal.feature_weight:.2f} (Lorentzian fits on "
+          f"{sum(f is not None for f in cal.reference_features)} of {len(objects)} references)", flush=True)
     return 0

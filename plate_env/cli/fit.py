@@ -109,14 +109,32 @@ def _fit_report(est: Estimate, table: ProbeTable) -> list[str]:
     return out
 
 
-def uncalibrated_note(est: Estimate) -> str:
+def uncalibrated_note(est: Estimate, hump: bool = False) -> str:
     """The line ``fit`` prints without a calibration: how far this fit's own 95 % interval reaches either side of
-    its estimate (a factor; what it is on the paper's objects: ``experiments/results/forward_models_paper.md``)."""
+    its estimate (a factor; what it is on the paper's objects: ``experiments/results/forward_models_paper.md``);
+    ``hump``: the probes show a measured resonance hump (a real plate's sweep?), so the paper's reference set is
+    named too."""
     lo, hi = est.omega_n_ci95
     factor = max(hi / est.omega_n, est.omega_n / lo) if lo > 0 else math.inf
+    paper = ("; these probes show a resonance hump, as a real plate's sweep does: at A_p = 3 deg the paper's "
+             "reference set reads them too (--calibration paper)") if hump else ""
     return (f"uncalibrated: the interval carries the disagreement between the physics models (here a factor of "
             f"{factor:.3g} either way at 95 %); measure reference discs of known omega_n and run plate-env calibrate "
-            f"to narrow it (docs/calibration.md)")
+            f"to narrow it (docs/calibration.md){paper}")
+
+
+def calibration_pointer(est: Estimate, table: ProbeTable) -> str | None:
+    """The line ``fit`` prints after an uncalibrated atlas reading that gave no estimate (not a bound) of probes that
+    look like a real plate's sweep (a measured resonance hump: :func:`plate_env.identify.estimators.hump_reason`):
+    the calibrated readings that exist for such data. None otherwise (an estimate, a bound, or data with no hump:
+    a calibration would refuse them too)."""
+    from plate_env.identify.estimators import hump_reason
+
+    if est.ok or est.bound is not None or hump_reason(table) is not None:
+        return None
+    return (f"these probes show a resonance hump, as a real plate's sweep does, that {est.forward!r} does not "
+            "explain: read them through the paper's reference set (--calibration paper, A_p = 3 deg) or through "
+            "reference discs of known omega_n measured on the same plate (plate-env calibrate; docs/calibration.md)")
 
 
 def _read_fit_table(args: argparse.Namespace) -> ProbeTable:
@@ -181,9 +199,13 @@ def run(args: argparse.Namespace) -> int:
             if est.alpha is not None:
                 print(f"alpha_hat   = {math.degrees(est.alpha):.1f} +- {math.degrees(est.alpha_stderr):.1f} deg")
             if est.forward == "lab":
-                print(uncalibrated_note(est))
+                from plate_env.identify.estimators import hump_reason
+
+                print(uncalibrated_note(est, hump=hump_reason(table) is None))
         else:
             print(f"no estimate: {est.reason}")
+            if incremental and (pointer := calibration_pointer(est, table)) is not None:
+                print(pointer)
         sys.stdout.flush()
     if plot is not None:
         from plate_env.plotting import plot_fit

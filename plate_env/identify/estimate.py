@@ -174,10 +174,16 @@ class PredictiveCheck:
     def passed(self) -> bool:
         return self.p_value >= self.p_min
 
-    def reason(self) -> str:
+    def reason(self, forward: str | None = None) -> str:
+        """Why the check failed, naming ``forward`` (the forward model that read the probes) and, when it is not
+        that model itself, the member checked (its best-fitting one)."""
         where = "" if self.worst is None else (f"; worst probe f_p = {self.worst[0]:g} Hz, A_p = {self.worst[1]:g} "
                                                f"deg, {self.worst[2]:+.3g} model scales off")
-        return (f"the probes are not a sweep {self.member!r} can explain (predictive p-value {self.p_value:.2g} < "
+        if forward is None or forward == self.member:
+            who, member = repr(self.member), ""
+        else:
+            who, member = f"the forward model {forward!r}", f"its best-fitting member {self.member!r}: "
+        return (f"the probes are not a sweep {who} can explain ({member}predictive p-value {self.p_value:.2g} < "
                 f"{self.p_min:g}{where}): check the data's units, sign and columns, or use a forward model that "
                 "describes the object")
 

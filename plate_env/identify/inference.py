@@ -604,7 +604,7 @@ def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
     side = post.edge()
     if not check.passed:  # data no object of the model could make: no number and no bound, the check says why
         edge = "" if side is None else f" (its best fit piles at the {side} edge of the range it can identify)"
-        return Estimate(ok=False, reason=check.reason() + edge, **fields)
+        return Estimate(ok=False, reason=check.reason(fm.name) + edge, **fields)
     alpha_side = post.alpha_edge()
     if alpha_side is not None and (side is None or post.edge_at_inner_alpha() != side):
         # alpha at its edge: no estimate, and no omega_n bound unless omega_n piles at that side for the friction

@@ -3,7 +3,8 @@
 CAL.json is one JSON object::
 
     schema            "plate-env/lab-calibration"        what this file is
-    schema_version    1                                    the layout (a reader refuses any other)
+    schema_version    2                                    the layout (a reader refuses any other; 1: before the
+                                                           feature line, issue 36)
     package_version   the plate-env version that wrote it  (a reader refuses another version)
     commit            git commit of the writer if known, else null
     inputs_sha256     hash of the references' probes and known omega_n (what it was fitted from)
@@ -13,7 +14,10 @@ CAL.json is one JSON object::
                       amplitude, B_p, mass or diameter are refused
     references        [{"object", "omega_n_rad_s", "n_probes"}]
     scatter_prior     {"median", "log_sd"}: the prior over the lab's scatter (learned across labs)
-    posterior         {"pivot", "member", "a", "b", "sigma", "weight", "n_refs", "ref_range"}
+    posterior         {"pivot", "member", "a", "b", "sigma", "weight", "n_refs", "ref_range"}: the readings map
+    feature_prior     {"mean", "cov", "sigma_median", "log_sd"}: the feature line's prior (learned across labs)
+    reference_features  per reference [f0 Hz, omega_Brmax deg/s] of its Lorentzian fit, or null where it failed
+    feature_weight    the feature line's weight in the average (the references' leave-one-out evidence)
     assumes           what the calibration assumes, in words
     content_sha256    sha256 of the canonical JSON of every other field: a file edited by hand is refused
 
@@ -36,32 +40,36 @@ import numpy as np
 from plate_env.core import checks
 from plate_env.core.files import read_json, write_text_atomic
 from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.adaptive_calibration import (
+    FEATURE_PRIOR,
+    SCATTER_PRIOR,
+    AdaptiveLab,
+    FeaturePrior,
+    fit_adaptive,
+    fit_feature_line,
+    hump_features,
+    predict_adaptive,
+)
 from plate_env.identify.estimate import Estimate
 from plate_env.identify.forward import ForwardModel, Member, _conditioned
-from plate_env.identify.lab_calibration import (
-    LabPosterior,
-    ScatterPrior,
-    fit_lab,
-    member_readings,
-    predict,
-)
+from plate_env.identify.lab_calibration import LabPosterior, ScatterPrior, member_readings
 from plate_env.surrogate.catalog import registry_member_atlases
 from plate_env.surrogate.conditioning import KnownInputs
 
 SCHEMA = "plate-env/lab-calibration"
-SCHEMA_VERSION = 1
-#: The scatter prior a calibration ships with: log-normal, median and sd of log sigma, learned across labs (each
-#: source read through the other sources' members with all its objects as references, b = 1: the point mass 0.60,
-#: rigid_limit 0.41; median their geometric mean. experiments/results/calibration_study.json, `priors`).
-SCATTER_PRIOR = ScatterPrior(median=0.5, log_sd=0.75)
+SCHEMA_VERSION = 2
+#: The priors a calibration ships with (learned across the simulated labs of every shipped physics) are
+#: :data:`plate_env.identify.adaptive_calibration.SCATTER_PRIOR` and ``FEATURE_PRIOR`` (imported here).
 #: References are refused outside this omega_n range (rad/s): the range every shipped forward model's members cover
 #: (the identification prior is 3.5pi-33pi).
 REF_RANGE_PI = (3.5, 33.0)
 ASSUMES = ("Every disc read with this file is swept on the same plate and set-up as the references (amplitude, "
            "B_p, mass, diameter as recorded). The lab's unknowns are shared by its discs: which member describes the "
-           "plate, and a map log omega_n = c + a + b (u - c) from that member's reading u, with a scatter sigma "
-           "(normal in log omega_n) no member explains; b = 1 (a slope fitted from 3-5 references did worse). The "
-           "intervals hold on discs like the references (the study: experiments/results/calibration_study.md).")
+           "plate, and a map log omega_n = c + a + (u - c) from that member's reading u, with a scatter sigma "
+           "(normal in log omega_n) no member explains; and a line log omega_n = beta . (1, f0 - 26 Hz, "
+           "log(omega_Brmax / 600 deg/s)) from the sweep's Lorentzian features with its own scatter. The two are "
+           "averaged by the references' leave-one-out evidence. The intervals hold on discs like the references "
+           "(the study: experiments/results/calibration_plans.md).")
 
 
 class CalibrationError(ValueError):
@@ -82,6 +90,26 @@ class LabCalibration:
     inputs_sha256: str
     package_version: str
     commit: str | None = None
+    feature_prior: FeaturePrior = FEATURE_PRIOR
+    reference_features: tuple[tuple[float, float] | None, ...] = ()
+    feature_weight: float = 0.5
+
+    def __post_init__(self) -> None:
+        if len(self.reference_features) != len(self.references):
+            raise CalibrationError(f"reference_features has {len(self.reference_features)} entries for "
+                                   f"{len(self.references)} references: one per reference")
+        if not (math.isfinite(self.feature_weight) and 0.0 <= self.feature_weight <= 1.0):
+            raise CalibrationError(f"feature_weight = {self.feature_weight!r} is outside the allowed range [0, 1]")
+        for f in self.reference_features:
+            if f is not None and not (len(f) == 2 and all(math.isfinite(x) for x in f) and f[1] > 0):
+                raise CalibrationError(f"reference_features entry {f!r}: [f0 Hz, omega_Brmax deg/s > 0] or null")
+
+    def adaptive(self) -> AdaptiveLab:
+        """The :class:`~plate_env.identify.adaptive_calibration.AdaptiveLab` of this calibration: the readings
+        map's posterior as recorded, the feature line refitted from the recorded references (deterministic)."""
+        line = fit_feature_line(self.feature_prior, self.reference_features,
+                                [math.log(w) for _, w, _ in self.references])
+        return AdaptiveLab(self.posterior, line, self.feature_weight)
 
     def to_json(self) -> dict:
         post = self.posterior
@@ -95,6 +123,9 @@ class LabCalibration:
                 "posterior": {"pivot": post.pivot, "member": list(post.member), "a": list(post.a), "b": list(post.b),
                               "sigma": list(post.sigma), "weight": list(post.weight), "n_refs": post.n_refs,
                               "ref_range": list(post.ref_range)},
+                "feature_prior": self.feature_prior.to_json(),
+                "reference_features": [None if f is None else list(f) for f in self.reference_features],
+                "feature_weight": self.feature_weight,
                 "assumes": ASSUMES}
         return {**body, "content_sha256": content_hash(body)}
 
@@ -123,7 +154,11 @@ class LabCalibration:
                    references=tuple((r["object"], float(r["omega_n_rad_s"]), int(r["n_probes"]))
                                     for r in d["references"]),
                    scatter_prior=ScatterPrior(**d["scatter_prior"]), posterior=post,
-                   inputs_sha256=d["inputs_sha256"], package_version=d["package_version"], commit=d.get("commit"))
+                   inputs_sha256=d["inputs_sha256"], package_version=d["package_version"], commit=d.get("commit"),
+                   feature_prior=FeaturePrior.from_json(d["feature_prior"]),
+                   reference_features=tuple(None if f is None else (float(f[0]), float(f[1]))
+                                            for f in d["reference_features"]),
+                   feature_weight=float(d["feature_weight"]))
 
 
 def package_version() -> str:
@@ -201,9 +236,11 @@ def check_distinct(objects: Sequence[str], omega_n: Sequence[float], tables: Seq
 
 
 def calibrate(tables: Sequence[ProbeTable], omega_n: Sequence[float], objects: Sequence[str], a_p_deg: float,
-              known: KnownInputs, forward: str = "lab", prior: ScatterPrior = SCATTER_PRIOR) -> LabCalibration:
+              known: KnownInputs, forward: str = "lab", prior: ScatterPrior = SCATTER_PRIOR,
+              feature_prior: FeaturePrior = FEATURE_PRIOR) -> LabCalibration:
     """Fit a lab calibration from reference sweeps of discs of known omega_n (rad/s), all at amplitude
-    ``a_p_deg`` and on the set-up ``known``."""
+    ``a_p_deg`` and on the set-up ``known``: the readings map and the feature line and the feature line's weight
+    (:func:`plate_env.identify.adaptive_calibration.fit_adaptive`)."""
     check_references(objects, omega_n)
     if len(set(objects)) != len(objects):
         raise CalibrationError(f"reference names repeat: {sorted(objects)}; one sweep table per disc")
@@ -218,10 +255,13 @@ def calibrate(tables: Sequence[ProbeTable], omega_n: Sequence[float], objects: S
     for o, r in zip(objects, readings, strict=True):
         if not r.available.any():
             raise CalibrationError(f"reference {o!r}: no member of {forward!r} describes its probes")
-    post = fit_lab(readings, np.log(np.asarray(omega_n, dtype=float)), ["+".join(f) for f in files], prior)
+    feats = [hump_features(t) for t in tables]
+    lab = fit_adaptive(readings, feats, np.log(np.asarray(omega_n, dtype=float)), ["+".join(f) for f in files],
+                       prior, feature_prior)
     return LabCalibration(forward, files, float(a_p_deg), known,
                           tuple((o, float(w), len(t)) for o, w, t in zip(objects, omega_n, tables, strict=True)),
-                          prior, post, inputs_hash(tables, omega_n), package_version(), _commit())
+                          prior, lab.readings, inputs_hash(tables, omega_n), package_version(), _commit(),
+                          feature_prior, tuple(feats), lab.feature_weight)
 
 
 def check_data(cal: LabCalibration, table: ProbeTable, known: KnownInputs) -> None:
@@ -247,7 +287,7 @@ def identify_calibrated(table: ProbeTable, cal: LabCalibration, known: KnownInpu
                                f"plate-env's {['+'.join(f) for f in files]}: run plate-env calibrate again")
     base = {"method": "calibrated", "n_probes": len(table), "n_unstable": int(table.unstable.sum()),
             "forward": f"{cal.forward} calibrated by {len(cal.references)} reference(s)"}
-    p = predict(cal.posterior, member_readings(fm, table))
+    p = predict_adaptive(cal.adaptive(), member_readings(fm, table), hump_features(table))
     if not p.ok:
         return Estimate(ok=False, reason=p.reason, **base)
     return Estimate(ok=True, omega_n=p.omega_n, omega_n_stderr=0.5 * (p.ci68[1] - p.ci68[0]), omega_n_ci68=p.ci68,

@@ -1,0 +1,255 @@
+"""The lab-adaptive calibrated reading (issue 36): two maps from a sweep to omega_n, averaged by what the lab's own
+references say about them. Pure functions and frozen dataclasses; no I/O.
+
+1. **The readings map** (:mod:`plate_env.identify.lab_calibration`): member weights + offset + scatter, the scatter
+   with a *wide* prior over labs (:data:`SCATTER_PRIOR`), so that the references' own residuals decide it where
+   they can.
+2. **The feature line**, the paper's way: log omega_n = x . beta + sigma eps with x = (1, f0 - 26 Hz,
+   log(omega_Brmax / 600 deg/s)) the Eq. (9) Lorentzian's features of the sweep (:func:`hump_features`); beta and
+   sigma shrunk toward a hierarchical prior over labs (:data:`FEATURE_PRIOR`: the coefficients' spread across the
+   simulated labs of every shipped physics, the scatter log-normal with a wide spread). The posterior is computed
+   on a scatter grid (conjugate normal per scatter), so the predictive is a scale mixture of normals: heavy-tailed,
+   Student-t-like, when the references are few. No reading where the Lorentzian fit fails.
+3. **The average**: each disc's predictive is ``w F + (1 - w) R`` (CDFs on :data:`LOG_OMEGA_GRID`), ``w`` from the
+   references' leave-one-out predictive log scores of the two maps (pseudo-Bayesian model averaging,
+   :func:`feature_weight`; 1/2 with one reference); a disc without hump features is read by the readings map alone.
+
+Measured on held-out labs of every shipped physics, each family left out in turn, against the map shipped before:
+``experiments/results/calibration_plans.md`` (method ``adaptive``); the priors:
+``experiments/results/calibration_plans.json`` (``shipped_priors``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.lab_calibration import (
+    PRED_STEP,
+    LabPosterior,
+    Prediction,
+    Readings,
+    ScatterPrior,
+    fit_lab,
+    predictive_density,
+)
+
+#: The scatter grid of the feature line (sd of log omega_n).
+FEATURE_SIGMAS = np.geomspace(0.02, 1.0, 24)
+#: The features' pivots: f0 (Hz) and omega_Brmax (deg/s).
+F0_PIVOT_HZ, OMEGA_MAX_PIVOT_DEG_S = 26.0, 600.0
+#: log omega_n (rad/s) on which the maps' predictive CDFs are mixed and read: 1-400 rad/s (0.3pi-127pi).
+LOG_OMEGA_GRID = np.linspace(0.0, math.log(400.0), 2400)
+
+#: The readings map's scatter prior: median the geometric mean of the in-sample scatters of the simulated labs of
+#: every shipped physics (each read through the members of the other families), sd of log sigma 1.5 (wide: the
+#: references decide). experiments/results/calibration_plans.json, ``shipped_priors.readings``.
+SCATTER_PRIOR = ScatterPrior(median=0.3435, log_sd=1.5)
+
+
+@dataclass(frozen=True)
+class FeaturePrior:
+    """The feature line's prior: coefficients normal (``mean``, ``cov``: intercept, per Hz, per unit log peak),
+    scatter log-normal (``sigma_median``, sd of log sigma ``log_sd``)."""
+
+    mean: tuple[float, float, float]
+    cov: tuple[tuple[float, float, float], ...]
+    sigma_median: float
+    log_sd: float
+
+    def __post_init__(self) -> None:
+        c = np.asarray(self.cov, dtype=float)
+        if len(self.mean) != 3 or not np.all(np.isfinite(self.mean)) or c.shape != (3, 3) \
+                or not np.all(np.isfinite(c)) or not np.allclose(c, c.T) or np.linalg.eigvalsh(c).min() <= 0:
+            raise ValueError("FeaturePrior: mean must be 3 finite numbers, cov a 3 x 3 symmetric positive-definite "
+                             "matrix")
+        if not (math.isfinite(self.sigma_median) and 0 < self.sigma_median <= 2 and math.isfinite(self.log_sd)
+                and 0 < self.log_sd <= 5):
+            raise ValueError(f"FeaturePrior(sigma_median={self.sigma_median!r}, log_sd={self.log_sd!r}): "
+                             "sigma_median must be in (0, 2], log_sd in (0, 5]")
+
+    def to_json(self) -> dict:
+        return {"mean": list(self.mean), "cov": [list(r) for r in self.cov], "sigma_median": self.sigma_median,
+                "log_sd": self.log_sd}
+
+    @classmethod
+    def from_json(cls, d: dict) -> FeaturePrior:
+        return cls(tuple(float(x) for x in d["mean"]), tuple(tuple(float(x) for x in r) for r in d["cov"]),
+                   float(d["sigma_median"]), float(d["log_sd"]))
+
+
+#: The shipped feature prior: each simulated lab's least-squares line (every shipped physics: the per-disc and 8
+#: lab-level point-mass labs, rigid_limit, the PyBullet sheet); mean their mean, covariance their spread plus
+#: (|mean| + floor)^2 on the diagonal; scatter median the geometric mean of their residual sds.
+#: experiments/results/calibration_plans.json, ``shipped_priors.features``.
+FEATURE_PRIOR = FeaturePrior(
+    mean=(4.008862, -0.142085, 5.0804),
+    cov=((0.415838, -0.025839, 0.644289), (-0.025839, 0.096409, -0.296014), (0.644289, -0.296014, 41.255364)),
+    sigma_median=0.2134, log_sd=1.5)
+
+Features = tuple[float, float] | None
+
+
+def hump_features(table: ProbeTable) -> Features:
+    """The sweep's Eq. (9) Lorentzian features ``(f0 Hz, omega_Brmax deg/s)``, None where the fit fails."""
+    from plate_env.identify.fitting import fit_lorentzian
+
+    fit = fit_lorentzian(table.f_p_hz, table.omega_b_deg_s, table.stderr_deg_s, table.unstable)
+    if not fit.ok or not (math.isfinite(fit.f0) and math.isfinite(fit.omega_max) and fit.omega_max > 0):
+        return None
+    return float(fit.f0), float(fit.omega_max)
+
+
+def _x(f: tuple[float, float]) -> np.ndarray:
+    return np.array([1.0, f[0] - F0_PIVOT_HZ, math.log(f[1] / OMEGA_MAX_PIVOT_DEG_S)])
+
+
+@dataclass(frozen=True, eq=False)
+class FeatureLine:
+    """The feature line's posterior on :data:`FEATURE_SIGMAS`: per scatter its weight and the coefficients' normal
+    posterior (``mean`` (n, 3), ``cov`` (n, 3, 3))."""
+
+    weight: np.ndarray
+    mean: np.ndarray
+    cov: np.ndarray
+
+
+def fit_feature_line(prior: FeaturePrior, feats: Sequence[Features], log_truth: Sequence[float]) -> FeatureLine:
+    """The posterior of the feature line from the references with features (the others are not used; none: the
+    prior)."""
+    use = [i for i, f in enumerate(feats) if f is not None]
+    x = np.array([_x(feats[i]) for i in use]).reshape(len(use), 3)
+    y = np.asarray(log_truth, dtype=float)[use]
+    m0, c0 = np.asarray(prior.mean), np.asarray(prior.cov)
+    lp = -0.5 * ((np.log(FEATURE_SIGMAS) - math.log(prior.sigma_median)) / prior.log_sd) ** 2
+    prec0 = np.linalg.inv(c0)
+    means, covs = [], []
+    r = y - x @ m0
+    for j, sg in enumerate(FEATURE_SIGMAS):
+        cov_y = sg ** 2 * np.eye(len(y)) + x @ c0 @ x.T
+        _, logdet = np.linalg.slogdet(cov_y)
+        lp[j] += -0.5 * (logdet + r @ np.linalg.solve(cov_y, r))
+        cn = np.linalg.inv(prec0 + x.T @ x / sg ** 2)
+        means.append(cn @ (prec0 @ m0 + x.T @ y / sg ** 2))
+        covs.append(cn)
+    wt = np.exp(lp - lp.max())
+    return FeatureLine(wt / wt.sum(), np.array(means), np.array(covs))
+
+
+def _feature_parts(line: FeatureLine, f: tuple[float, float]):
+    x = _x(f)
+    keep = line.weight >= 1e-8
+    loc = line.mean[keep] @ x
+    sd = np.sqrt(FEATURE_SIGMAS[keep] ** 2 + np.einsum("i,nij,j->n", x, line.cov[keep], x))
+    return line.weight[keep], loc, sd
+
+
+def feature_cdf(line: FeatureLine, f: Features, grid: np.ndarray = LOG_OMEGA_GRID) -> np.ndarray | None:
+    """The feature line's predictive CDF of log omega_n on ``grid`` (None without features)."""
+    from scipy.special import ndtr
+
+    if f is None:
+        return None
+    w, loc, sd = _feature_parts(line, f)
+    cdf = (w[:, None] * ndtr((grid[None, :] - loc[:, None]) / sd[:, None])).sum(0)
+    return cdf / cdf[-1]
+
+
+def feature_log_density(line: FeatureLine, f: Features, y: float) -> float | None:
+    """The feature line's predictive log density at log omega_n ``y`` (None without features)."""
+    if f is None:
+        return None
+    w, loc, sd = _feature_parts(line, f)
+    dens = float(np.sum(w * np.exp(-0.5 * ((y - loc) / sd) ** 2) / (sd * math.sqrt(2 * math.pi))))
+    return math.log(max(dens, 1e-300))
+
+
+def readings_cdf(post: LabPosterior, reading: Readings, grid: np.ndarray = LOG_OMEGA_GRID) -> np.ndarray | None:
+    """The readings map's predictive CDF on ``grid`` (None when no member the references chose reads the sweep)."""
+    y, dens = predictive_density(post, reading)
+    if dens.sum() <= 0:
+        return None
+    return np.interp(grid, y, np.cumsum(dens) / dens.sum(), left=0.0, right=1.0)
+
+
+def readings_log_density(post: LabPosterior, reading: Readings, yk: float) -> float | None:
+    """The readings map's predictive log density at log omega_n ``yk`` (None without a reading)."""
+    y, dens = predictive_density(post, reading)
+    if dens.sum() <= 0:
+        return None
+    return math.log(max(float(np.interp(yk, y, dens)) / PRED_STEP, 1e-300))
+
+
+def feature_weight(readings: Sequence[Readings], feats: Sequence[Features], log_truth: Sequence[float],
+                   members: Sequence[str], scatter_prior: ScatterPrior = SCATTER_PRIOR,
+                   feature_prior: FeaturePrior = FEATURE_PRIOR) -> float:
+    """The feature line's weight in the average: each reference predicted by both maps fitted to the others, the
+    log scores summed over the references both read, ``w = 1 / (1 + exp(S_readings - S_features))``; 1/2 with
+    fewer than two references or none both read."""
+    y = np.asarray(log_truth, dtype=float)
+    if y.size < 2:
+        return 0.5
+    sf = sr = 0.0
+    n = 0
+    for k in range(y.size):
+        rest = [i for i in range(y.size) if i != k]
+        lf = feature_log_density(fit_feature_line(feature_prior, [feats[i] for i in rest], y[rest]), feats[k],
+                                 float(y[k]))
+        try:
+            post = fit_lab([readings[i] for i in rest], y[rest], members, scatter_prior)
+        except ValueError:  # no member reads every other reference
+            continue
+        lr = readings_log_density(post, readings[k], float(y[k]))
+        if lf is None or lr is None:
+            continue
+        sf, sr, n = sf + lf, sr + lr, n + 1
+    if not n:
+        return 0.5
+    return 1.0 / (1.0 + math.exp(min(max(sr - sf, -700.0), 700.0)))
+
+
+def mixed_prediction(f_cdf: np.ndarray | None, r_cdf: np.ndarray | None, w: float,
+                     grid: np.ndarray = LOG_OMEGA_GRID) -> Prediction:
+    """The average of the two maps' predictives (``w`` the feature line's weight; a map without a reading drops
+    out): median and equal-tailed intervals (rad/s)."""
+    if f_cdf is None and r_cdf is None:
+        return Prediction(False, reason="neither map reads these probes: no member the references chose describes "
+                                        "them and their Lorentzian fit fails")
+    cdf = r_cdf if f_cdf is None else f_cdf if r_cdf is None else w * f_cdf + (1 - w) * r_cdf
+
+    def q(level: float) -> float:
+        return float(math.exp(np.interp(level, cdf, grid)))
+
+    return Prediction(True, q(0.5), (q(0.16), q(0.84)), (q(0.025), q(0.975)))
+
+
+@dataclass(frozen=True)
+class AdaptiveLab:
+    """What K references taught: the readings map's posterior, the feature line's and the feature line's weight."""
+
+    readings: LabPosterior
+    line: FeatureLine
+    feature_weight: float
+
+
+def fit_adaptive(readings: Sequence[Readings], feats: Sequence[Features], log_truth: Sequence[float],
+                 members: Sequence[str], scatter_prior: ScatterPrior = SCATTER_PRIOR,
+                 feature_prior: FeaturePrior = FEATURE_PRIOR, weight: float | None = None) -> AdaptiveLab:
+    """Both maps fitted to the references and the feature line's weight (:func:`feature_weight`, or ``weight``
+    when given: a calibration file's)."""
+    post = fit_lab(readings, log_truth, members, scatter_prior)
+    line = fit_feature_line(feature_prior, feats, log_truth)
+    w = feature_weight(readings, feats, log_truth, members, scatter_prior, feature_prior) if weight is None \
+        else float(weight)
+    if not 0.0 <= w <= 1.0:
+        raise ValueError(f"feature_weight = {w!r} is outside the allowed range [0, 1]")
+    return AdaptiveLab(post, line, w)
+
+
+def predict_adaptive(lab: AdaptiveLab, reading: Readings, f: Features) -> Prediction:
+    """omega_n of a disc (rad/s) from its members' readings and its hump features through ``lab``."""
+    return mixed_prediction(feature_cdf(lab.line, f), readings_cdf(lab.readings, reading), lab.feature_weight)
