@@ -349,3 +349,47 @@ def test_contract_property_every_method_of_the_physics_over_0p3_to_200pi(log_ome
     (t,) = _live_sweeps([omega_pi], alpha_deg, seed)
     for which in ("atlas tilelink/pointmass", "lorentz tilelink/pointmass"):
         _holds(_fit(which, t), omega_pi, f"{which}, alpha {alpha_deg:.1f} deg, seed {seed}")
+
+
+def test_a_calibrated_predictive_beyond_its_grid_is_no_estimate_not_a_clamped_number():
+    """The calibrated map's predictive was read on 1-400 rad/s; a 100 pi point-mass sweep through the paper's
+    calibration put most of it below 1 rad/s and read omega_n = 1.00 rad/s, 68 % [1.00, 1.13] (quantiles clamped at
+    the grid's end, experiments/results/out_of_range_methods.json). The grid is now 0.01-1e5 rad/s, and no estimate is
+    read when more than the 95 % interval's tail lies beyond it, naming the mass beyond; and a reading whose median lies outside the range the
+    calibration's members identify is no estimate, without a bound (its physics may not be the references')."""
+    from plate_env.identify.adaptive_calibration import LOG_OMEGA_GRID, TAIL, mixed_prediction
+
+    g = LOG_OMEGA_GRID
+
+    def cdf(mu: float, sd: float) -> np.ndarray:
+        from scipy.special import ndtr
+
+        return ndtr((g - mu) / sd)
+
+    assert mixed_prediction(cdf(math.log(30.0), 0.3), None, 1.0).ok  # well inside: read
+    low = mixed_prediction(cdf(g[0] - 1.0, 0.5), None, 1.0)
+    assert not low.ok and "below 0.01 rad/s" in low.reason
+    high = mixed_prediction(None, cdf(g[-1] + 1.0, 0.3), 0.0)
+    assert not high.ok and "above 1e+05 rad/s" in high.reason
+    edge = cdf(g[0] + 2.1 * 0.5, 0.5)  # 1.8 % below the grid: still read, its 95 % interval inside it
+    assert edge[0] < TAIL and mixed_prediction(edge, None, 1.0).ci95[0] > math.exp(g[0])
+    assert not mixed_prediction(cdf(g[0] + 1.8 * 0.5, 0.5), None, 1.0).ok  # 3.6 % below: its 2.5 % quantile unread
+    (t,) = _live_sweeps([100.0], 45.0, 0)
+    est = _fit("calibrated paper", t)
+    assert not est.ok or est.omega_n_ci95[0] > math.exp(g[0]) * (1 + 1e-9), "a clamped calibrated reading"
+
+
+def test_a_calibrated_reading_outside_the_members_range_is_no_estimate_and_no_bound(monkeypatch):
+    """A calibrated median outside the range the calibration's members identify (the lab pool's 1.4-45 pi) is no
+    estimate and no bound (the disc's physics may not be the references': the predictive's tail is no promise)."""
+    import plate_env.identify.lab_calibration_file as lcf
+    from plate_env.identify.lab_calibration import Prediction
+
+    (t,) = _live_sweeps([10.0], 45.0, 0)
+    assert _fit("calibrated paper", t).ok
+    for w_pi in (0.5, 80.0):
+        w = w_pi * math.pi
+        monkeypatch.setattr(lcf, "predict_adaptive", lambda *a, w=w: Prediction(True, w, (0.8 * w, 1.2 * w),
+                                                                                (0.6 * w, 1.5 * w)))
+        est = _fit("calibrated paper", t)
+        assert not est.ok and est.bound is None and "outside the range 'lab' identifies" in est.reason, est.reason

@@ -42,8 +42,13 @@ from plate_env.identify.lab_calibration import (
 FEATURE_SIGMAS = np.geomspace(0.02, 1.0, 24)
 #: The features' pivots: f0 (Hz) and omega_Brmax (deg/s).
 F0_PIVOT_HZ, OMEGA_MAX_PIVOT_DEG_S = 26.0, 600.0
-#: log omega_n (rad/s) on which the maps' predictive CDFs are mixed and read: 1-400 rad/s (0.3pi-127pi).
-LOG_OMEGA_GRID = np.linspace(0.0, math.log(400.0), 2400)
+#: log omega_n (rad/s) on which the maps' predictive CDFs are mixed and read: 0.01-1e5 rad/s at a step of 0.0025
+#: (wide: a K = 3 predictive is heavy-tailed, and on 1-400 rad/s the 95 % interval's ends of in-range discs were
+#: clamped at the grid's).
+LOG_OMEGA_GRID = np.linspace(math.log(0.01), math.log(1e5), 6448)
+
+#: The predictive mass beyond either end of LOG_OMEGA_GRID above which no estimate is read: the 95 % interval's tail.
+TAIL = 0.025
 
 #: The readings map's scatter prior: median the geometric mean of the in-sample scatters of the simulated labs of
 #: every shipped physics (each read through the members of the other families), sd of log sigma 1.5 (wide: the
@@ -215,11 +220,20 @@ def feature_weight(readings: Sequence[Readings], feats: Sequence[Features], log_
 def mixed_prediction(f_cdf: np.ndarray | None, r_cdf: np.ndarray | None, w: float,
                      grid: np.ndarray = LOG_OMEGA_GRID) -> Prediction:
     """The average of the two maps' predictives (``w`` the feature line's weight; a map without a reading drops
-    out): median and equal-tailed intervals (rad/s)."""
+    out): median and equal-tailed intervals (rad/s). No estimate when more than :data:`TAIL` of it lies beyond
+    either end of ``grid`` (the 95 % interval's end would be the grid's, clamped: on a grid of 1-400 rad/s, 100 and
+    200 pi point-mass sweeps through the paper's calibration read 1.00 rad/s, 68 % [1.00, 1.13] rad/s)."""
     if f_cdf is None and r_cdf is None:
         return Prediction(False, reason="neither map reads these probes: no member the references chose describes "
                                         "them and their Lorentzian fit fails")
     cdf = r_cdf if f_cdf is None else f_cdf if r_cdf is None else w * f_cdf + (1 - w) * r_cdf
+    below, above = float(cdf[0]), float(1.0 - cdf[-1])
+    if below > TAIL or above > TAIL:  # the 95 % interval's ends would be clamped at the grid's: not read
+        lo, hi = math.exp(grid[0]), math.exp(grid[-1])
+        return Prediction(False, reason=(
+            f"the calibrated predictive puts {below:.2f} of its mass below {lo:.3g} rad/s ({lo / math.pi:.3g} pi) and "
+            f"{above:.2f} above {hi:.3g} rad/s ({hi / math.pi:.3g} pi), the range it is read on (> {TAIL:g}): "
+            "the references do not place this disc inside it, so no estimate"))
 
     def q(level: float) -> float:
         return float(math.exp(np.interp(level, cdf, grid)))

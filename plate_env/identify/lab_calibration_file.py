@@ -290,6 +290,12 @@ def identify_calibrated(table: ProbeTable, cal: LabCalibration, known: KnownInpu
     p = predict_adaptive(cal.adaptive(), member_readings(fm, table), hump_features(table))
     if not p.ok:
         return Estimate(ok=False, reason=p.reason, **base)
+    lo, hi = fm.identifiable_range
+    if not lo <= p.omega_n <= hi:  # a reading beyond the range the members identify: no number, and no bound
+        return Estimate(ok=False, reason=(  # (its physics may not be the references': the tail is not a promise)
+            f"the calibrated reading, {p.omega_n / math.pi:.3g} pi rad/s (95 % {p.ci95[0] / math.pi:.3g}-"
+            f"{p.ci95[1] / math.pi:.3g} pi), lies outside the range {cal.forward!r} identifies ({lo / math.pi:.3g}-"
+            f"{hi / math.pi:.3g} pi rad/s): the references do not reach this disc, so no estimate"), **base)
     return Estimate(ok=True, omega_n=p.omega_n, omega_n_stderr=0.5 * (p.ci68[1] - p.ci68[0]), omega_n_ci68=p.ci68,
                     omega_n_ci95=p.ci95, **base)
 
