@@ -318,7 +318,7 @@ def test_item1_readings_of_unknown_origin_of_point_mass_discs_beyond_the_range(w
     """The study's 24 point-mass sweeps at 0.3-1.2 and 50-200 pi read through the paper's calibration and the lab's
     and the paper's Eq. (10) lines (readings of data whose physics is unknown): at 2247dd9 the calibration read 12
     of them (10 excluding the truth), each line set 3; now none, because every shipped physics that explains their
-    probes places the disc beyond its range (plate_env.identify.identifiability.beyond_every_physics). Inside the
+    probes places the disc beyond its range (plate_env.identify.unknown_origin.beyond_every_physics). Inside the
     range (3, 10, 30 pi) the calibration still reads 8 of 9."""
     inside = 0
     for w, a, t in _cached_sweeps("pointmass"):
@@ -332,7 +332,7 @@ def test_item1_a_reading_of_unknown_origin_stands_where_some_physics_explains_it
     """The rule asks every shipped physics, and one answering inside its range lets the reading stand: a live
     rigid-tile sweep at 10 pi through the paper's calibration answers; the study's 200 pi point-mass sweep is placed
     beyond by every physics that explains it, and by none when only the sheet (not extended) is asked."""
-    import plate_env.identify.identifiability as idf
+    import plate_env.identify.unknown_origin as idf
     from plate_env.surrogate.conditioning import KnownInputs
 
     (rigid,) = _live_sweeps([10.0], 45.0, 0, model="rigid_fast")

@@ -286,7 +286,7 @@ def gated_unknown_origin(est: Estimate, table: ProbeTable, known: KnownInputs, f
     if gate is not None and gate.bound is not None:
         return Estimate(reason=f"the {forward!r} posterior of these probes gives a bound, so the {est.method} "
                         f"reading of them is not given: {gate.reason}", bound=gate.bound, check=check, **base)
-    from plate_env.identify.identifiability import beyond_every_physics
+    from plate_env.identify.unknown_origin import beyond_every_physics
 
     if (why := beyond_every_physics(table, known)) is not None:  # issue 37 item 1: beyond the range, any physics
         return Estimate(reason=f"no {est.method} reading of these probes: {why}", check=check, **base)
