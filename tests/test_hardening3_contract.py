@@ -13,7 +13,6 @@ from hypothesis import strategies as st
 
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify import identify
-from plate_env.identify.estimators import ForwardName, LorentzEstimator, make_estimator
 
 F_HZ = np.arange(10.0, 41.0, 2.0)
 
@@ -34,6 +33,8 @@ ESTIMATORS = {"atlas lab": dict(method="atlas", name="tilelink/pointmass", forwa
 
 
 def _fit(which: str, table: ProbeTable):
+    from plate_env.identify.estimators import make_estimator  # imported here: the item tests run without it
+
     return make_estimator(**ESTIMATORS[which]).fit(table)
 
 
@@ -109,6 +110,8 @@ def test_contract_property_no_estimator_reads_data_no_model_explains(kind, level
 def test_contract_the_estimators_are_the_only_way_in():
     """The env, identify() and the episode loop make their estimates through the same estimator classes (no
     method string reaches the fit): a Lorentz estimator with the paper's lines is gated like any other."""
+    from plate_env.identify.estimators import ForwardName, LorentzEstimator
+
     est = LorentzEstimator(ForwardName("paper", "pointmass")).fit(_table(np.zeros(F_HZ.size)))
     assert not est.ok
 
