@@ -109,6 +109,79 @@ if not hasattr(_iface, "PhysicsBackend"):  # a base class of defaults (issue 35)
 '''
 
 
+#: What each result at 5860216 shows, read from its log (results/old/FUNC.log; "own:" for OWN's rows).
+SHOWS = {
+    "test_build_calibration_paper_equals_the_shipped_file_but_for_the_commit_it_records":
+        "passes: the defect was the test's bit equality (its own version fails here, below); this test's tolerance "
+        "is the fix",
+    "test_a_tilelink_calibration_sweep_simulated_again_equals_its_committed_records":
+        "passes: as above, the fix is the test's tolerance (its own version, below)",
+    "test_build_calibration_eq10_from_the_committed_sweeps_equals_the_recorded_rebuild":
+        "fails on KeyError 'tilelink/rigid_fast/3': a line issue 33 added after 5860216, not item 0's defect "
+        "(its own version, below)",
+    "test_build_forward_models_writes_the_shipped_registry":
+        "fails on the import of inputs_dir (issue 33's provenance helper), not on item 0's defect",
+    "test_a_probe_keeps_its_key_across_the_last_bit_a_cpu_changes_and_old_full_repr_keys_still_hit":
+        "fails on the import of canonical_key, the name item 0's fix (12-digit probe keys) introduced",
+    "test_item12_ctrl_c_during_submit_still_ends_the_running_workers":
+        "the defect: a worker started before a Ctrl-C during submit was still alive",
+    "test_item12_ctrl_c_ends_a_pool_sweep_without_waiting_for_running_chunks":
+        "passes on this machine (the issue: they fail only under load 4-6); the during-submit test above is the "
+        "busy-machine case",
+    "test_item12_ctrl_c_that_lands_on_another_thread_still_ends_a_pool_sweep": "passes on this machine, as above",
+    "test_item1_objects_outside_the_range_get_no_estimate_or_a_true_bound":
+        "the defect: coarse_to_fine read 60 pi as 27.4 pi, 95 % [25.9, 29.1] pi",
+    "test_item1_a_bound_holds_whichever_posterior_the_object_follows":
+        "the defect (no bound, an estimate) on tilelink-v0 #37",
+    "test_item1_objects_inside_the_range_keep_their_estimate":
+        "a guard: in-range objects keep their estimate, as they did",
+    "test_item1_the_extended_model_and_its_verdict":
+        "fails on the import of identifiability (the module the fix introduced)",
+    "test_item1_the_verdict_reads_mass_outside_the_range_on_each_side":
+        "fails on the import of identifiability (a unit test of the fix's verdict)",
+    "test_contract_property_every_agent_over_0p3_to_200pi":
+        "the defect: ppo read 200 pi as 1.65 pi, 95 % [1.47, 1.85] pi",
+    "test_item2_a_lorentz_peak_beyond_the_probes_it_was_fitted_on_is_no_estimate":
+        "the defect: a peak outside the probes read as an estimate",
+    "test_item2_a_measured_lorentz_peak_is_still_read": "a guard: a measured peak is still read, as it was",
+    "test_item2_the_rule_reads_the_fit_window_not_the_sweep": "the defect: the extrapolated peak read (ok)",
+    "test_item3_the_calibrated_path_refuses_what_it_cannot_explain":
+        "the defect: the calibrated path read zeros/negative/flat/noise (ok, no check)",
+    "test_item3_a_calibrated_reading_carries_its_check": "the defect: a calibrated estimate with check None",
+    "test_contract_the_lorentz_lines_on_noise_are_no_estimate": "the defect: the paper's Lorentz lines read noise",
+    "test_contract_a_lorentz_read_of_simulated_data_passes_its_models_check":
+        "the defect: the grid agent's Lorentz estimate carried no check",
+    "test_contract_property_no_estimator_reads_data_no_model_explains":
+        "fails on the import of plate_env.identify.estimators (make_estimator, issue 35's estimator objects)",
+    "test_contract_the_estimators_are_the_only_way_in":
+        "fails on the import of plate_env.identify.estimators (the estimator objects themselves)",
+    "test_item5_special_files_are_refused_before_any_read": "the defect: fit /dev/zero exit 3, MemoryError",
+    "test_fuzz_special_and_malformed_input_files": "the defect: fit of a /dev/zero symlink exit 3, MemoryError",
+    "test_item6_malformed_suites_deep_json_and_huge_cells_are_input_errors":
+        "the defect: cost_model [1,2] in a suite exit 3",
+    "test_fuzz_malformed_suite_values": "the defect: an unknown env kwarg in a suite exit 3 (TypeError)",
+    "test_item7_a_damaged_response_cache_entry_is_rebuilt_not_a_bug":
+        "the defect: spread.npy deleted -> fit exit 3, KeyError 'spread'",
+    "test_item8_calibrate_out_on_a_full_disk_keeps_the_old_calibration":
+        "the defect: the old calibration replaced by a truncated one",
+    "test_item8_sweep_csv_on_a_full_disk_keeps_the_old_csv": "the defect: the old CSV replaced by a partial one",
+    "test_item8_every_output_writer_replaces_its_file_whole":
+        "the defect: '[Errno 27] File too large', the file not named",
+    "test_item9_build_policy_refuses_an_unwritable_out_before_training":
+        "the defect: training started before --out (a directory) was checked",
+    "test_item9_build_atlas_refuses_an_unusable_cache_dir_or_out_before_probing":
+        "the defect: probing started with --cache-dir /dev/zero",
+    "test_item10_an_unwritable_cache_is_said_once_and_each_grid_computed_once":
+        "the defect: 'cannot write the cache' said several times in one fit",
+    "test_item11_messages_name_the_value_and_the_file":
+        "the defect: 'could not convert string to float: 'heavy'' names no suite field",
+    "test_item12_nothing_given_is_ignored_clamped_or_counted_twice":
+        "the defect: a_p_deg 12 in the file with --amp 3 fitted (exit 0)",
+    "test_item13_a_hand_edited_calibration_with_a_recomputed_hash_is_checked_value_by_value":
+        "the defect: member index 999 exit 3 (IndexError)",
+}
+
+
 def prepare(old: Path, scratch: Path) -> None:
     """SCRATCH/tests = HEAD's tests with OLD's conftest; SCRATCH/alias (alias586, plate_env_agents) on PYTHONPATH."""
     tests = scratch / "tests"
@@ -234,8 +307,6 @@ def main(argv: list[str] | None = None) -> None:
     if a.what == "run":
         run(a.where, a.old, a.scratch, a.python, a.only)
     else:
-        from audit_5860216_notes import SHOWS  # the hand-written column, kept apart from the runner
-
         print(table(a.scratch, SHOWS))
 
 
