@@ -109,13 +109,16 @@ if not hasattr(_iface, "PhysicsBackend"):  # a base class of defaults (issue 35)
 '''
 
 
+STRENGTHENED = (" (strengthened here: the file imported plate_env.identify.estimators at module level, so it failed"
+                " on that import)")
+
 #: What each result at 5860216 shows, read from its log (results/old/FUNC.log; "own:" for OWN's rows).
 SHOWS = {
     "test_build_calibration_paper_equals_the_shipped_file_but_for_the_commit_it_records":
-        "passes: the defect was the test's bit equality (its own version fails here, below); this test's tolerance "
-        "is the fix",
+        "passes: the defect was the test's bit equality and the fix this test's tolerance; 5860216's own bit-equal "
+        "version passes on this machine too (below): the cross-CPU difference was not reproduced here",
     "test_a_tilelink_calibration_sweep_simulated_again_equals_its_committed_records":
-        "passes: as above, the fix is the test's tolerance (its own version, below)",
+        "passes: as above (5860216's own version passes here too, below)",
     "test_build_calibration_eq10_from_the_committed_sweeps_equals_the_recorded_rebuild":
         "fails on KeyError 'tilelink/rigid_fast/3': a line issue 33 added after 5860216, not item 0's defect "
         "(its own version, below)",
@@ -126,35 +129,46 @@ SHOWS = {
     "test_item12_ctrl_c_during_submit_still_ends_the_running_workers":
         "the defect: a worker started before a Ctrl-C during submit was still alive",
     "test_item12_ctrl_c_ends_a_pool_sweep_without_waiting_for_running_chunks":
-        "passes on this machine (the issue: they fail only under load 4-6); the during-submit test above is the "
-        "busy-machine case",
+        "passes: the issue's failure under load 4-6 was not reproduced here (the run was at this machine's "
+        "ordinary load); the during-submit test above is the busy-machine case the fix addressed",
     "test_item12_ctrl_c_that_lands_on_another_thread_still_ends_a_pool_sweep": "passes on this machine, as above",
     "test_item1_objects_outside_the_range_get_no_estimate_or_a_true_bound":
-        "the defect: coarse_to_fine read 60 pi as 27.4 pi, 95 % [25.9, 29.1] pi",
+        "the defect: coarse_to_fine read 60 pi as 27.4 pi, 95 % [25.9, 29.1] pi"
+        + STRENGTHENED,
     "test_item1_a_bound_holds_whichever_posterior_the_object_follows":
-        "the defect (no bound, an estimate) on tilelink-v0 #37",
+        "the defect: tilelink-v0 #37 (a live object) answered with an estimate where HEAD states a bound",
     "test_item1_objects_inside_the_range_keep_their_estimate":
         "a guard: in-range objects keep their estimate, as they did",
     "test_item1_the_extended_model_and_its_verdict":
         "fails on the import of identifiability (the module the fix introduced)",
     "test_item1_the_verdict_reads_mass_outside_the_range_on_each_side":
-        "fails on the import of identifiability (a unit test of the fix's verdict)",
+        "fails on the import of identifiability (a unit test of the fix's verdict: only the missing name)",
     "test_contract_property_every_agent_over_0p3_to_200pi":
-        "the defect: ppo read 200 pi as 1.65 pi, 95 % [1.47, 1.85] pi",
+        "the defect: ppo read 200 pi as 1.65 pi, 95 % [1.47, 1.85] pi"
+        + STRENGTHENED,
     "test_item2_a_lorentz_peak_beyond_the_probes_it_was_fitted_on_is_no_estimate":
         "the defect: a peak outside the probes read as an estimate",
     "test_item2_a_measured_lorentz_peak_is_still_read": "a guard: a measured peak is still read, as it was",
-    "test_item2_the_rule_reads_the_fit_window_not_the_sweep": "the defect: the extrapolated peak read (ok)",
+    "test_item2_the_rule_reads_the_fit_window_not_the_sweep":
+        "the defect in the 660 case (the peak beyond the fitted probes read, ok); the 640 case (peak inside) is a "
+        "guard and passes",
     "test_item3_the_calibrated_path_refuses_what_it_cannot_explain":
-        "the defect: the calibrated path read zeros/negative/flat/noise (ok, no check)",
+        "the defect: the calibrated path read zeros/negative/flat/noise (ok, no check)"
+        + STRENGTHENED,
     "test_item3_a_calibrated_reading_carries_its_check": "the defect: a calibrated estimate with check None",
     "test_contract_the_lorentz_lines_on_noise_are_no_estimate": "the defect: the paper's Lorentz lines read noise",
     "test_contract_a_lorentz_read_of_simulated_data_passes_its_models_check":
         "the defect: the grid agent's Lorentz estimate carried no check",
     "test_contract_property_no_estimator_reads_data_no_model_explains":
-        "fails on the import of plate_env.identify.estimators (make_estimator, issue 35's estimator objects)",
+        "the defect (strengthened here: it failed on the import of make_estimator; it now calls identify()): the "
+        "calibrated path read a falling sweep with no check",
     "test_contract_the_estimators_are_the_only_way_in":
         "fails on the import of plate_env.identify.estimators (the estimator objects themselves)",
+    "own:test_build_calibration_paper_equals_the_shipped_file_but_for_the_commit_it_records":
+        "passes on this machine (AMD EPYC, AVX-512): the cross-CPU difference the issue reports did not appear",
+    "own:test_a_tilelink_calibration_sweep_simulated_again_equals_its_committed_records": "passes here, as above",
+    "own:test_build_calibration_eq10_from_the_committed_sweeps_equals_the_recorded_rebuild":
+        "passes here, as above",
     "test_item5_special_files_are_refused_before_any_read": "the defect: fit /dev/zero exit 3, MemoryError",
     "test_fuzz_special_and_malformed_input_files": "the defect: fit of a /dev/zero symlink exit 3, MemoryError",
     "test_item6_malformed_suites_deep_json_and_huge_cells_are_input_errors":
@@ -283,10 +297,18 @@ def first_failure(scratch: Path, where: str, func: str) -> str:
 
 
 def table(scratch: Path, shows: dict[str, str]) -> str:
-    lines = ["| item | test | at 5860216 | at HEAD | what the failure at 5860216 shows |", "|---|---|---|---|---|"]
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True, text=True).stdout
+    lines = ["# Issue 37: each item's test at main 5860216 and at HEAD", "",
+             f"`python experiments/audit_5860216.py table` (HEAD {head.strip() or '?'} when the table was made; "
+             "how the runs are made: the script's docstring). Each test function ran in its own process; "
+             "'fail: ImportError of NAME' is a failure on a name the fix introduced, not on the defect; "
+             "a row with n/m ran m parametrised cases.", "",
+             "| item | test | at 5860216 | at HEAD | what the failure at 5860216 shows |", "|---|---|---|---|---|"]
     for item, file, func in TESTS:
         lines.append(f"| {item} | `{file}::{func}` | {summary(scratch, 'old', func)} | "
                      f"{summary(scratch, 'head', func)} | {shows.get(func, first_failure(scratch, 'old', func))} |")
+    lines.append("| 4 | no test | - | - | the fix was the rule stated and its power measured "
+                 "(experiments/results/estimate_contract.md section 2), no code change to test |")
     lines += ["", "5860216's own versions of the tests item 0 names, on 5860216's code and files:", "",
               "| item | 5860216's test | at 5860216 | what the failure shows |", "|---|---|---|---|"]
     for item, file, func in OWN:
