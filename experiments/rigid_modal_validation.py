@@ -43,6 +43,11 @@ ROUTES = {
     "modal_nl10_2e-4_it2": (2e-4, ModalDiscConfig(), 2, "as modal_nl10_2e-4 with 2 contact sweeps a step"),
     "modal_nl10_k40_2e-4": (2e-4, ModalDiscConfig(max_modes=40), 1,
                             "as modal_nl10_2e-4 with at most the 40 lowest modes dynamic"),
+    "modal_nl10_k20_2e-4_it2": (2e-4, ModalDiscConfig(max_modes=20), 2,
+                                "at most the 20 lowest modes dynamic (the rest static), 2 contact sweeps"),
+    "modal_nl10_4e-4_it2": (4e-4, ModalDiscConfig(), 2, "as modal_nl10_2e-4_it2 at dt 4e-4"),
+    "modal_nl10_4e-4_it3": (4e-4, ModalDiscConfig(), 3, "as modal_nl10_2e-4_it3 at dt 4e-4"),
+    "modal_nl10_6e-4_it2": (6e-4, ModalDiscConfig(), 2, "as modal_nl10_2e-4_it2 at dt 6e-4"),
 }
 
 
