@@ -299,6 +299,32 @@ def _live_sweeps(omega_pis, alpha_deg: float = 45.0, seed: int = 0, model: str =
     return [ProbeTable.from_results(res[i * F_HZ.size:(i + 1) * F_HZ.size]) for i in range(len(objs))]
 
 
+@pytest.mark.parametrize("which", ["atlas tilelink/pointmass", "lorentz tilelink/pointmass"])
+def test_item1_every_method_on_the_point_mass_gives_no_estimate_beyond_the_range(which):
+    """Live point-mass sweeps of 0.3, 100 and 200 pi objects read by the methods that know the physics: no
+    estimate, and a bound only on the truth's side."""
+    omegas = (0.3, 100.0, 200.0)
+    for w, t in zip(omegas, _live_sweeps(omegas), strict=True):
+        _holds(_fit(which, t), w, f"{which} at {w} pi")
+
+
+def test_item1_the_faithful_physics_beyond_its_range_gets_no_estimate():
+    """Live rigid-tile sweeps (rigid_fast, the faithful physics) of 0.3 and 1 pi objects, below its atlas's 2.5 pi,
+    and of a 100 pi one, above its 45 pi: its own model read them as 3.2, 4.2 and 29.8 pi (experiments/results/
+    estimate_contract.md, section 4) before its extensions; now no estimate, a bound only on the truth's side. In
+    range (10 pi) it answers."""
+    from plate_env.identify.estimators import make_estimator
+
+    fit = make_estimator("atlas", "tilelink/rigid_fast").fit
+    for w, a in ((0.3, 35.0), (1.0, 45.0), (100.0, 35.0)):
+        (t,) = _live_sweeps([w], a, 0, model="rigid_fast")
+        est = fit(t)
+        assert not est.ok, f"{w} pi read as {est.omega_n / math.pi:.3g} pi"
+        _holds(est, w, f"rigid tiles at {w} pi")
+    (t,) = _live_sweeps([10.0], 45.0, 0, model="rigid_fast")
+    assert fit(t).ok
+
+
 def _cached_sweeps(physics: str):
     """The out-of-range study's live sweeps (experiments/out_of_range_methods.py; committed cache): (omega_n pi,
     alpha deg, ProbeTable)."""
