@@ -665,10 +665,8 @@ class FeatPrior:
     log_sd: float
 
 
-def learn_feat_prior(pseudo: list[Lab], log_sd: float) -> tuple[FeatPrior, dict]:
-    """Coefficients by least squares on each pseudo-lab (all its fitted sweeps); the prior mean is their mean, its
-    covariance their spread plus (|mean| + floor)^2 on the diagonal; the scatter prior log-normal around the
-    geometric mean of their residual sds."""
+def _lab_lines(pseudo: list[Lab]) -> tuple[list[np.ndarray], list[float]]:
+    """Each pseudo-lab's least-squares feature line over its fitted sweeps (at least 5) and its residual sd."""
     betas, sds = [], []
     for lab in pseudo:
         ok = lab.features[:, 0] == 1
@@ -678,6 +676,14 @@ def learn_feat_prior(pseudo: list[Lab], log_sd: float) -> tuple[FeatPrior, dict]
         beta, *_ = np.linalg.lstsq(x, y, rcond=None)
         betas.append(beta)
         sds.append(float(np.sqrt(np.mean((y - x @ beta) ** 2))))
+    return betas, sds
+
+
+def learn_feat_prior(pseudo: list[Lab], log_sd: float) -> tuple[FeatPrior, dict]:
+    """Coefficients by least squares on each pseudo-lab (all its fitted sweeps); the prior mean is their mean, its
+    covariance their spread plus (|mean| + floor)^2 on the diagonal; the scatter prior log-normal around the
+    geometric mean of their residual sds."""
+    betas, sds = _lab_lines(pseudo)
     B = np.array(betas)
     m0 = B.mean(0)
     spread = np.cov(B.T) if len(B) > 1 else np.zeros((3, 3))
@@ -893,14 +899,7 @@ def learn_feat_prior_wide(pseudo: list[Lab], log_sd: float) -> tuple[FeatPrior, 
     """:func:`learn_feat_prior`, with the scatter prior's spread max(``log_sd``, the pseudo-labs' spread of log sd):
     a wide hierarchical prior over labs, so that the references' own residuals decide a lab's scatter."""
     prior, info = learn_feat_prior(pseudo, log_sd)
-    sds = []
-    for lab in pseudo:
-        ok = lab.features[:, 0] == 1
-        if ok.sum() < 5:
-            continue
-        x, y = feat_x(lab.features[ok]), np.log(lab.truth[ok])
-        beta, *_ = np.linalg.lstsq(x, y, rcond=None)
-        sds.append(float(np.sqrt(np.mean((y - x @ beta) ** 2))))
+    _, sds = _lab_lines(pseudo)
     spread = float(np.std(np.log(sds))) if len(sds) > 1 else 0.0
     lsd = max(log_sd, spread)
     info["log_sd"] = lsd

@@ -76,22 +76,6 @@ class Estimator(Protocol):
     def start(self) -> PosteriorState | None: ...
 
 
-#: Shipped forward models loaded per (name, known inputs), the latest few kept (objects of varied mass).
-_LOADED: dict[tuple[str, KnownInputs], ForwardModel] = {}
-_LOADED_MAX = 8
-
-
-def _load(name: str, known: KnownInputs) -> ForwardModel:
-    from plate_env.identify.forward import load_forward_model
-
-    key = (name, known)
-    if key not in _LOADED:
-        if len(_LOADED) >= _LOADED_MAX:
-            _LOADED.clear()
-        _LOADED[key] = load_forward_model(name, known)
-    return _LOADED[key]
-
-
 @dataclass(frozen=True, eq=False)
 class AtlasEstimator:
     """A forward model's posterior. ``forward``: a shipped forward model's name (``"lab"``, a :class:`ForwardName`
@@ -107,7 +91,9 @@ class AtlasEstimator:
 
     def forward_model(self) -> ForwardModel:
         """The forward model read (ValueError when a shipped one has no member for the known inputs)."""
-        return self.model if self.model is not None else _load(str(self.forward), self.known)
+        from plate_env.identify.forward import shipped_model
+
+        return self.model if self.model is not None else shipped_model(str(self.forward), self.known)
 
     def fit(self, table: ProbeTable) -> Estimate:
         from plate_env.identify.inference import identify_atlas

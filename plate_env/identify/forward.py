@@ -199,3 +199,20 @@ def load_forward_model(name: str, known: KnownInputs | None = None) -> ForwardMo
                         offset_nu=float(entry.get("offset_nu", math.inf)),
                         pooling=entry.get("pooling", "evidence"),
                         provenance={**entry.get("provenance", {}), "left_out": left_out})
+
+
+#: Shipped forward models loaded per (name, known inputs), the latest few kept (objects of varied mass).
+_LOADED: dict[tuple[str, KnownInputs], ForwardModel] = {}
+_LOADED_MAX = 8
+
+
+def shipped_model(name: str, known: KnownInputs) -> ForwardModel:
+    """:func:`load_forward_model`, loaded once per (name, known inputs) and shared (the latest
+    :data:`_LOADED_MAX`): an estimator, an env and the unknown-origin test read the same object, so what is cached
+    on it (its extended model, its responses) is computed once."""
+    key = (name, known)
+    if key not in _LOADED:
+        if len(_LOADED) >= _LOADED_MAX:
+            _LOADED.clear()
+        _LOADED[key] = load_forward_model(name, known)
+    return _LOADED[key]

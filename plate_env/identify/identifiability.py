@@ -77,10 +77,6 @@ def member_extensions(member: Member) -> tuple[Member, ...]:
     """The extension members of ``member`` (:data:`EXTENSIONS` whose inputs match its atlas's), each with the
     member's model error and blur and a prior weight ``member.weight`` x its log omega_n width over the member's
     (a log-uniform prior over the joined range). Empty when there is none."""
-    return tuple(m for _, m in _named_extensions(member))
-
-
-def _named_extensions(member: Member) -> list[tuple[str, Member]]:
     from plate_env.surrogate.atlas import load_atlas_file
 
     out = []
@@ -90,9 +86,9 @@ def _named_extensions(member: Member) -> list[tuple[str, Member]]:
         except (FileNotFoundError, ValueError):
             continue
         if _matches(ext, member.atlas):
-            out.append((name, Member(ext, member.sigma_model,
-                                     member.weight * _log_width(ext) / _log_width(member.atlas), member.blur)))
-    return out
+            out.append(Member(ext, member.sigma_model, member.weight * _log_width(ext) / _log_width(member.atlas),
+                              member.blur))
+    return tuple(out)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,27 +115,21 @@ class ExtendedModel(ForwardModel):
 
 
 def extended_model(fm: ForwardModel) -> ForwardModel | None:
-    """``fm`` with its members joined by their extensions (:func:`member_extensions`; an extension shared by several
-    members is one member carrying their summed prior weight), pooled by evidence; None when some member has none
-    (the test needs the whole model beyond its range) or ``fm`` pools with fixed weights."""
+    """``fm`` with every member joined by its extensions (:func:`member_extensions`), pooled by evidence, on a grid
+    that continues ``fm``'s (:class:`ExtendedModel`); None when some member has none (the test needs the whole model
+    beyond its range) or ``fm`` pools with fixed weights."""
     if fm.pooling != "evidence":
         return None
     key = ("extended", id(fm))
     hit = _EXTENDED.get(key)
     if hit is not None and hit[0] is fm:
         return hit[1]
-    joined: dict[str, Member] = {}
-    extended = []
-    for m in fm.members:
-        named = _named_extensions(m)
-        extended.append(bool(named))
-        for k, e in named:
-            joined[k] = e if k not in joined else dataclasses.replace(joined[k], weight=joined[k].weight + e.weight)
+    extra = [member_extensions(m) for m in fm.members]
     wide = None
-    if all(extended):
+    if all(extra):
         fields = {f.name: getattr(fm, f.name) for f in dataclasses.fields(ForwardModel)}
-        wide = ExtendedModel(**dict(fields, name=f"{fm.name} (extended)", members=fm.members + tuple(joined.values())),
-                             base=fm)
+        wide = ExtendedModel(**dict(fields, name=f"{fm.name} (extended)",
+                                    members=fm.members + tuple(e for ext in extra for e in ext)), base=fm)
     if len(_EXTENDED) >= 32:
         _EXTENDED.clear()
     _EXTENDED[key] = (fm, wide)

@@ -25,14 +25,14 @@ def beyond_every_physics(table: ProbeTable, known: KnownInputs) -> str | None:
     neither is asked further. When every physics that explains them places the
     disc beyond its range (a bound, or mass beyond both ends), the reason is returned; no bound is given, since
     which physics made the data is not known."""
-    from plate_env.identify.forward import load_forward_model
+    from plate_env.identify.forward import shipped_model
     from plate_env.identify.identifiability import extended_model
     from plate_env.identify.inference import identify_atlas
 
     said = []
     for name in PHYSICS_MODELS:
         try:
-            fm = load_forward_model(name, known)
+            fm = shipped_model(name, known)
         except ValueError:  # no member for these known inputs: that physics cannot be asked
             return None
         est = identify_atlas(table, fm)

@@ -339,7 +339,7 @@ def load_atlas(physics: str = "tilelink", model: str = "pointmass") -> Atlas:
                          f"(build one: plate-env build atlas --physics {physics} --model {model})") from None
 
 
-@lru_cache(maxsize=64)  # every shipped atlas, extensions included
+@lru_cache(maxsize=32)
 def load_atlas_file(name: str) -> Atlas:
     """A shipped atlas by file name (package data), loaded once per process."""
     ref = resources.files("plate_env") / "data" / name
