@@ -80,7 +80,8 @@ def test_relative_error_and_report():
                              "omega_n_stderr_rad_s": 0.5, "omega_n_pi": 11.0 / math.pi,
                              "omega_n_ci68_rad_s": [10.5, 11.5], "omega_n_ci95_rad_s": [10.0, 12.0],
                              "alpha_deg": pytest.approx(40.0), "alpha_stderr_deg": pytest.approx(2.0),
-                             "n_probes": 7, "n_unstable": 2, "bound": None, "fits": {}, "check": None, "note": None}
+                             "n_probes": 7, "n_unstable": 2, "bound": None, "beyond": None, "fits": {}, "check": None,
+                             "note": None}
     none = Estimate(ok=False, method="lorentz", reason="no probes").to_dict()
     assert none["alpha_deg"] is None and none["reason"] == "no probes" and none["ok"] is False
     bound = Estimate(ok=False, method="atlas", reason="above", bound=("above", 130.0)).to_dict()
@@ -90,7 +91,7 @@ def test_relative_error_and_report():
 def test_an_estimate_comes_back_from_its_dict():
     est = Estimate(ok=False, method="atlas", reason="edge", omega_n=40.0, omega_n_stderr=2.0,
                    omega_n_ci68=(38.0, 42.0), omega_n_ci95=(36.0, 45.0), alpha=0.7, alpha_stderr=0.01,
-                   bound=("above", 36.0), forward="lab", n_probes=12, n_unstable=3)
+                   bound=("above", 36.0), beyond="above", forward="lab", n_probes=12, n_unstable=3)
     back = Estimate.from_dict(est.to_dict())
     assert back.to_dict() == est.to_dict()
-    assert back.bound == ("above", 36.0) and back.alpha == pytest.approx(0.7)
+    assert back.bound == ("above", 36.0) and back.beyond == "above" and back.alpha == pytest.approx(0.7)

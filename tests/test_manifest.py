@@ -132,3 +132,12 @@ def test_a_build_outside_the_shipped_folders_leaves_the_manifest_alone(tmp_path)
     assert manifest_name(out) is None and not record_in_manifest(out, build_record(["forward-models"]))
     assert manifest_path().read_bytes() == before
     assert manifest_name(manifest_path().parent / "forward_models.json") == "plate_env/data/forward_models.json"
+
+
+def test_the_atlas_file_cache_holds_every_shipped_atlas():
+    """A fit of data of unknown origin reads every shipped atlas (the lab pool, each physics with its extensions):
+    a cache smaller than the shipped set would reload atlases on every fit."""
+    from plate_env.surrogate.atlas import load_atlas_file
+
+    shipped = list((ROOT / "plate_env" / "data").glob("*.npz"))
+    assert len(shipped) > 30 and load_atlas_file.cache_info().maxsize >= len(shipped)

@@ -210,6 +210,8 @@ class Estimate:
         alpha: alpha_hat, rad (None when the method gives none); alpha_stderr: rad.
         bound: when the answer lies at the edge of what the method can identify: ``("above", x)`` (omega_n > x
             rad/s at 95 %) or ``("below", x)`` (omega_n < x); ``ok`` is then False.
+        beyond: the side of the identifiable range (``"below"``, ``"above"``, ``"both"``) beyond which the probes
+            place the object, by the edge rule or the extended-range test, else None (``bound`` is None for both).
         forward: the forward model the model-based method used (its name), else None.
         fits: the per-amplitude Lorentzian fits (lorentz method), keyed by A_p in degrees.
         posterior: the model-based posterior, else None.
@@ -230,6 +232,7 @@ class Estimate:
     n_probes: int = 0
     n_unstable: int = 0
     bound: tuple[str, float] | None = None
+    beyond: str | None = None
     forward: str | None = None
     fits: dict[float, LorentzFit] = field(default_factory=dict, compare=False, repr=False)
     posterior: Posterior | None = field(default=None, compare=False, repr=False)
@@ -257,7 +260,8 @@ class Estimate:
              "alpha_deg": math.degrees(self.alpha) if self.alpha is not None else None,
              "alpha_stderr_deg": math.degrees(self.alpha_stderr), "n_probes": self.n_probes,
              "n_unstable": self.n_unstable,
-             "bound": None if self.bound is None else {"side": self.bound[0], "omega_n_rad_s": self.bound[1]}}
+             "bound": None if self.bound is None else {"side": self.bound[0], "omega_n_rad_s": self.bound[1]},
+             "beyond": self.beyond}
         if self.posterior is not None and self.posterior.members:
             members: dict[str, float] = {}  # members sharing a label (one physics, other joint values) summed
             for label, weight in zip(self.posterior.members, self.posterior.member_weights, strict=True):
@@ -281,4 +285,5 @@ class Estimate:
                    alpha_stderr=math.radians(d.get("alpha_stderr_deg", 0.0)), n_probes=d.get("n_probes", 0),
                    n_unstable=d.get("n_unstable", 0),
                    bound=None if bound is None else (bound["side"], bound["omega_n_rad_s"]),
+                   beyond=d.get("beyond"),
                    check=None if check is None else PredictiveCheck.from_dict(check))

@@ -35,6 +35,11 @@ if TYPE_CHECKING:
     from plate_env.identify.posterior_state import PosteriorState
 
 
+#: The forward model of data of unknown origin (every physics pooled): its readings go through every physics'
+#: statement (:func:`unknown_origin`), the estimate's and the incremental posterior's alike.
+POOL = "lab"
+
+
 @dataclass(frozen=True)
 class ForwardName:
     """The model that made the data, ``"<physics>/<model>"`` (e.g. ``tilelink/pointmass``): whose forward model
@@ -98,12 +103,17 @@ class AtlasEstimator:
     def fit(self, table: ProbeTable) -> Estimate:
         from plate_env.identify.inference import identify_atlas
 
-        return identify_atlas(table, self.forward_model())
+        fm = self.forward_model()
+        est = identify_atlas(table, fm)
+        return unknown_origin(est, table, self.known) if fm.name == POOL else est
 
     def start(self) -> PosteriorState:
         from plate_env.identify.posterior_state import PosteriorState
 
-        return PosteriorState(self.forward_model())
+        fm = self.forward_model()
+        if fm.name != POOL:
+            return PosteriorState(fm)
+        return PosteriorState(fm, finish=lambda est, table: unknown_origin(est, table, self.known))
 
     def _key(self) -> tuple[object, ...]:
         return (str(self.forward), self.known) if self.model is None else ("given", id(self.model))
@@ -258,7 +268,9 @@ def gated_unknown_origin(est: Estimate, table: ProbeTable, known: KnownInputs, f
     base: dict[str, Any] = dict(ok=False, method=est.method, n_probes=est.n_probes, n_unstable=est.n_unstable,
                                 forward=est.forward, fits=est.fits)
     try:
-        gate = AtlasEstimator(forward, known).fit(table)
+        from plate_env.identify.inference import identify_atlas
+
+        gate = identify_atlas(table, AtlasEstimator(forward, known).forward_model())
     except ValueError:  # no member for these known inputs: nothing to check against
         gate = None
     check = None if gate is None else gate.check
@@ -271,12 +283,25 @@ def gated_unknown_origin(est: Estimate, table: ProbeTable, known: KnownInputs, f
                             check=check, **base)
     if gate is not None and gate.bound is not None:
         return Estimate(reason=f"the {forward!r} posterior of these probes gives a bound, so the {est.method} "
-                        f"reading of them is not given: {gate.reason}", bound=gate.bound, check=check, **base)
-    from plate_env.identify.unknown_origin import beyond_every_physics
+                        f"reading of them is not given: {gate.reason}", bound=gate.bound, beyond=gate.beyond,
+                        check=check, **base)
+    return unknown_origin(dataclasses.replace(est, check=check), table, known)
 
-    if (why := beyond_every_physics(table, known)) is not None:  # issue 37 item 1: beyond the range, any physics
-        return Estimate(reason=f"no {est.method} reading of these probes: {why}", check=check, **base)
-    return dataclasses.replace(est, check=check)
+
+def unknown_origin(est: Estimate, table: ProbeTable, known: KnownInputs) -> Estimate:
+    """``est``, a reading of data of unknown origin, unless the shipped physics place its disc beyond their
+    range (issue 37 item 1, :func:`plate_env.identify.unknown_origin.verdict`): then no estimate, with the bound
+    every physics that explains the probes agrees on, or none."""
+    if not est.ok:
+        return est
+    from plate_env.identify.unknown_origin import verdict
+
+    v = verdict(table, known)
+    if v is None:
+        return est
+    return Estimate(ok=False, method=est.method, reason=f"no {est.method} reading of these probes: {v.reason}",
+                    bound=v.bound, n_probes=est.n_probes, n_unstable=est.n_unstable, forward=est.forward,
+                    fits=est.fits, check=est.check)
 
 
 def gated(est: Estimate, table: ProbeTable, forward: str, known: KnownInputs) -> Estimate:

@@ -18,11 +18,13 @@ the extended and the in-range posteriors' 2.5 % quantiles, or ``<`` the higher o
 of the two the object follows), or no bound when mass lies on both sides.
 
 Applied where every member of the forward model has an extension for its known inputs and its set-up (backend and
-its options, time step and windows): the tile-link point mass and the rigid tiles (``rigid_fast``, the faithful
-physics; also the ``tilelink/rigid_limit`` model, which reads the same atlas) at 13.6 g, the env's default disc.
-Not the ``lab`` pool: its members disagree by design (the offset between physics), and a member's extension explains
-another physics' in-range disc as its own object beyond the range (extending the point mass's nine lab members
-refused 13 of 40 rigid discs at 5-30 pi, experiments/results/estimate_contract.md); nor other masses.
+its options, time step and windows): the tile-link point mass (with each of the nine joint/contact values the ``lab``
+pool gives it: :func:`plate_env.identify.unknown_origin.family_model`) and the rigid tiles (``rigid_fast``, the
+faithful physics; also the ``tilelink/rigid_limit`` model, which reads the same atlas) at 13.6 g, the env's default
+disc. Not the ``lab`` pool as one posterior (the sheet has no extension): its members disagree by design (the offset
+between physics), and a member's extension explains another physics' in-range disc as its own object beyond the
+range (the pool extended refused 13 of 40 rigid discs at 5-30 pi, experiments/results/estimate_contract.md); its
+readings go through every physics' statement instead (:mod:`plate_env.identify.unknown_origin`). Nor other masses.
 
 The test runs when alpha piles at the edge of the friction angles too (that answer is no estimate already): an
 object beyond the omega_n range then gets the verdict's bound. Measured: experiments/results/estimate_contract.md.
@@ -39,10 +41,19 @@ from plate_env.identify.estimate import EDGE_MASS, Posterior
 from plate_env.identify.forward import ForwardModel, Member
 from plate_env.surrogate.atlas import Atlas
 
-#: Extension atlases per member atlas (``"physics/model"``): the same physics at omega_n outside the member's range
-#: (package data, ``plate-env build atlas --grid pointmass_below_m13.6`` / ``pointmass_above_m13.6``).
+#: The point mass's other joint/contact values (the ``lab`` pool's members): zeta_bending and k_inplane, as its atlas
+#: files name them.
+_JOINTS = tuple(f"zb{zb}_ki{ki}" for zb in ("0.05", "0.1", "0.2") for ki in ("100", "300", "1000")
+                if (zb, ki) != ("0.1", "300"))
+#: Extension atlases per member label (``"physics/model"``; a member takes those whose set-up matches its atlas's,
+#: :func:`_matches`): the same physics at omega_n outside the member's range (package data, ``plate-env build atlas
+#: --grid pointmass_below_m13.6`` / ``pointmass_above_m13.6``; the other joint values ``--grid pointmass_member_below``
+#: / ``pointmass_member_above --nuisance zeta_bending=ZB,k_inplane=KI --repeats 2``; the rigid tiles ``--grid
+#: faithful_below`` / ``faithful_above``).
 EXTENSIONS: dict[str, tuple[str, ...]] = {
-    "tilelink/pointmass": ("atlas_tilelink_pointmass_below.npz", "atlas_tilelink_pointmass_above.npz"),
+    "tilelink/pointmass": ("atlas_tilelink_pointmass_below.npz", "atlas_tilelink_pointmass_above.npz",
+                           *(f"atlas_tilelink_pointmass_{j}_{side}.npz" for j in _JOINTS
+                             for side in ("below", "above"))),
     "tilelink/rigid_fast": ("atlas_tilelink_rigid_fast_below.npz", "atlas_tilelink_rigid_fast_above.npz")}
 #: Relative tolerance when matching an extension's known inputs (B_p, mass, diameter) to the member atlas's.
 INPUT_RTOL = 0.02

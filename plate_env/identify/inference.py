@@ -615,18 +615,19 @@ def atlas_estimate(fm: ForwardModel, table: ProbeTable, orphans: Sequence[str],
         head = (f"alpha is {alpha_side} the friction angles {fm.name!r} covers ({math.degrees(a_lo):.0f}-"
                 f"{math.degrees(a_hi):.0f} deg)")
         if side is None and (verdict := _beyond(fm, om.ci95, extended)) is not None:  # beyond the omega_n range too
-            return Estimate(ok=False, bound=verdict.bound, reason=f"{head}, and {verdict.reason(om.value, fm.name)}",
-                            **fields)
+            return Estimate(ok=False, bound=verdict.bound, beyond=verdict.side,
+                            reason=f"{head}, and {verdict.reason(om.value, fm.name)}", **fields)
         return Estimate(ok=False, reason=(
             f"{head}: the posterior piles at that edge, so its omega_n cannot be trusted" + also), **fields)
     if side is not None:
         lo, hi = post.identifiable_range
         bound = ("above", om.ci95[0]) if side == "above" else ("below", om.ci95[1])
-        return Estimate(ok=False, bound=bound, reason=(
+        return Estimate(ok=False, bound=bound, beyond=side, reason=(
             f"omega_n is {side} the range {fm.name!r} can identify ({lo / math.pi:.3g}-{hi / math.pi:.3g} pi rad/s): "
             f"omega_n {'>' if side == 'above' else '<'} {bound[1]:.4g} rad/s at 95 %"), **fields)
     if (verdict := _beyond(fm, om.ci95, extended)) is not None:  # an object outside the range? (issue 37 item 1)
-        return Estimate(ok=False, bound=verdict.bound, reason=verdict.reason(om.value, fm.name), **fields)
+        return Estimate(ok=False, bound=verdict.bound, beyond=verdict.side, reason=verdict.reason(om.value, fm.name),
+                        **fields)
     return Estimate(ok=True, **fields)
 
 

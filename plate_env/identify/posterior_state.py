@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -48,12 +48,17 @@ class PosteriorState:
             agent's design grid).
         compare_on_common: members' evidences compare the probes all of them describe (the estimate's way); False:
             each member's own probes (the bayes agent's design posterior).
+        finish: what the estimator does to the estimate after the posterior's own rules (``(estimate, probes) ->
+            estimate``; the ``lab`` pool's readings of data of unknown origin,
+            :func:`plate_env.identify.estimators.unknown_origin`), None: nothing.
     """
 
     def __init__(self, fm: ForwardModel, n_omega: int = N_OMEGA, n_alpha: int = N_ALPHA,
                  grid: tuple[np.ndarray, np.ndarray] | None = None, blurs: Sequence[float] | None = None,
-                 member_rows_only: bool = True, compare_on_common: bool = True, extend: bool = True) -> None:
+                 member_rows_only: bool = True, compare_on_common: bool = True, extend: bool = True,
+                 finish: Callable[[Estimate, ProbeTable], Estimate] | None = None) -> None:
         self.fm = fm
+        self.finish = finish
         # the estimate's test beyond the identifiable range (plate_env.identify.identifiability): a state of the
         # extended model, fed this state's probes when an estimate needs it; only for the estimate's own posterior
         self._extend = extend and grid is None and blurs is None and member_rows_only and compare_on_common
@@ -159,8 +164,9 @@ class PosteriorState:
         a probe lies outside every member's atlas (named, not dropped)."""
         cols = list(zip(*self._probes, strict=True)) if self._probes else [[]] * 5
         table = ProbeTable.from_arrays(*cols)
-        return atlas_estimate(self.fm, table, sorted(self._orphans), self.posterior, self.respond,
-                              extended=self._extended())
+        est = atlas_estimate(self.fm, table, sorted(self._orphans), self.posterior, self.respond,
+                             extended=self._extended())
+        return est if self.finish is None else self.finish(est, table)
 
     def _extended(self):
         """The extended model's posterior of the probes so far, as a function (None when the model has no

@@ -1,48 +1,156 @@
 """Readings of data of unknown origin beyond the identifiable range (issue 37 item 1).
 
-A calibration or Eq. (10) lines read a lab's sweep whose physics no one names; whether its disc lies beyond the range
-the models identify depends on that physics (:mod:`plate_env.identify.identifiability` asks one model). Here every
-shipped physics is asked (:func:`beyond_every_physics`). Measured: experiments/results/estimate_contract.md,
-section 4.
+A calibration, Eq. (10) lines or the ``lab`` pool read a lab's sweep whose physics no one names; whether its disc lies
+beyond the range the models identify depends on that physics (:mod:`plate_env.identify.identifiability` asks one
+model). Here every shipped physics is asked (:func:`physics_readings`), each with every joint/contact value the
+``lab`` pool gives it (:func:`family_model`: the point mass's nine members, each extended beyond its range), and says
+where it would place the disc (:class:`PhysicsReading`). The rule (:func:`every_rule`): when every physics that
+explains the probes places the disc beyond its range, no estimate (and no bound: which physics made the data is not
+known); one reading it inside lets the reading stand.
+
+What the rule cannot do: when the physics disagree, the data do not say which made them. A live 100 pi point-mass
+sweep is explained by the rigid tiles as a 7.6 pi disc (p 0.85) and by the point mass only beyond 45 pi. The rule
+that refuses whenever *some* explaining physics places the disc beyond (answering the bound true under all of them)
+meets the contract on such sweeps but loses most in-range readings and states false bounds on point-mass discs whose
+joint values no member has; both rules measured on the same sweeps: experiments/results/estimate_contract.md,
+section 5 (``python experiments/unknown_origin_rule.py``).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
 from plate_env.core.probe_table import ProbeTable
+from plate_env.identify.forward import ForwardModel
 from plate_env.surrogate.conditioning import KnownInputs
 
-#: The shipped physics whose forward models are extended beyond their range: what a reading of data of unknown
-#: origin asks (:func:`beyond_every_physics`).
+#: The shipped physics a reading of data of unknown origin asks (:func:`physics_readings`).
 PHYSICS_MODELS = ("tilelink/pointmass", "tilelink/rigid_fast", "pybullet/pybullet")
+#: What a physics says about the probes' disc (:attr:`PhysicsReading.kind`).
+KINDS = ("inside", "beyond", "unplaced", "silent")
 
 
-def beyond_every_physics(table: ProbeTable, known: KnownInputs) -> str | None:
-    """Why probes of unknown origin (a lab's sweep read through a calibration or Eq. (10) lines) are placed beyond
-    the identifiable range, or None. Each shipped physics (:data:`PHYSICS_MODELS`) reads them by the atlas method:
-    one that answers inside its range lets the reading stand (the probes may come from an in-range disc of that
-    physics), and so does an extended one that piles alpha at its edge without placing omega_n beyond; one whose
-    predictive check fails does not explain them, and one without an extended model cannot look beyond its range:
-    neither is asked further. When every physics that explains them places the
-    disc beyond its range (a bound, or mass beyond both ends), the reason is returned; no bound is given, since
-    which physics made the data is not known."""
+@dataclass(frozen=True)
+class PhysicsReading:
+    """One shipped physics' statement on a sweep, by the atlas method on its :func:`family_model`.
+
+    ``kind``: ``"inside"`` (an estimate inside its identifiable range, ``ci95`` its 95 % interval, rad/s);
+    ``"beyond"`` (the edge rule or the extended-range test places the disc beyond the range: ``bound`` its
+    ``("above"|"below", rad/s)``, None when beyond both ends); ``"unplaced"`` (it explains the probes but gives no
+    omega_n: alpha at the edge of its friction angles); ``"silent"`` (its predictive check fails, a probe lies
+    outside its atlases, it has no member for the known inputs, or it refuses without an extended model to look
+    beyond its range: it says nothing). ``reason``: the estimate's reason (None inside); ``p_value``: its
+    predictive check's (None without one)."""
+
+    name: str
+    kind: str
+    ci95: tuple[float, float] | None = None
+    bound: tuple[str, float] | None = None
+    reason: str | None = None
+    p_value: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"PhysicsReading.kind = {self.kind!r}; allowed: {', '.join(KINDS)}")
+        if (self.kind == "inside") != (self.ci95 is not None):
+            raise ValueError(f"PhysicsReading({self.name!r}): a 95 % interval goes with kind 'inside' only")
+
+    @property
+    def explains(self) -> bool:
+        return self.kind != "silent"
+
+    def said(self) -> str:
+        if self.kind == "inside":
+            assert self.ci95 is not None
+            lo, hi = self.ci95
+            return f"{self.name} reads it inside its range, 95 % [{lo / math.pi:.3g}, {hi / math.pi:.3g}] pi rad/s"
+        return f"{self.name}: {self.reason}"
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Why a reading of unknown origin does not stand: ``reason``, and ``bound`` (``("above"|"below", rad/s)``)
+    when the rule states one, else None."""
+
+    reason: str
+    bound: tuple[str, float] | None = None
+
+
+def family_model(name: str, known: KnownInputs) -> ForwardModel:
+    """The shipped physics ``name`` with every joint/contact value the ``lab`` pool gives it: ``name``'s forward
+    model (its discrepancy) with the lab's members of that physics (the point mass: its default and eight other
+    joint/contact values; the others: their one member). Loaded once per (name, known inputs), so its extended
+    model is built once. ValueError when it has no member for the known inputs."""
     from plate_env.identify.forward import shipped_model
+
+    key = (name, known)
+    if key not in _FAMILIES:
+        own = shipped_model(name, known)
+        try:
+            lab = shipped_model("lab", known)
+        except ValueError:
+            lab = None
+        labels = {m.label for m in own.members}
+        kin = () if lab is None else tuple(m for m in lab.members if m.label in labels)
+        fam = own if len(kin) <= len(own.members) else dataclasses.replace(
+            own, name=f"{name} (joint values unknown)", members=kin)
+        if len(_FAMILIES) >= 8:
+            _FAMILIES.clear()
+        _FAMILIES[key] = fam
+    return _FAMILIES[key]
+
+
+#: family_model per (name, known inputs).
+_FAMILIES: dict[tuple[str, KnownInputs], ForwardModel] = {}
+
+
+def read_as(name: str, table: ProbeTable, known: KnownInputs) -> PhysicsReading:
+    """:class:`PhysicsReading` of ``table`` by the physics ``name`` (:func:`family_model`)."""
     from plate_env.identify.identifiability import extended_model
     from plate_env.identify.inference import identify_atlas
 
-    said = []
-    for name in PHYSICS_MODELS:
-        try:
-            fm = shipped_model(name, known)
-        except ValueError:  # no member for these known inputs: that physics cannot be asked
-            return None
-        est = identify_atlas(table, fm)
-        if est.ok:
-            return None
-        if extended_model(fm) is None or (est.check is not None and not est.check.passed):
-            continue  # a physics that cannot look beyond its range, or does not explain the probes, says nothing
-        if est.bound is None and "cannot tell" not in (est.reason or ""):
-            return None
-        said.append(f"{name}: {est.reason}")
-    if not said:
+    try:
+        fm = family_model(name, known)
+    except ValueError as e:  # no member for these known inputs: that physics cannot be asked
+        return PhysicsReading(name, "silent", reason=str(e))
+    est = identify_atlas(table, fm)
+    p = None if est.check is None else est.check.p_value
+    if est.ok:
+        return PhysicsReading(name, "inside", ci95=est.omega_n_ci95, p_value=p)
+    if est.check is None or not est.check.passed:
+        return PhysicsReading(name, "silent", reason=est.reason, p_value=p)  # does not explain them (or cannot read)
+    if est.beyond is not None:
+        return PhysicsReading(name, "beyond", bound=est.bound, reason=est.reason, p_value=p)
+    if extended_model(fm) is None:
+        return PhysicsReading(name, "silent", reason=est.reason, p_value=p)
+    return PhysicsReading(name, "unplaced", reason=est.reason, p_value=p)
+
+
+def physics_readings(table: ProbeTable, known: KnownInputs,
+                     names: Sequence[str] | None = None) -> tuple[PhysicsReading, ...]:
+    """Every shipped physics' statement on ``table`` (:data:`PHYSICS_MODELS` unless ``names``)."""
+    return tuple(read_as(n, table, known) for n in (PHYSICS_MODELS if names is None else names))
+
+
+def every_rule(readings: Sequence[PhysicsReading]) -> Verdict | None:
+    """No estimate, and no bound, when every physics that explains the probes places the disc beyond its range;
+    None (the reading stands) when one reads it inside or explains it without placing it, or none explains it
+    (the reading's own gate judges data no physics explains)."""
+    said = [r for r in readings if r.explains]
+    if not said or any(r.kind != "beyond" for r in said):
         return None
-    return "every shipped physics that explains these probes places the disc beyond its range (" + "; ".join(said) + ")"
+    return Verdict("every shipped physics that explains these probes places the disc beyond its range ("
+                   + "; ".join(r.said() for r in said) + ")")
+
+
+#: The rule readings of unknown origin go through (:func:`verdict`).
+RULE: Callable[[Sequence[PhysicsReading]], Verdict | None] = every_rule
+
+
+def verdict(table: ProbeTable, known: KnownInputs) -> Verdict | None:
+    """Why a reading of ``table`` (data of unknown origin) must not stand, by :data:`RULE` over every shipped
+    physics' statement, or None."""
+    return RULE(physics_readings(table, known))

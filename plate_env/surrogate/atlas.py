@@ -339,9 +339,10 @@ def load_atlas(physics: str = "tilelink", model: str = "pointmass") -> Atlas:
                          f"(build one: plate-env build atlas --physics {physics} --model {model})") from None
 
 
-@lru_cache(maxsize=32)
+@lru_cache(maxsize=64)
 def load_atlas_file(name: str) -> Atlas:
-    """A shipped atlas by file name (package data), loaded once per process."""
+    """A shipped atlas by file name (package data), loaded once per process (the cache holds every shipped atlas:
+    tests/test_manifest.py checks it against the files)."""
     ref = resources.files("plate_env") / "data" / name
     if not ref.is_file():
         raise FileNotFoundError(f"no atlas file {name!r} in plate_env/data")
