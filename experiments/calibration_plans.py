@@ -119,16 +119,21 @@ def study(args) -> dict:
     priors = {}
     for s in SOURCES:
         pseudo = [lab for t, labs in data.items() if SOURCE_FAMILY[t] != SOURCE_FAMILY[s] for lab in labs]
-        fprior, finfo = common.learn_feat_prior_wide(pseudo, args.log_sd)
+        if args.feature_prior == "mixture":
+            fpkg, finfo = common.learn_feat_mixture(pseudo, args.log_sd, args.broad_weight, args.offset_sd,
+                                                    tuple(args.slope_sd), args.lab_log_sd)
+        else:
+            fprior, finfo = common.learn_feat_prior_wide(pseudo, args.log_sd)
+            fpkg = package_prior(fprior)
         oprior, oinfo = common.learn_scatter_prior(s, data, fams, 0.75)
         rprior, rinfo = common.learn_scatter_prior(s, data, fams, args.log_sd)
-        priors[s] = {"features": package_prior(fprior), "offset": oprior, "readings": rprior}
+        priors[s] = {"features": fpkg, "offset": oprior, "readings": rprior}
         res["priors"][s] = {"features": finfo, "offset": oinfo, "readings": rinfo}
     for K in args.ks:
         t0 = time.perf_counter()
         blocks: dict = {m: {} for m in args.methods}
         weights: dict = {}
-        for s in SOURCES:
+        for s in args.sources:
             rng = np.random.default_rng([args.seed, K, SOURCES.index(s)])
             per_m: dict = {m: [] for m in args.methods}
             ws = []
@@ -297,6 +302,8 @@ def shipped_priors(args) -> dict:
     data, fams = load_sources(args.executor)
     labs = [lab for ls in data.values() for lab in ls]
     fprior, finfo = common.learn_feat_prior_wide(labs, args.log_sd)
+    mix, minfo = common.learn_feat_mixture(labs, args.log_sd, args.broad_weight, args.offset_sd, tuple(args.slope_sd),
+                                           args.lab_log_sd)
     found = {}
     from plate_env.identify.lab_calibration import ScatterPrior, fit_lab
 
@@ -306,7 +313,7 @@ def shipped_priors(args) -> dict:
             found[lab.name] = fit_lab(rd, np.log(lab.truth), names, ScatterPrior(0.2, 5.0)).summary()["sigma_mean"]
     med = float(np.exp(np.mean(np.log(list(found.values())))))
     return {"command": "python " + " ".join(sys.argv), "commit": common.git_commit(dirty=False),
-            "features": {**finfo, "c0": fprior.c0.tolist()},
+            "features": {**finfo, "c0": fprior.c0.tolist()}, "feature_mixture": {**minfo, **mix.to_json()},
             "readings": {"pseudo_labs": found, "median": med, "log_sd": args.log_sd}}
 
 
@@ -319,6 +326,14 @@ def main() -> None:
     ap.add_argument("--n-boot", type=int, default=300)
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     ap.add_argument("--executor", default="inprocess", help="runs the pmlab sweeps when they are not cached")
+    ap.add_argument("--feature-prior", default="mixture", choices=("broad", "mixture"),
+                    help="the feature line's prior over labs: one broad normal, or a mixture of it (--broad-weight) "
+                         "and one component per lab (common.learn_feat_mixture)")
+    ap.add_argument("--broad-weight", type=float, default=0.5)
+    ap.add_argument("--offset-sd", type=float, default=0.5)
+    ap.add_argument("--slope-sd", type=float, nargs=2, default=[0.05, 1.0])
+    ap.add_argument("--lab-log-sd", type=float, default=0.75)
+    ap.add_argument("--sources", nargs="+", default=list(SOURCES), choices=list(SOURCES))
     ap.add_argument("--tag", default="", help="suffix of the result files (variants)")
     ap.add_argument("--ks", type=int, nargs="+", default=list(KS), help="reference plans (K)")
     args = ap.parse_args()

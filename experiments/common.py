@@ -923,3 +923,37 @@ def scores_with_miss(truth: np.ndarray, preds) -> dict[str, np.ndarray]:
     out["in95g"] = np.where(ok, out["in95"], np.nan)
     out["in68g"] = np.where(ok, out["in68"], np.nan)
     return out
+
+
+def learn_feat_mixture(pseudo: list[Lab], log_sd: float, broad_weight: float = 0.5, offset_sd: float = 0.5,
+                       slope_sd: tuple[float, float] = (0.05, 1.0), lab_log_sd: float = 0.75):
+    """A mixture prior over labs for the feature line (``adaptive_calibration.FeatureMixture``): the broad prior of
+    :func:`learn_feat_prior_wide` (weight ``broad_weight``) and one component per pseudo-lab with at least 5 fitted
+    sweeps (the rest shared equally): its least-squares line, its coefficients' covariance plus a kernel
+    (intercept ``offset_sd``: a lab's offset is re-learned; slopes ``slope_sd`` per Hz and per unit log peak), its
+    residual sd the scatter's median (spread ``lab_log_sd``)."""
+    from plate_env.identify.adaptive_calibration import FeatureMixture, FeaturePrior
+
+    broad, info = learn_feat_prior_wide(pseudo, log_sd)
+    comps = [FeaturePrior(tuple(float(v) for v in broad.m0), tuple(tuple(float(v) for v in r) for r in broad.c0),
+                          float(broad.sigma_median), float(broad.log_sd))]
+    labels = ["broad"]
+    kern = np.diag([offset_sd ** 2, slope_sd[0] ** 2, slope_sd[1] ** 2])
+    for lab in pseudo:
+        ok = lab.features[:, 0] == 1
+        if ok.sum() < 5:
+            continue
+        x, y = feat_x(lab.features[ok]), np.log(lab.truth[ok])
+        beta, *_ = np.linalg.lstsq(x, y, rcond=None)
+        sd = float(np.sqrt(np.sum((y - x @ beta) ** 2) / (ok.sum() - 3)))
+        c = sd ** 2 * np.linalg.inv(x.T @ x) + kern
+        c = 0.5 * (c + c.T)
+        comps.append(FeaturePrior(tuple(float(v) for v in beta), tuple(tuple(float(v) for v in r) for r in c),
+                                  min(sd, 2.0), lab_log_sd))
+        labels.append(lab.name)
+    n = len(comps) - 1
+    weights = (1.0,) if n == 0 else (broad_weight, *([(1 - broad_weight) / n] * n))
+    info = {**info, "mixture": {"labels": labels, "weights": list(weights), "offset_sd": offset_sd,
+                                "slope_sd": list(slope_sd), "lab_log_sd": lab_log_sd,
+                                "lab_sigma": [c.sigma_median for c in comps[1:]]}}
+    return FeatureMixture(tuple(comps), weights, tuple(labels)), info
