@@ -120,6 +120,19 @@ class FeatureMixture:
         if self.labels and len(self.labels) != len(self.components):
             raise ValueError(f"FeatureMixture: {len(self.labels)} labels for {len(self.components)} components")
 
+    def without(self, labels: Sequence[str]) -> FeatureMixture:
+        """The mixture without the components ``labels`` (e.g. a physics family's labs, to measure a lab of that
+        family with priors its family never taught), the other weights renormalised. ValueError for a label it
+        lacks or when nothing would be left."""
+        missing = set(labels) - set(self.labels)
+        keep = [i for i, lab in enumerate(self.labels) if lab not in set(labels)]
+        if missing or not keep:
+            raise ValueError(f"FeatureMixture.without({sorted(labels)}): components are {list(self.labels)}; "
+                             "each label must be one of them and at least one must be left")
+        total = sum(self.weights[i] for i in keep)
+        return FeatureMixture(tuple(self.components[i] for i in keep), tuple(self.weights[i] / total for i in keep),
+                              tuple(self.labels[i] for i in keep))
+
     def to_json(self) -> dict:
         return {"components": [c.to_json() for c in self.components], "weights": list(self.weights),
                 "labels": list(self.labels)}
