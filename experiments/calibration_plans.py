@@ -107,18 +107,39 @@ def run_draw(lab: Lab, ref: np.ndarray, others: list[int], rd: list, names, prio
     return out
 
 
+#: The sibling lab (``--sibling``): 20 discs of the rigid_fast tiles (seed 700, cached in experiments/cache), a
+#: physics of the rigid family other than the rigid source's rigid_limit.
+SIBLING = ("tilelink_rigid_fast", 20, 700)
+
+
+def load_sibling(executor: str) -> Lab:
+    """The sibling lab (:data:`SIBLING`) with every member's readings and its hump features."""
+    from plate_env.build.eval_sets import EvalSet, run_eval_set
+    from plate_env.run.executor import BackendSpec
+
+    es = EvalSet(SIBLING[0], SIBLING[1], SIBLING[2], (3.0,))
+    tables = run_eval_set(es, lambda _: BackendSpec.of("tilelink", model="rigid_fast"), executor,
+                          cache_dir=common.CACHE)[3.0]
+    fm, _ = common.all_members()
+    return Lab("rigidfast", np.array([o.omega_n for o in es.objects()]), common.readings_of("rigidfast", tables, fm),
+               common.features_of(tables))
+
+
 def study(args) -> dict:
     data, fams = load_sources(args.executor)
+    # --sibling: what an in-class prior buys, NOT a left-out measurement: the rigid_fast lab teaches every source's
+    # feature prior (the rigid source's included; the readings map's priors are unchanged)
+    sibling = [load_sibling(args.executor)] if args.sibling else []
     res: dict = {"command": "python " + " ".join(sys.argv), "commit": common.git_commit(dirty=False),
                  "draws": args.draws, "seed": args.seed, "log_sd": args.log_sd, "ks": list(args.ks),
-                 "methods": list(args.methods),
+                 "methods": list(args.methods), "feature_prior": args.feature_prior, "sibling": bool(args.sibling),
                  "sources": {s: {"objects": int(sum(len(lab.truth) for lab in labs)), "labs": len(labs),
                                  "family": SOURCE_FAMILY[s]} for s, labs in data.items()},
                  "limits": {s: common.information_limit(labs, fams, SOURCE_FAMILY[s]) for s, labs in data.items()},
                  "priors": {}, "by_k": {}, "weights": {}}
     priors = {}
     for s in SOURCES:
-        pseudo = [lab for t, labs in data.items() if SOURCE_FAMILY[t] != SOURCE_FAMILY[s] for lab in labs]
+        pseudo = [lab for t, labs in data.items() if SOURCE_FAMILY[t] != SOURCE_FAMILY[s] for lab in labs] + sibling
         if args.feature_prior == "mixture":
             fpkg, finfo = common.learn_feat_mixture(pseudo, args.log_sd, args.broad_weight, args.offset_sd,
                                                     tuple(args.slope_sd), args.lab_log_sd)
@@ -177,7 +198,7 @@ def study(args) -> dict:
 
 # --------------------------------------------------------------------------------------------------- report
 LABELS = {"offset": "shipped map (readings, offset, scatter sd(log) 0.75)",
-          "readings": "readings map, wide scatter prior", "features": "feature line, hierarchical prior",
+          "readings": "readings map, wide scatter prior", "features": "feature line, mixture prior over labs",
           "adaptive": "adaptive: feature line + readings map by LOO evidence"}
 
 
@@ -198,6 +219,12 @@ def write_md(res: dict) -> str:
              "family left out in turn: a lab's own family is never a member of its forward model and never teaches "
              "its priors.", "",
              "Information limit: " + INFORMATION_LIMIT, "",
+             "The feature line's prior (`features`, `adaptive`): " + (
+                 "one broad normal over the other families' labs." if res.get("feature_prior") == "broad" else
+                 "a mixture over the other families' labs (`common.learn_feat_mixture`): the broad normal (weight "
+                 "1/2) and one component per lab, the references' marginal likelihood reweighting them.")
+             + (" **--sibling: the rigid_fast lab teaches every source's feature prior, the rigid source's too: not a "
+                "left-out measurement.**" if res.get("sibling") else ""), "",
              "Sources: " + "; ".join(f"`{s}` {v['objects']} discs in {v['labs']} lab(s) (family {v['family']})"
                                      for s, v in res["sources"].items()) + ".", "",
              "## Information limit per source", "",
@@ -333,6 +360,9 @@ def main() -> None:
     ap.add_argument("--offset-sd", type=float, default=0.5)
     ap.add_argument("--slope-sd", type=float, nargs=2, default=[0.05, 1.0])
     ap.add_argument("--lab-log-sd", type=float, default=0.75)
+    ap.add_argument("--sibling", action="store_true",
+                    help="the rigid_fast lab (SIBLING) teaches every source's feature prior, the rigid source's too: "
+                         "what a prior that knows the lab's physics class buys (not a left-out measurement)")
     ap.add_argument("--sources", nargs="+", default=list(SOURCES), choices=list(SOURCES))
     ap.add_argument("--tag", default="", help="suffix of the result files (variants)")
     ap.add_argument("--ks", type=int, nargs="+", default=list(KS), help="reference plans (K)")
