@@ -133,6 +133,7 @@ def study(args) -> dict:
     res: dict = {"command": "python " + " ".join(sys.argv), "commit": common.git_commit(dirty=False),
                  "draws": args.draws, "seed": args.seed, "log_sd": args.log_sd, "ks": list(args.ks),
                  "methods": list(args.methods), "feature_prior": args.feature_prior, "sibling": bool(args.sibling),
+                 "mixture_by": args.mixture_by, "broad_weight": args.broad_weight,
                  "sources": {s: {"objects": int(sum(len(lab.truth) for lab in labs)), "labs": len(labs),
                                  "family": SOURCE_FAMILY[s]} for s, labs in data.items()},
                  "limits": {s: common.information_limit(labs, fams, SOURCE_FAMILY[s]) for s, labs in data.items()},
@@ -142,7 +143,7 @@ def study(args) -> dict:
         pseudo = [lab for t, labs in data.items() if SOURCE_FAMILY[t] != SOURCE_FAMILY[s] for lab in labs] + sibling
         if args.feature_prior == "mixture":
             fpkg, finfo = common.learn_feat_mixture(pseudo, args.log_sd, args.broad_weight, args.offset_sd,
-                                                    tuple(args.slope_sd), args.lab_log_sd)
+                                                    tuple(args.slope_sd), args.lab_log_sd, args.mixture_by)
         else:
             fprior, finfo = common.learn_feat_prior_wide(pseudo, args.log_sd)
             fpkg = package_prior(fprior)
@@ -222,7 +223,9 @@ def write_md(res: dict) -> str:
              "The feature line's prior (`features`, `adaptive`): " + (
                  "one broad normal over the other families' labs." if res.get("feature_prior") == "broad" else
                  "a mixture over the other families' labs (`common.learn_feat_mixture`): the broad normal (weight "
-                 "1/2) and one component per lab, the references' marginal likelihood reweighting them.")
+                 f"{res.get('broad_weight', 0.5):g}) and one component per "
+                 f"{'physics family (its labs pooled)' if res.get('mixture_by', 'lab') == 'family' else 'lab'}, "
+                 "the references' marginal likelihood reweighting them.")
              + (" **--sibling: the rigid_fast lab teaches every source's feature prior, the rigid source's too: not a "
                 "left-out measurement.**" if res.get("sibling") else ""), "",
              "Sources: " + "; ".join(f"`{s}` {v['objects']} discs in {v['labs']} lab(s) (family {v['family']})"
@@ -330,7 +333,7 @@ def shipped_priors(args) -> dict:
     labs = [lab for ls in data.values() for lab in ls]
     fprior, finfo = common.learn_feat_prior_wide(labs, args.log_sd)
     mix, minfo = common.learn_feat_mixture(labs, args.log_sd, args.broad_weight, args.offset_sd, tuple(args.slope_sd),
-                                           args.lab_log_sd)
+                                           args.lab_log_sd, args.mixture_by)
     found = {}
     from plate_env.identify.lab_calibration import ScatterPrior, fit_lab
 
@@ -357,6 +360,8 @@ def main() -> None:
                     help="the feature line's prior over labs: one broad normal, or a mixture of it (--broad-weight) "
                          "and one component per lab (common.learn_feat_mixture)")
     ap.add_argument("--broad-weight", type=float, default=0.5)
+    ap.add_argument("--mixture-by", default="family", choices=("lab", "family"),
+                    help="one mixture component per simulated lab, or per physics family (its labs pooled)")
     ap.add_argument("--offset-sd", type=float, default=0.5)
     ap.add_argument("--slope-sd", type=float, nargs=2, default=[0.05, 1.0])
     ap.add_argument("--lab-log-sd", type=float, default=0.75)
