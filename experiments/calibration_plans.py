@@ -360,7 +360,7 @@ def main() -> None:
                     help="the feature line's prior over labs: one broad normal, or a mixture of it (--broad-weight) "
                          "and one component per lab (common.learn_feat_mixture)")
     ap.add_argument("--broad-weight", type=float, default=0.5)
-    ap.add_argument("--mixture-by", default="family", choices=("lab", "family"),
+    ap.add_argument("--mixture-by", default="lab", choices=("lab", "family"),
                     help="one mixture component per simulated lab, or per physics family (its labs pooled)")
     ap.add_argument("--offset-sd", type=float, default=0.5)
     ap.add_argument("--slope-sd", type=float, nargs=2, default=[0.05, 1.0])

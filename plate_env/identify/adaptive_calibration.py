@@ -150,17 +150,16 @@ def as_mixture(prior: FeaturePrior | FeatureMixture) -> FeatureMixture:
 
 #: The shipped feature prior (issue 36): a mixture over the simulated labs of every shipped physics (the per-disc
 #: and 8 lab-level point-mass labs, rigid_limit, the PyBullet sheet): the broad prior (weight 1/2) and one component
-#: per physics family (the rest shared equally). Each lab's least-squares line with its coefficients' covariance plus
-#: a kernel (intercept sd 0.5, slopes 0.05 per Hz and 1.0 per unit log peak) and its residual sd; a family's
-#: component pools its labs: mean line, mean covariance plus the lines' spread, scatter median the geometric mean
-#: (sd of log the larger of 0.75 and their spread). References that line up like one family's labs select it.
-#: experiments/results/calibration_plans.json, ``shipped_priors.feature_mixture`` (``common.learn_feat_mixture``).
-_CLASS_COMPONENTS = (  # (family, mean, cov, sigma_median, log_sd)
-    ("pointmass", (4.16757, -0.167344, 5.65522),
-     ((0.302264, -0.0136617, 0.234627),
-      (-0.0136617, 0.0553973, -0.406378),
-      (0.234627, -0.406378, 5.27918)),
-     0.2948, 0.75),
+#: per lab (the rest shared equally): its least-squares line, its coefficients' covariance plus a kernel (intercept
+#: sd 0.5, slopes 0.05 per Hz and 1.0 per unit log peak), its residual sd the scatter's median (sd of log 0.75).
+#: References that line up like one lab select its component. experiments/results/calibration_plans.json,
+#: ``shipped_priors.feature_mixture`` (``common.learn_feat_mixture``).
+_LAB_COMPONENTS = (  # (lab, mean, cov, sigma_median, log_sd)
+    ("pointmass", (4.16224, -0.161539, 6.05456),
+     ((0.252204, -0.00054182, 0.0125308),
+      (-0.00054182, 0.00304121, -0.0064484),
+      (0.0125308, -0.0064484, 1.12153)),
+     0.3114, 0.75),
     ("rigid", (3.64853, 0.098811, 3.62471),
      ((0.250952, 0.000676805, -0.0136053),
       (0.000676805, 0.00447397, -0.0301734),
@@ -171,11 +170,51 @@ _CLASS_COMPONENTS = (  # (family, mean, cov, sigma_median, log_sd)
       (0.00318805, 0.00299085, 5.17593e-05),
       (0.0287498, 5.17593e-05, 1.05196)),
      0.07615, 0.75),
+    ("pmlab500", (4.234, -0.559847, 8.67303),
+     ((0.427664, 0.0592492, 0.297742),
+      (0.0592492, 0.0953931, -0.522142),
+      (0.297742, -0.522142, 6.99153)),
+     0.4406, 0.75),
+    ("pmlab510", (4.15704, -0.126136, 4.82863),
+     ((0.261746, -0.000393273, 0.0417152),
+      (-0.000393273, 0.00553006, -0.014669),
+      (0.0417152, -0.014669, 1.26347)),
+     0.263, 0.75),
+    ("pmlab520", (4.03561, -0.0560287, 4.83835),
+     ((0.263993, 0.00356565, 0.03307),
+      (0.00356565, 0.0157846, -0.0887144),
+      (0.03307, -0.0887144, 1.97321)),
+     0.3013, 0.75),
+    ("pmlab530", (4.33881, -0.156362, 5.58199),
+     ((0.284315, -0.00345663, 0.152539),
+      (-0.00345663, 0.00462024, -0.0261607),
+      (0.152539, -0.0261607, 1.8979)),
+     0.3821, 0.75),
+    ("pmlab540", (4.10773, -0.190135, 5.4644),
+     ((0.260519, -0.00257116, 0.0693887),
+      (-0.00257116, 0.0043624, -0.0282723),
+      (0.0693887, -0.0282723, 1.74256)),
+     0.2617, 0.75),
+    ("pmlab550", (4.36981, -0.251577, 5.49813),
+     ((0.274249, -0.0045379, 0.124376),
+      (-0.0045379, 0.00547995, -0.0408099),
+      (0.124376, -0.0408099, 2.00245)),
+     0.3936, 0.75),
+    ("pmlab560", (3.913, 0.202273, 2.49616),
+     ((0.253304, -0.00207604, 0.0387446),
+      (-0.00207604, 0.00560811, -0.043482),
+      (0.0387446, -0.043482, 1.70044)),
+     0.1234, 0.75),
+    ("pmlab570", (4.18992, -0.206745, 7.46175),
+     ((0.261174, -0.0034524, 0.0741914),
+      (-0.0034524, 0.00540967, -0.0413335),
+      (0.0741914, -0.0413335, 1.90179)),
+     0.3184, 0.75),
 )
 FEATURE_PRIOR = FeatureMixture(
-    (BROAD_FEATURE_PRIOR, *(FeaturePrior(m, c, sg, ls) for _, m, c, sg, ls in _CLASS_COMPONENTS)),
-    (0.5, *([0.5 / len(_CLASS_COMPONENTS)] * len(_CLASS_COMPONENTS))),
-    ("broad", *(name for name, *_ in _CLASS_COMPONENTS)))
+    (BROAD_FEATURE_PRIOR, *(FeaturePrior(m, c, sg, ls) for _, m, c, sg, ls in _LAB_COMPONENTS)),
+    (0.5, *([0.5 / len(_LAB_COMPONENTS)] * len(_LAB_COMPONENTS))),
+    ("broad", *(name for name, *_ in _LAB_COMPONENTS)))
 
 
 Features = tuple[float, float] | None
