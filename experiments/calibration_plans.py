@@ -143,7 +143,8 @@ def study(args) -> dict:
         pseudo = [lab for t, labs in data.items() if SOURCE_FAMILY[t] != SOURCE_FAMILY[s] for lab in labs] + sibling
         if args.feature_prior == "mixture":
             fpkg, finfo = common.learn_feat_mixture(pseudo, args.log_sd, args.broad_weight, args.offset_sd,
-                                                    tuple(args.slope_sd), args.lab_log_sd, args.mixture_by)
+                                                    tuple(args.slope_sd), args.lab_log_sd, args.mixture_by,
+                                                    args.reduced)
         else:
             fprior, finfo = common.learn_feat_prior_wide(pseudo, args.log_sd)
             fpkg = package_prior(fprior)
@@ -360,6 +361,8 @@ def main() -> None:
                     help="the feature line's prior over labs: one broad normal, or a mixture of it (--broad-weight) "
                          "and one component per lab (common.learn_feat_mixture)")
     ap.add_argument("--broad-weight", type=float, default=0.5)
+    ap.add_argument("--reduced", type=float, default=0.0,
+                    help="share of the broad component's weight given to a broad line in log omega_Brmax alone")
     ap.add_argument("--mixture-by", default="lab", choices=("lab", "family"),
                     help="one mixture component per simulated lab, or per physics family (its labs pooled)")
     ap.add_argument("--offset-sd", type=float, default=0.5)

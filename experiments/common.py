@@ -931,7 +931,8 @@ def lab_family(name: str) -> str:
 
 
 def learn_feat_mixture(pseudo: list[Lab], log_sd: float, broad_weight: float = 0.5, offset_sd: float = 0.5,
-                       slope_sd: tuple[float, float] = (0.05, 1.0), lab_log_sd: float = 0.75, by: str = "lab"):
+                       slope_sd: tuple[float, float] = (0.05, 1.0), lab_log_sd: float = 0.75, by: str = "lab",
+                       reduced: float = 0.0):
     """A mixture prior over labs for the feature line (``adaptive_calibration.FeatureMixture``): the broad prior of
     :func:`learn_feat_prior_wide` (weight ``broad_weight``) and one component per pseudo-lab with at least 5 fitted
     sweeps (the rest shared equally): its least-squares line, its coefficients' covariance plus a kernel
@@ -975,6 +976,24 @@ def learn_feat_mixture(pseudo: list[Lab], log_sd: float, broad_weight: float = 0
         comps, labels = fam_comps, fam_labels
     n = len(comps) - 1
     weights = (1.0,) if n == 0 else (broad_weight, *([(1 - broad_weight) / n] * n))
+    if reduced > 0:  # a broad line in log omega_Brmax alone (f0 slope pinned near 0): share ``reduced`` of the broad's
+        rows = []
+        for lab in pseudo:
+            ok = lab.features[:, 0] == 1
+            if ok.sum() < 5:
+                continue
+            x, y = feat_x(lab.features[ok])[:, [0, 2]], np.log(lab.truth[ok])
+            beta, *_ = np.linalg.lstsq(x, y, rcond=None)
+            rows.append((beta, float(np.sqrt(np.mean((y - x @ beta) ** 2)))))
+        B = np.array([r[0] for r in rows])
+        c2 = (np.cov(B.T) if len(B) > 1 else np.zeros((2, 2))) + np.diag([0.5 ** 2, 1.0 ** 2])
+        c = np.array([[c2[0, 0], 0.0, c2[0, 1]], [0.0, 0.02 ** 2, 0.0], [c2[1, 0], 0.0, c2[1, 1]]])
+        red = FeaturePrior((float(B[:, 0].mean()), 0.0, float(B[:, 1].mean())), tuple(tuple(float(v) for v in r)
+                                                                                    for r in c),
+                           float(np.exp(np.mean(np.log([r[1] for r in rows])))), float(broad.log_sd))
+        comps.insert(1, red)
+        labels.insert(1, "broad, log omega_Brmax only")
+        weights = (weights[0] * (1 - reduced), weights[0] * reduced, *weights[1:])
     info = {**info, "mixture": {"by": by, "labels": labels, "weights": list(weights), "offset_sd": offset_sd,
                                 "slope_sd": list(slope_sd), "lab_log_sd": lab_log_sd,
                                 "lab_sigma": [c.sigma_median for c in comps[1:]]}}
