@@ -107,28 +107,56 @@ def run_draw(lab: Lab, ref: np.ndarray, others: list[int], rd: list, names, prio
     return out
 
 
+#: The sibling lab (``--sibling``): 20 discs of the rigid_fast tiles (seed 700, cached in experiments/cache), a
+#: physics of the rigid family other than the rigid source's rigid_limit.
+SIBLING = ("tilelink_rigid_fast", 20, 700)
+
+
+def load_sibling(executor: str) -> Lab:
+    """The sibling lab (:data:`SIBLING`) with every member's readings and its hump features."""
+    from plate_env.build.eval_sets import EvalSet, run_eval_set
+    from plate_env.run.executor import BackendSpec
+
+    es = EvalSet(SIBLING[0], SIBLING[1], SIBLING[2], (3.0,))
+    tables = run_eval_set(es, lambda _: BackendSpec.of("tilelink", model="rigid_fast"), executor,
+                          cache_dir=common.CACHE)[3.0]
+    fm, _ = common.all_members()
+    return Lab("rigidfast", np.array([o.omega_n for o in es.objects()]), common.readings_of("rigidfast", tables, fm),
+               common.features_of(tables))
+
+
 def study(args) -> dict:
     data, fams = load_sources(args.executor)
+    # --sibling: what an in-class prior buys, NOT a left-out measurement: the rigid_fast lab teaches every source's
+    # feature prior (the rigid source's included; the readings map's priors are unchanged)
+    sibling = [load_sibling(args.executor)] if args.sibling else []
     res: dict = {"command": "python " + " ".join(sys.argv), "commit": common.git_commit(dirty=False),
                  "draws": args.draws, "seed": args.seed, "log_sd": args.log_sd, "ks": list(args.ks),
-                 "methods": list(args.methods),
+                 "methods": list(args.methods), "feature_prior": args.feature_prior, "sibling": bool(args.sibling),
+                 "mixture_by": args.mixture_by, "broad_weight": args.broad_weight,
                  "sources": {s: {"objects": int(sum(len(lab.truth) for lab in labs)), "labs": len(labs),
                                  "family": SOURCE_FAMILY[s]} for s, labs in data.items()},
                  "limits": {s: common.information_limit(labs, fams, SOURCE_FAMILY[s]) for s, labs in data.items()},
                  "priors": {}, "by_k": {}, "weights": {}}
     priors = {}
     for s in SOURCES:
-        pseudo = [lab for t, labs in data.items() if SOURCE_FAMILY[t] != SOURCE_FAMILY[s] for lab in labs]
-        fprior, finfo = common.learn_feat_prior_wide(pseudo, args.log_sd)
+        pseudo = [lab for t, labs in data.items() if SOURCE_FAMILY[t] != SOURCE_FAMILY[s] for lab in labs] + sibling
+        if args.feature_prior == "mixture":
+            fpkg, finfo = common.learn_feat_mixture(pseudo, args.log_sd, args.broad_weight, args.offset_sd,
+                                                    tuple(args.slope_sd), args.lab_log_sd, args.mixture_by,
+                                                    args.reduced)
+        else:
+            fprior, finfo = common.learn_feat_prior_wide(pseudo, args.log_sd)
+            fpkg = package_prior(fprior)
         oprior, oinfo = common.learn_scatter_prior(s, data, fams, 0.75)
         rprior, rinfo = common.learn_scatter_prior(s, data, fams, args.log_sd)
-        priors[s] = {"features": package_prior(fprior), "offset": oprior, "readings": rprior}
+        priors[s] = {"features": fpkg, "offset": oprior, "readings": rprior}
         res["priors"][s] = {"features": finfo, "offset": oinfo, "readings": rinfo}
     for K in args.ks:
         t0 = time.perf_counter()
         blocks: dict = {m: {} for m in args.methods}
         weights: dict = {}
-        for s in SOURCES:
+        for s in args.sources:
             rng = np.random.default_rng([args.seed, K, SOURCES.index(s)])
             per_m: dict = {m: [] for m in args.methods}
             ws = []
@@ -172,7 +200,7 @@ def study(args) -> dict:
 
 # --------------------------------------------------------------------------------------------------- report
 LABELS = {"offset": "shipped map (readings, offset, scatter sd(log) 0.75)",
-          "readings": "readings map, wide scatter prior", "features": "feature line, hierarchical prior",
+          "readings": "readings map, wide scatter prior", "features": "feature line, mixture prior over labs",
           "adaptive": "adaptive: feature line + readings map by LOO evidence"}
 
 
@@ -193,6 +221,14 @@ def write_md(res: dict) -> str:
              "family left out in turn: a lab's own family is never a member of its forward model and never teaches "
              "its priors.", "",
              "Information limit: " + INFORMATION_LIMIT, "",
+             "The feature line's prior (`features`, `adaptive`): " + (
+                 "one broad normal over the other families' labs." if res.get("feature_prior") == "broad" else
+                 "a mixture over the other families' labs (`common.learn_feat_mixture`): the broad normal (weight "
+                 f"{res.get('broad_weight', 0.5):g}) and one component per "
+                 f"{'physics family (its labs pooled)' if res.get('mixture_by', 'lab') == 'family' else 'lab'}, "
+                 "the references' marginal likelihood reweighting them.")
+             + (" **--sibling: the rigid_fast lab teaches every source's feature prior, the rigid source's too: not a "
+                "left-out measurement.**" if res.get("sibling") else ""), "",
              "Sources: " + "; ".join(f"`{s}` {v['objects']} discs in {v['labs']} lab(s) (family {v['family']})"
                                      for s, v in res["sources"].items()) + ".", "",
              "## Information limit per source", "",
@@ -297,6 +333,8 @@ def shipped_priors(args) -> dict:
     data, fams = load_sources(args.executor)
     labs = [lab for ls in data.values() for lab in ls]
     fprior, finfo = common.learn_feat_prior_wide(labs, args.log_sd)
+    mix, minfo = common.learn_feat_mixture(labs, args.log_sd, args.broad_weight, args.offset_sd, tuple(args.slope_sd),
+                                           args.lab_log_sd, args.mixture_by)
     found = {}
     from plate_env.identify.lab_calibration import ScatterPrior, fit_lab
 
@@ -306,7 +344,7 @@ def shipped_priors(args) -> dict:
             found[lab.name] = fit_lab(rd, np.log(lab.truth), names, ScatterPrior(0.2, 5.0)).summary()["sigma_mean"]
     med = float(np.exp(np.mean(np.log(list(found.values())))))
     return {"command": "python " + " ".join(sys.argv), "commit": common.git_commit(dirty=False),
-            "features": {**finfo, "c0": fprior.c0.tolist()},
+            "features": {**finfo, "c0": fprior.c0.tolist()}, "feature_mixture": {**minfo, **mix.to_json()},
             "readings": {"pseudo_labs": found, "median": med, "log_sd": args.log_sd}}
 
 
@@ -319,6 +357,21 @@ def main() -> None:
     ap.add_argument("--n-boot", type=int, default=300)
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     ap.add_argument("--executor", default="inprocess", help="runs the pmlab sweeps when they are not cached")
+    ap.add_argument("--feature-prior", default="mixture", choices=("broad", "mixture"),
+                    help="the feature line's prior over labs: one broad normal, or a mixture of it (--broad-weight) "
+                         "and one component per lab (common.learn_feat_mixture)")
+    ap.add_argument("--broad-weight", type=float, default=0.5)
+    ap.add_argument("--reduced", type=float, default=0.0,
+                    help="share of the broad component's weight given to a broad line in log omega_Brmax alone")
+    ap.add_argument("--mixture-by", default="lab", choices=("lab", "family"),
+                    help="one mixture component per simulated lab, or per physics family (its labs pooled)")
+    ap.add_argument("--offset-sd", type=float, default=0.5)
+    ap.add_argument("--slope-sd", type=float, nargs=2, default=[0.05, 1.0])
+    ap.add_argument("--lab-log-sd", type=float, default=0.75)
+    ap.add_argument("--sibling", action="store_true",
+                    help="the rigid_fast lab (SIBLING) teaches every source's feature prior, the rigid source's too: "
+                         "what a prior that knows the lab's physics class buys (not a left-out measurement)")
+    ap.add_argument("--sources", nargs="+", default=list(SOURCES), choices=list(SOURCES))
     ap.add_argument("--tag", default="", help="suffix of the result files (variants)")
     ap.add_argument("--ks", type=int, nargs="+", default=list(KS), help="reference plans (K)")
     args = ap.parse_args()

@@ -923,3 +923,78 @@ def scores_with_miss(truth: np.ndarray, preds) -> dict[str, np.ndarray]:
     out["in95g"] = np.where(ok, out["in95"], np.nan)
     out["in68g"] = np.where(ok, out["in68"], np.nan)
     return out
+
+
+def lab_family(name: str) -> str:
+    """The physics family of a pseudo-lab by its name (``learn_feat_mixture(by="family")``)."""
+    return "pointmass" if name.startswith(("pointmass", "pmlab")) else "rigid" if name.startswith("rigid") else name
+
+
+def learn_feat_mixture(pseudo: list[Lab], log_sd: float, broad_weight: float = 0.5, offset_sd: float = 0.5,
+                       slope_sd: tuple[float, float] = (0.05, 1.0), lab_log_sd: float = 0.75, by: str = "lab",
+                       reduced: float = 0.0):
+    """A mixture prior over labs for the feature line (``adaptive_calibration.FeatureMixture``): the broad prior of
+    :func:`learn_feat_prior_wide` (weight ``broad_weight``) and one component per pseudo-lab with at least 5 fitted
+    sweeps (the rest shared equally): its least-squares line, its coefficients' covariance plus a kernel
+    (intercept ``offset_sd``: a lab's offset is re-learned; slopes ``slope_sd`` per Hz and per unit log peak), its
+    residual sd the scatter's median (spread ``lab_log_sd``). ``by="family"``: one component per physics family
+    (:func:`lab_family`) instead, its labs' components pooled (mean line; mean covariance plus the lines' spread;
+    scatter median their geometric mean, spread the larger of ``lab_log_sd`` and theirs)."""
+    from plate_env.identify.adaptive_calibration import FeatureMixture, FeaturePrior
+
+    broad, info = learn_feat_prior_wide(pseudo, log_sd)
+    comps = [FeaturePrior(tuple(float(v) for v in broad.m0), tuple(tuple(float(v) for v in r) for r in broad.c0),
+                          float(broad.sigma_median), float(broad.log_sd))]
+    labels = ["broad"]
+    kern = np.diag([offset_sd ** 2, slope_sd[0] ** 2, slope_sd[1] ** 2])
+    for lab in pseudo:
+        ok = lab.features[:, 0] == 1
+        if ok.sum() < 5:
+            continue
+        x, y = feat_x(lab.features[ok]), np.log(lab.truth[ok])
+        beta, *_ = np.linalg.lstsq(x, y, rcond=None)
+        sd = float(np.sqrt(np.sum((y - x @ beta) ** 2) / (ok.sum() - 3)))
+        c = sd ** 2 * np.linalg.inv(x.T @ x) + kern
+        c = 0.5 * (c + c.T)
+        comps.append(FeaturePrior(tuple(float(v) for v in beta), tuple(tuple(float(v) for v in r) for r in c),
+                                  min(sd, 2.0), lab_log_sd))
+        labels.append(lab.name)
+    if by == "family":  # one component per physics family: its labs' lines pooled (mean; spread + mean covariance)
+        groups: dict[str, list[int]] = {}
+        for i, name in enumerate(labels[1:], start=1):
+            groups.setdefault(lab_family(name), []).append(i)
+        fam_comps, fam_labels = [comps[0]], ["broad"]
+        for fam, idx in groups.items():
+            B = np.array([comps[i].mean for i in idx])
+            C = np.mean([np.asarray(comps[i].cov) for i in idx], axis=0)
+            C = C + (np.cov(B.T) if len(idx) > 1 else 0.0)
+            lsd = np.log([comps[i].sigma_median for i in idx])
+            fam_comps.append(FeaturePrior(tuple(float(v) for v in B.mean(0)),
+                                          tuple(tuple(float(v) for v in r) for r in 0.5 * (C + C.T)),
+                                          float(np.exp(lsd.mean())), float(max(lab_log_sd, lsd.std()))))
+            fam_labels.append(fam)
+        comps, labels = fam_comps, fam_labels
+    n = len(comps) - 1
+    weights = (1.0,) if n == 0 else (broad_weight, *([(1 - broad_weight) / n] * n))
+    if reduced > 0:  # a broad line in log omega_Brmax alone (f0 slope pinned near 0): share ``reduced`` of the broad's
+        rows = []
+        for lab in pseudo:
+            ok = lab.features[:, 0] == 1
+            if ok.sum() < 5:
+                continue
+            x, y = feat_x(lab.features[ok])[:, [0, 2]], np.log(lab.truth[ok])
+            beta, *_ = np.linalg.lstsq(x, y, rcond=None)
+            rows.append((beta, float(np.sqrt(np.mean((y - x @ beta) ** 2)))))
+        B = np.array([r[0] for r in rows])
+        c2 = (np.cov(B.T) if len(B) > 1 else np.zeros((2, 2))) + np.diag([0.5 ** 2, 1.0 ** 2])
+        c = np.array([[c2[0, 0], 0.0, c2[0, 1]], [0.0, 0.02 ** 2, 0.0], [c2[1, 0], 0.0, c2[1, 1]]])
+        red = FeaturePrior((float(B[:, 0].mean()), 0.0, float(B[:, 1].mean())), tuple(tuple(float(v) for v in r)
+                                                                                    for r in c),
+                           float(np.exp(np.mean(np.log([r[1] for r in rows])))), float(broad.log_sd))
+        comps.insert(1, red)
+        labels.insert(1, "broad, log omega_Brmax only")
+        weights = (weights[0] * (1 - reduced), weights[0] * reduced, *weights[1:])
+    info = {**info, "mixture": {"by": by, "labels": labels, "weights": list(weights), "offset_sd": offset_sd,
+                                "slope_sd": list(slope_sd), "lab_log_sd": lab_log_sd,
+                                "lab_sigma": [c.sigma_median for c in comps[1:]]}}
+    return FeatureMixture(tuple(comps), weights, tuple(labels)), info

@@ -18,7 +18,7 @@ import pytest
 from plate_env.cli import main
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify import lab_calibration_file as lcf
-from plate_env.identify.adaptive_calibration import FEATURE_SIGMAS, fit_adaptive, hump_features, predict_adaptive
+from plate_env.identify.adaptive_calibration import fit_adaptive, hump_features, predict_adaptive
 from plate_env.identify.forward import ForwardModel, Member
 from plate_env.identify.lab_calibration import SHAPE_SCALES, ScatterPrior, fit_lab, member_readings
 from plate_env.surrogate.atlas import load_atlas_file
@@ -56,22 +56,25 @@ def rigid_features(rigid_source):
     return [hump_features(t) for t in rigid_source[1]]
 
 
-def shipped(readings, feats, idx, y):
+def shipped(readings, feats, idx, y, feature_prior=lcf.FEATURE_PRIOR):
     """The shipped calibrated reading (issue 36) fitted to the references ``idx`` with known log omega_n ``y``."""
     return fit_adaptive([readings[i] for i in idx], [feats[i] for i in idx], y, ["pointmass"], lcf.SCATTER_PRIOR,
-                        lcf.FEATURE_PRIOR)
+                        feature_prior)
 
 
-def test_coverage_over_references_from_a_source_left_out(rigid_source, rigid_features):
+@pytest.mark.parametrize("family_left_out", [False, True], ids=["shipped priors", "rigid lab out of the priors"])
+def test_coverage_over_references_from_a_source_left_out(rigid_source, rigid_features, family_left_out):
     """K = 3 references of the rigid source (a physics family the forward model leaves out: read through the point
     mass) through the shipped reading; the other discs' 95 % intervals hold their truth, and the calibrated error
-    is below the uncalibrated point mass's."""
+    is below the uncalibrated point mass's. Also with the rigid family's lab taken out of the feature line's mixture
+    prior (``FeatureMixture.without``): a family that never taught its priors, as in calibration_plans.py."""
     truth, _, readings = rigid_source
+    prior = lcf.FEATURE_PRIOR.without(["rigid"]) if family_left_out else lcf.FEATURE_PRIOR
     rng = np.random.default_rng(0)
     covered, errors, raw = [], [], []
     for _ in range(4):
         ref = rng.choice(truth.size, 3, replace=False)
-        lab = shipped(readings, rigid_features, ref, np.log(truth[ref]))
+        lab = shipped(readings, rigid_features, ref, np.log(truth[ref]), prior)
         for i in set(range(truth.size)) - set(ref.tolist()):
             p = predict_adaptive(lab, readings[i], rigid_features[i])
             assert p.ok and p.ci95[0] <= p.ci68[0] <= p.omega_n <= p.ci68[1] <= p.ci95[1]
@@ -104,7 +107,7 @@ def test_references_that_disagree_widen_the_intervals(rigid_source, rigid_featur
     widths, sigmas = {}, {}
     for name, y in (("agree", np.log(truth[:5])), ("disagree", lie)):
         lab = shipped(readings, rigid_features, range(5), y)
-        sigmas[name] = (lab.readings.summary()["sigma_mean"], float(lab.line.weight @ FEATURE_SIGMAS))
+        sigmas[name] = (lab.readings.summary()["sigma_mean"], float(lab.line.weight @ lab.line.sigma))
         preds = [predict_adaptive(lab, r, f) for r, f in zip(readings[10:], rigid_features[10:], strict=True)]
         widths[name] = np.median([(p.ci95[1] - p.ci95[0]) / w for p, w in zip(preds, truth[10:], strict=True)])
     assert sigmas["disagree"][0] > 1.3 * sigmas["agree"][0]  # the readings map's scatter

@@ -6,10 +6,12 @@ references say about them. Pure functions and frozen dataclasses; no I/O.
    they can.
 2. **The feature line**, the paper's way: log omega_n = x . beta + sigma eps with x = (1, f0 - 26 Hz,
    log(omega_Brmax / 600 deg/s)) the Eq. (9) Lorentzian's features of the sweep (:func:`hump_features`); beta and
-   sigma shrunk toward a hierarchical prior over labs (:data:`FEATURE_PRIOR`: the coefficients' spread across the
-   simulated labs of every shipped physics, the scatter log-normal with a wide spread). The posterior is computed
-   on a scatter grid (conjugate normal per scatter), so the predictive is a scale mixture of normals: heavy-tailed,
-   Student-t-like, when the references are few. No reading where the Lorentzian fit fails.
+   sigma shrunk toward a hierarchical prior over labs (:data:`FEATURE_PRIOR`, a :class:`FeatureMixture`: a broad
+   prior, the coefficients' spread across the simulated labs of every shipped physics with the scatter log-normal
+   and wide, mixed with one component per simulated lab, so that references that line up like one lab select its
+   line and scatter). The posterior is computed per component on a scatter grid (conjugate normal per scatter), so
+   the predictive is a scale mixture of normals: heavy-tailed, Student-t-like, when the references are few. No
+   reading where the Lorentzian fit fails.
 3. **The average**: each disc's predictive is ``w F + (1 - w) R`` (CDFs on :data:`LOG_OMEGA_GRID`), ``w`` from the
    references' leave-one-out predictive log scores of the two maps (pseudo-Bayesian model averaging,
    :func:`feature_weight`; 1/2 with one reference); a disc without hump features is read by the readings map alone.
@@ -23,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -87,14 +89,133 @@ class FeaturePrior:
                    float(d["sigma_median"]), float(d["log_sd"]))
 
 
-#: The shipped feature prior: each simulated lab's least-squares line (every shipped physics: the per-disc and 8
-#: lab-level point-mass labs, rigid_limit, the PyBullet sheet); mean their mean, covariance their spread plus
+#: The broad component of the shipped feature prior: each simulated lab's least-squares line (every shipped physics:
+#: the per-disc and 8 lab-level point-mass labs, rigid_limit, the PyBullet sheet); mean their mean, covariance their
+#: spread plus
 #: (|mean| + floor)^2 on the diagonal; scatter median the geometric mean of their residual sds.
 #: experiments/results/calibration_plans.json, ``shipped_priors.features``.
-FEATURE_PRIOR = FeaturePrior(
+BROAD_FEATURE_PRIOR = FeaturePrior(
     mean=(4.008862, -0.142085, 5.0804),
     cov=((0.415838, -0.025839, 0.644289), (-0.025839, 0.096409, -0.296014), (0.644289, -0.296014, 41.255364)),
     sigma_median=0.2134, log_sd=1.5)
+
+@dataclass(frozen=True)
+class FeatureMixture:
+    """A mixture prior over labs for the feature line: each component a :class:`FeaturePrior` (one simulated lab's
+    line and scatter, or the broad prior over all of them), ``weights`` the prior probability of each (summing to
+    1). The references' marginal likelihood under each component reweights it: references that line up like a
+    tight lab select that lab's component (its slopes and scatter), references that do not fall back on the broad
+    one. ``labels`` name the components (reports only)."""
+
+    components: tuple[FeaturePrior, ...]
+    weights: tuple[float, ...]
+    labels: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        w = np.asarray(self.weights, dtype=float)
+        if not self.components or w.shape != (len(self.components),) or not np.all(np.isfinite(w)) \
+                or np.any(w < 0) or not math.isclose(float(w.sum()), 1.0, abs_tol=1e-6):
+            raise ValueError(f"FeatureMixture: {len(self.components)} components need as many weights >= 0 summing "
+                             f"to 1, got {self.weights!r}")
+        if self.labels and len(self.labels) != len(self.components):
+            raise ValueError(f"FeatureMixture: {len(self.labels)} labels for {len(self.components)} components")
+
+    def without(self, labels: Sequence[str]) -> FeatureMixture:
+        """The mixture without the components ``labels`` (e.g. a physics family's labs, to measure a lab of that
+        family with priors its family never taught), the other weights renormalised. ValueError for a label it
+        lacks or when nothing would be left."""
+        missing = set(labels) - set(self.labels)
+        keep = [i for i, lab in enumerate(self.labels) if lab not in set(labels)]
+        if missing or not keep:
+            raise ValueError(f"FeatureMixture.without({sorted(labels)}): components are {list(self.labels)}; "
+                             "each label must be one of them and at least one must be left")
+        total = sum(self.weights[i] for i in keep)
+        return FeatureMixture(tuple(self.components[i] for i in keep), tuple(self.weights[i] / total for i in keep),
+                              tuple(self.labels[i] for i in keep))
+
+    def to_json(self) -> dict:
+        return {"components": [c.to_json() for c in self.components], "weights": list(self.weights),
+                "labels": list(self.labels)}
+
+    @classmethod
+    def from_json(cls, d: dict) -> FeatureMixture:
+        return cls(tuple(FeaturePrior.from_json(c) for c in d["components"]), tuple(float(x) for x in d["weights"]),
+                   tuple(str(x) for x in d.get("labels", ())))
+
+
+def as_mixture(prior: FeaturePrior | FeatureMixture) -> FeatureMixture:
+    """A single prior as a one-component mixture."""
+    return prior if isinstance(prior, FeatureMixture) else FeatureMixture((prior,), (1.0,))
+
+
+#: The shipped feature prior (issue 36): a mixture over the simulated labs of every shipped physics (the per-disc
+#: and 8 lab-level point-mass labs, rigid_limit, the PyBullet sheet): the broad prior (weight 1/2) and one component
+#: per lab (the rest shared equally): its least-squares line, its coefficients' covariance plus a kernel (intercept
+#: sd 0.5, slopes 0.05 per Hz and 1.0 per unit log peak), its residual sd the scatter's median (sd of log 0.75).
+#: References that line up like one lab select its component. experiments/results/calibration_plans.json,
+#: ``shipped_priors.feature_mixture`` (``common.learn_feat_mixture``).
+_LAB_COMPONENTS = (  # (lab, mean, cov, sigma_median, log_sd)
+    ("pointmass", (4.16224, -0.161539, 6.05456),
+     ((0.252204, -0.00054182, 0.0125308),
+      (-0.00054182, 0.00304121, -0.0064484),
+      (0.0125308, -0.0064484, 1.12153)),
+     0.3114, 0.75),
+    ("rigid", (3.64853, 0.098811, 3.62471),
+     ((0.250952, 0.000676805, -0.0136053),
+      (0.000676805, 0.00447397, -0.0301734),
+      (-0.0136053, -0.0301734, 1.51347)),
+     0.09641, 0.75),
+    ("pybullet", (2.9408, -0.155648, 1.36269),
+     ((0.287075, 0.00318805, 0.0287498),
+      (0.00318805, 0.00299085, 5.17593e-05),
+      (0.0287498, 5.17593e-05, 1.05196)),
+     0.07615, 0.75),
+    ("pmlab500", (4.234, -0.559847, 8.67303),
+     ((0.427664, 0.0592492, 0.297742),
+      (0.0592492, 0.0953931, -0.522142),
+      (0.297742, -0.522142, 6.99153)),
+     0.4406, 0.75),
+    ("pmlab510", (4.15704, -0.126136, 4.82863),
+     ((0.261746, -0.000393273, 0.0417152),
+      (-0.000393273, 0.00553006, -0.014669),
+      (0.0417152, -0.014669, 1.26347)),
+     0.263, 0.75),
+    ("pmlab520", (4.03561, -0.0560287, 4.83835),
+     ((0.263993, 0.00356565, 0.03307),
+      (0.00356565, 0.0157846, -0.0887144),
+      (0.03307, -0.0887144, 1.97321)),
+     0.3013, 0.75),
+    ("pmlab530", (4.33881, -0.156362, 5.58199),
+     ((0.284315, -0.00345663, 0.152539),
+      (-0.00345663, 0.00462024, -0.0261607),
+      (0.152539, -0.0261607, 1.8979)),
+     0.3821, 0.75),
+    ("pmlab540", (4.10773, -0.190135, 5.4644),
+     ((0.260519, -0.00257116, 0.0693887),
+      (-0.00257116, 0.0043624, -0.0282723),
+      (0.0693887, -0.0282723, 1.74256)),
+     0.2617, 0.75),
+    ("pmlab550", (4.36981, -0.251577, 5.49813),
+     ((0.274249, -0.0045379, 0.124376),
+      (-0.0045379, 0.00547995, -0.0408099),
+      (0.124376, -0.0408099, 2.00245)),
+     0.3936, 0.75),
+    ("pmlab560", (3.913, 0.202273, 2.49616),
+     ((0.253304, -0.00207604, 0.0387446),
+      (-0.00207604, 0.00560811, -0.043482),
+      (0.0387446, -0.043482, 1.70044)),
+     0.1234, 0.75),
+    ("pmlab570", (4.18992, -0.206745, 7.46175),
+     ((0.261174, -0.0034524, 0.0741914),
+      (-0.0034524, 0.00540967, -0.0413335),
+      (0.0741914, -0.0413335, 1.90179)),
+     0.3184, 0.75),
+)
+FEATURE_PRIOR = FeatureMixture(
+    (BROAD_FEATURE_PRIOR, *(FeaturePrior(m, c, sg, ls) for _, m, c, sg, ls in _LAB_COMPONENTS)),
+    (0.5, *([0.5 / len(_LAB_COMPONENTS)] * len(_LAB_COMPONENTS))),
+    ("broad", *(name for name, *_ in _LAB_COMPONENTS)))
+
 
 Features = tuple[float, float] | None
 
@@ -115,41 +236,56 @@ def _x(f: tuple[float, float]) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class FeatureLine:
-    """The feature line's posterior on :data:`FEATURE_SIGMAS`: per scatter its weight and the coefficients' normal
-    posterior (``mean`` (n, 3), ``cov`` (n, 3, 3))."""
+    """The feature line's posterior on (component, scatter) pairs: per pair its weight, its scatter ``sigma`` and
+    the coefficients' normal posterior (``mean`` (n, 3), ``cov`` (n, 3, 3)); ``component`` the posterior weight of
+    each mixture component."""
 
     weight: np.ndarray
     mean: np.ndarray
     cov: np.ndarray
+    sigma: np.ndarray = field(default_factory=lambda: FEATURE_SIGMAS)
+    component: np.ndarray = field(default_factory=lambda: np.ones(1))
 
 
-def fit_feature_line(prior: FeaturePrior, feats: Sequence[Features], log_truth: Sequence[float]) -> FeatureLine:
+def fit_feature_line(prior: FeaturePrior | FeatureMixture, feats: Sequence[Features],
+                     log_truth: Sequence[float]) -> FeatureLine:
     """The posterior of the feature line from the references with features (the others are not used; none: the
-    prior)."""
+    prior). A mixture prior: each component's posterior on the scatter grid, weighted by its prior weight times
+    the references' marginal likelihood under it."""
+    mix = as_mixture(prior)
     use = [i for i, f in enumerate(feats) if f is not None]
     x = np.array([_x(feats[i]) for i in use]).reshape(len(use), 3)
     y = np.asarray(log_truth, dtype=float)[use]
-    m0, c0 = np.asarray(prior.mean), np.asarray(prior.cov)
-    lp = -0.5 * ((np.log(FEATURE_SIGMAS) - math.log(prior.sigma_median)) / prior.log_sd) ** 2
-    prec0 = np.linalg.inv(c0)
-    means, covs = [], []
-    r = y - x @ m0
-    for j, sg in enumerate(FEATURE_SIGMAS):
-        cov_y = sg ** 2 * np.eye(len(y)) + x @ c0 @ x.T
-        _, logdet = np.linalg.slogdet(cov_y)
-        lp[j] += -0.5 * (logdet + r @ np.linalg.solve(cov_y, r))
-        cn = np.linalg.inv(prec0 + x.T @ x / sg ** 2)
-        means.append(cn @ (prec0 @ m0 + x.T @ y / sg ** 2))
-        covs.append(cn)
+    lps, means, covs, sigmas = [], [], [], []
+    for comp, wc in zip(mix.components, mix.weights, strict=True):
+        if wc <= 0:
+            continue
+        m0, c0 = np.asarray(comp.mean), np.asarray(comp.cov)
+        lp = math.log(wc) - 0.5 * ((np.log(FEATURE_SIGMAS) - math.log(comp.sigma_median)) / comp.log_sd) ** 2 \
+            - math.log(comp.log_sd)
+        prec0 = np.linalg.inv(c0)
+        r = y - x @ m0
+        for j, sg in enumerate(FEATURE_SIGMAS):
+            cov_y = sg ** 2 * np.eye(len(y)) + x @ c0 @ x.T
+            _, logdet = np.linalg.slogdet(cov_y)
+            lp[j] += -0.5 * (logdet + r @ np.linalg.solve(cov_y, r))
+            cn = np.linalg.inv(prec0 + x.T @ x / sg ** 2)
+            means.append(cn @ (prec0 @ m0 + x.T @ y / sg ** 2))
+            covs.append(cn)
+        lps.append(lp)
+        sigmas.append(FEATURE_SIGMAS)
+    lp = np.concatenate(lps)
     wt = np.exp(lp - lp.max())
-    return FeatureLine(wt / wt.sum(), np.array(means), np.array(covs))
+    wt /= wt.sum()
+    comp_w = wt.reshape(len(lps), FEATURE_SIGMAS.size).sum(1)
+    return FeatureLine(wt, np.array(means), np.array(covs), np.concatenate(sigmas), comp_w)
 
 
 def _feature_parts(line: FeatureLine, f: tuple[float, float]):
     x = _x(f)
     keep = line.weight >= 1e-8
     loc = line.mean[keep] @ x
-    sd = np.sqrt(FEATURE_SIGMAS[keep] ** 2 + np.einsum("i,nij,j->n", x, line.cov[keep], x))
+    sd = np.sqrt(line.sigma[keep] ** 2 + np.einsum("i,nij,j->n", x, line.cov[keep], x))
     return line.weight[keep], loc, sd
 
 
@@ -191,7 +327,7 @@ def readings_log_density(post: LabPosterior, reading: Readings, yk: float) -> fl
 
 def feature_weight(readings: Sequence[Readings], feats: Sequence[Features], log_truth: Sequence[float],
                    members: Sequence[str], scatter_prior: ScatterPrior = SCATTER_PRIOR,
-                   feature_prior: FeaturePrior = FEATURE_PRIOR) -> float:
+                   feature_prior: FeaturePrior | FeatureMixture = FEATURE_PRIOR) -> float:
     """The feature line's weight in the average: each reference predicted by both maps fitted to the others, the
     log scores summed over the references both read, ``w = 1 / (1 + exp(S_readings - S_features))``; 1/2 with
     fewer than two references or none both read."""
@@ -252,7 +388,8 @@ class AdaptiveLab:
 
 def fit_adaptive(readings: Sequence[Readings], feats: Sequence[Features], log_truth: Sequence[float],
                  members: Sequence[str], scatter_prior: ScatterPrior = SCATTER_PRIOR,
-                 feature_prior: FeaturePrior = FEATURE_PRIOR, weight: float | None = None) -> AdaptiveLab:
+                 feature_prior: FeaturePrior | FeatureMixture = FEATURE_PRIOR,
+                 weight: float | None = None) -> AdaptiveLab:
     """Both maps fitted to the references and the feature line's weight (:func:`feature_weight`, or ``weight``
     when given: a calibration file's)."""
     post = fit_lab(readings, log_truth, members, scatter_prior)

@@ -3,8 +3,8 @@
 CAL.json is one JSON object::
 
     schema            "plate-env/lab-calibration"        what this file is
-    schema_version    2                                    the layout (a reader refuses any other; 1: before the
-                                                           feature line, issue 36)
+    schema_version    3                                    the layout (a reader refuses any other; 1: before the
+                                                           feature line, 2: its prior one normal, issue 36)
     package_version   the plate-env version that wrote it  (a reader refuses another version)
     commit            git commit of the writer if known, else null
     inputs_sha256     hash of the references' probes and known omega_n (what it was fitted from)
@@ -15,7 +15,8 @@ CAL.json is one JSON object::
     references        [{"object", "omega_n_rad_s", "n_probes"}]
     scatter_prior     {"median", "log_sd"}: the prior over the lab's scatter (learned across labs)
     posterior         {"pivot", "member", "a", "b", "sigma", "weight", "n_refs", "ref_range"}: the readings map
-    feature_prior     {"mean", "cov", "sigma_median", "log_sd"}: the feature line's prior (learned across labs)
+    feature_prior     {"components": [{"mean", "cov", "sigma_median", "log_sd"}], "weights", "labels"}: the
+                      feature line's mixture prior over labs (learned across labs)
     reference_features  per reference [f0 Hz, omega_Brmax deg/s] of its Lorentzian fit, or null where it failed
     feature_weight    the feature line's weight in the average (the references' leave-one-out evidence)
     assumes           what the calibration assumes, in words
@@ -44,7 +45,7 @@ from plate_env.identify.adaptive_calibration import (
     FEATURE_PRIOR,
     SCATTER_PRIOR,
     AdaptiveLab,
-    FeaturePrior,
+    FeatureMixture,
     fit_adaptive,
     fit_feature_line,
     hump_features,
@@ -57,7 +58,7 @@ from plate_env.surrogate.catalog import registry_member_atlases
 from plate_env.surrogate.conditioning import KnownInputs
 
 SCHEMA = "plate-env/lab-calibration"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 #: The priors a calibration ships with (learned across the simulated labs of every shipped physics) are
 #: :data:`plate_env.identify.adaptive_calibration.SCATTER_PRIOR` and ``FEATURE_PRIOR`` (imported here).
 #: References are refused outside this omega_n range (rad/s): the range every shipped forward model's members cover
@@ -90,7 +91,7 @@ class LabCalibration:
     inputs_sha256: str
     package_version: str
     commit: str | None = None
-    feature_prior: FeaturePrior = FEATURE_PRIOR
+    feature_prior: FeatureMixture = FEATURE_PRIOR
     reference_features: tuple[tuple[float, float] | None, ...] = ()
     feature_weight: float = 0.5
 
@@ -155,7 +156,7 @@ class LabCalibration:
                                     for r in d["references"]),
                    scatter_prior=ScatterPrior(**d["scatter_prior"]), posterior=post,
                    inputs_sha256=d["inputs_sha256"], package_version=d["package_version"], commit=d.get("commit"),
-                   feature_prior=FeaturePrior.from_json(d["feature_prior"]),
+                   feature_prior=FeatureMixture.from_json(d["feature_prior"]),
                    reference_features=tuple(None if f is None else (float(f[0]), float(f[1]))
                                             for f in d["reference_features"]),
                    feature_weight=float(d["feature_weight"]))
@@ -237,7 +238,7 @@ def check_distinct(objects: Sequence[str], omega_n: Sequence[float], tables: Seq
 
 def calibrate(tables: Sequence[ProbeTable], omega_n: Sequence[float], objects: Sequence[str], a_p_deg: float,
               known: KnownInputs, forward: str = "lab", prior: ScatterPrior = SCATTER_PRIOR,
-              feature_prior: FeaturePrior = FEATURE_PRIOR) -> LabCalibration:
+              feature_prior: FeatureMixture = FEATURE_PRIOR) -> LabCalibration:
     """Fit a lab calibration from reference sweeps of discs of known omega_n (rad/s), all at amplitude
     ``a_p_deg`` and on the set-up ``known``: the readings map and the feature line and the feature line's weight
     (:func:`plate_env.identify.adaptive_calibration.fit_adaptive`)."""
