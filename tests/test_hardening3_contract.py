@@ -421,6 +421,30 @@ def test_item1_an_estimate_says_beyond_which_end_it_places_the_object():
     assert n >= 20
 
 
+def test_item1_the_lab_pools_episode_estimates_go_through_the_rule_as_its_fits_do():
+    """An episode reads the lab pool probe by probe (its incremental posterior, each physics' statement kept and fed
+    the new probes: plate_env.identify.unknown_origin.ReadingsState); after every probe its estimate is the one a
+    fit of the probes so far gives, the rule included: a 200 pi point-mass sweep, which the pool alone reads
+    (27 pi before the rule), ends as no estimate either way."""
+    from plate_env.env.episode import estimator_prefixes
+    from plate_env.identify.estimators import make_estimator
+    from plate_env.identify.unknown_origin import ReadingsState, physics_readings
+    from plate_env.surrogate.conditioning import KnownInputs
+
+    (far,) = [t for w, a, t in _cached_sweeps("pointmass") if (w, a) == (200.0, 45.0)]
+    est = make_estimator("atlas", "tilelink/pointmass", forward="lab")
+    steps = estimator_prefixes(est, far)
+    for k in (3, 8, len(far)):
+        prefix = far.subset(np.arange(len(far)) < k)
+        fit = est.fit(prefix)
+        assert (steps[k - 1].ok, steps[k - 1].reason, steps[k - 1].omega_n) == (fit.ok, fit.reason, fit.omega_n), k
+    assert not steps[-1].ok and "every shipped physics" in steps[-1].reason
+    state = ReadingsState(KnownInputs())
+    for k in (5, len(far), 4):  # grows, then a table that is not its extension starts over
+        prefix = far.subset(np.arange(len(far)) < k)
+        assert state.readings(prefix) == physics_readings(prefix, KnownInputs()), k
+
+
 def test_item1_a_reading_of_unknown_origin_stands_where_some_physics_explains_it_in_range(monkeypatch):
     """The rule asks every shipped physics, and one answering inside its range lets the reading stand: a live
     rigid-tile sweep at 10 pi through the paper's calibration answers; the study's 200 pi point-mass sweep is placed

@@ -33,6 +33,7 @@ if TYPE_CHECKING:
     from plate_env.identify.forward import ForwardModel
     from plate_env.identify.lab_calibration_file import LabCalibration
     from plate_env.identify.posterior_state import PosteriorState
+    from plate_env.identify.unknown_origin import ReadingsState
 
 
 #: The forward model of data of unknown origin (every physics pooled): its readings go through every physics'
@@ -113,7 +114,10 @@ class AtlasEstimator:
         fm = self.forward_model()
         if fm.name != POOL:
             return PosteriorState(fm)
-        return PosteriorState(fm, finish=lambda est, table: unknown_origin(est, table, self.known))
+        from plate_env.identify.unknown_origin import ReadingsState
+
+        readings = ReadingsState(self.known)  # each physics' posterior kept, fed the probes as they come
+        return PosteriorState(fm, finish=lambda est, table: unknown_origin(est, table, self.known, readings))
 
     def _key(self) -> tuple[object, ...]:
         return (str(self.forward), self.known) if self.model is None else ("given", id(self.model))
@@ -288,15 +292,16 @@ def gated_unknown_origin(est: Estimate, table: ProbeTable, known: KnownInputs, f
     return unknown_origin(dataclasses.replace(est, check=check), table, known)
 
 
-def unknown_origin(est: Estimate, table: ProbeTable, known: KnownInputs) -> Estimate:
+def unknown_origin(est: Estimate, table: ProbeTable, known: KnownInputs,
+                   readings: ReadingsState | None = None) -> Estimate:
     """``est``, a reading of data of unknown origin, unless the shipped physics place its disc beyond their
-    range (issue 37 item 1, :func:`plate_env.identify.unknown_origin.verdict`): then no estimate, with the bound
-    every physics that explains the probes agrees on, or none."""
+    range (issue 37 item 1, :func:`plate_env.identify.unknown_origin.verdict`; ``readings``: an episode's
+    incremental statements): then no estimate, with the rule's bound, or none."""
     if not est.ok:
         return est
     from plate_env.identify.unknown_origin import verdict
 
-    v = verdict(table, known)
+    v = verdict(table, known, readings)
     if v is None:
         return est
     return Estimate(ok=False, method=est.method, reason=f"no {est.method} reading of these probes: {v.reason}",

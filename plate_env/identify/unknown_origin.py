@@ -22,10 +22,15 @@ import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from plate_env.core.probe_table import ProbeTable
 from plate_env.identify.forward import ForwardModel
 from plate_env.surrogate.conditioning import KnownInputs
+
+if TYPE_CHECKING:
+    from plate_env.identify.estimate import Estimate
+    from plate_env.identify.posterior_state import PosteriorState
 
 #: The shipped physics a reading of data of unknown origin asks (:func:`physics_readings`).
 PHYSICS_MODELS = ("tilelink/pointmass", "tilelink/rigid_fast", "pybullet/pybullet")
@@ -107,16 +112,10 @@ def family_model(name: str, known: KnownInputs) -> ForwardModel:
 _FAMILIES: dict[tuple[str, KnownInputs], ForwardModel] = {}
 
 
-def read_as(name: str, table: ProbeTable, known: KnownInputs) -> PhysicsReading:
-    """:class:`PhysicsReading` of ``table`` by the physics ``name`` (:func:`family_model`)."""
+def _reading(name: str, fm: ForwardModel, est: Estimate) -> PhysicsReading:
+    """What ``est`` (the atlas estimate of ``fm``, physics ``name``) says as a :class:`PhysicsReading`."""
     from plate_env.identify.identifiability import extended_model
-    from plate_env.identify.inference import identify_atlas
 
-    try:
-        fm = family_model(name, known)
-    except ValueError as e:  # no member for these known inputs: that physics cannot be asked
-        return PhysicsReading(name, "silent", reason=str(e))
-    est = identify_atlas(table, fm)
     p = None if est.check is None else est.check.p_value
     if est.ok:
         return PhysicsReading(name, "inside", ci95=est.omega_n_ci95, p_value=p)
@@ -129,10 +128,64 @@ def read_as(name: str, table: ProbeTable, known: KnownInputs) -> PhysicsReading:
     return PhysicsReading(name, "unplaced", reason=est.reason, p_value=p)
 
 
+def read_as(name: str, table: ProbeTable, known: KnownInputs) -> PhysicsReading:
+    """:class:`PhysicsReading` of ``table`` by the physics ``name`` (:func:`family_model`)."""
+    from plate_env.identify.inference import identify_atlas
+
+    try:
+        fm = family_model(name, known)
+    except ValueError as e:  # no member for these known inputs: that physics cannot be asked
+        return PhysicsReading(name, "silent", reason=str(e))
+    return _reading(name, fm, identify_atlas(table, fm))
+
+
 def physics_readings(table: ProbeTable, known: KnownInputs,
                      names: Sequence[str] | None = None) -> tuple[PhysicsReading, ...]:
     """Every shipped physics' statement on ``table`` (:data:`PHYSICS_MODELS` unless ``names``)."""
     return tuple(read_as(n, table, known) for n in (PHYSICS_MODELS if names is None else names))
+
+
+class ReadingsState:
+    """:func:`physics_readings` of a probe table that grows by appended probes (an episode's estimate after each
+    probe): each physics keeps its incremental posterior
+    (:class:`~plate_env.identify.posterior_state.PosteriorState`, whose estimate equals ``identify_atlas``'s) and
+    is fed only the probes added since it last answered; a table that is not an extension of the last one starts
+    them over."""
+
+    def __init__(self, known: KnownInputs, names: Sequence[str] | None = None) -> None:
+        self.known = known
+        self.names = tuple(PHYSICS_MODELS if names is None else names)
+        self._states: dict[str, PosteriorState | str] = {}
+        self._rows: list[tuple[float, float, float, float, bool]] = []
+
+    def readings(self, table: ProbeTable) -> tuple[PhysicsReading, ...]:
+        from plate_env.identify.posterior_state import PosteriorState
+
+        rows = [tuple(r) for r in zip(table.f_p_hz.tolist(), table.a_p_deg.tolist(), table.omega_b_deg_s.tolist(),
+                                      table.stderr_deg_s.tolist(), table.unstable.tolist(), strict=True)]
+        if rows[:len(self._rows)] != self._rows:  # not the same probes followed by new ones: start over
+            self._states.clear()
+            self._rows = []
+        new = rows[len(self._rows):]
+        self._rows = rows
+        out = []
+        for name in self.names:
+            st = self._states.get(name)
+            todo = new
+            if st is None:
+                try:
+                    st = PosteriorState(family_model(name, self.known))
+                except ValueError as e:  # no member for these known inputs: that physics cannot be asked
+                    st = str(e)
+                self._states[name] = st
+                todo = rows
+            if isinstance(st, str):
+                out.append(PhysicsReading(name, "silent", reason=st))
+                continue
+            for r in todo:
+                st.add(*r)
+            out.append(_reading(name, st.fm, st.estimate()))
+        return tuple(out)
 
 
 def every_rule(readings: Sequence[PhysicsReading]) -> Verdict | None:
@@ -150,7 +203,8 @@ def every_rule(readings: Sequence[PhysicsReading]) -> Verdict | None:
 RULE: Callable[[Sequence[PhysicsReading]], Verdict | None] = every_rule
 
 
-def verdict(table: ProbeTable, known: KnownInputs) -> Verdict | None:
+def verdict(table: ProbeTable, known: KnownInputs, state: ReadingsState | None = None) -> Verdict | None:
     """Why a reading of ``table`` (data of unknown origin) must not stand, by :data:`RULE` over every shipped
-    physics' statement, or None."""
-    return RULE(physics_readings(table, known))
+    physics' statement, or None; ``state``: the episode's :class:`ReadingsState` (the same statements, fed the new
+    probes only)."""
+    return RULE(physics_readings(table, known) if state is None else state.readings(table))
