@@ -278,6 +278,18 @@ def _frame_forces(vf, wf, rm, iw, dt, grav, ib0, ib1, ib2):
         wf[d] = rm[d, 0] * wbx + rm[d, 1] * wby + rm[d, 2] * wbz
 
 
+@numba.njit(cache=CACHE, inline="always")
+def _foreshortening_tangent(i, q, pairs, us, out):
+    """Adds the tangent of tile ``i``'s static foreshortening ``U_i s(q)`` (``s_p = q_a q_b``) to ``out`` (3, K):
+    ``U_ip q_b`` on mode ``a`` and ``U_ip q_a`` on mode ``b`` of each product ``p``."""
+    for p in range(pairs.shape[0]):
+        a = pairs[p, 0]
+        b = pairs[p, 1]
+        for d in range(3):
+            out[d, a] += us[i, d, p] * q[b]
+            out[d, b] += us[i, d, p] * q[a]
+
+
 @numba.njit(cache=CACHE)
 def _active_tiles(hh, trot, rm, x, xf, s_th, c_th, th_dot, xp_dot, kc, cdat, cimp, tfirst, tlast, ttile,
                   inv_mt, iw, amob, wmob, sc3a, sc3b, sc6, q, pairs, us, pt, pr, sk, fsv, pte, abuf):
@@ -289,7 +301,6 @@ def _active_tiles(hh, trot, rm, x, xf, s_th, c_th, th_dot, xp_dot, kc, cdat, cim
     through it; its modal self-mobility is then rebuilt from them (``abuf`` scratch)."""
     n = x.shape[0]
     nk = q.shape[0]
-    npair = pairs.shape[0]
     n_act = 0
     n_tact = 0
     for i in range(n):
@@ -328,12 +339,7 @@ def _active_tiles(hh, trot, rm, x, xf, s_th, c_th, th_dot, xp_dot, kc, cdat, cim
             for k in range(nk):
                 pte[n_tact, d, k] = pt[i, d, k]
         if fsv:
-            for p in range(npair):
-                a = pairs[p, 0]
-                b = pairs[p, 1]
-                for d in range(3):
-                    pte[n_tact, d, a] += us[i, d, p] * q[b]
-                    pte[n_tact, d, b] += us[i, d, p] * q[a]
+            _foreshortening_tangent(i, q, pairs, us, pte[n_tact])
             for r_ in range(6):
                 for c_ in range(6):
                     abuf[r_, c_] = 0.0
