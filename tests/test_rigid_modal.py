@@ -85,28 +85,6 @@ def test_one_reference_probe():
     assert res.omega_b_deg_s == pytest.approx(row["omega_b_deg_s"], rel=0.03)
 
 
-def test_foreshortening_tangent_is_the_derivative_of_u_s():
-    """The contact's foreshortening velocity (``foreshortening_velocity``) uses d(U_i s)/dq: central differences of
-    U_i s(q) at a random q agree with it to rounding (a swapped pair index or a missing factor would not)."""
-    from plate_env.physics.tilelink.rigid_modal_kernels import _foreshortening_tangent
-
-    p = build_modal_params(OBJ)
-    n, k = p.geom.n_nodes, p.phi.shape[1]
-    us = np.ascontiguousarray(p.u_static.reshape(n, 6, -1)[:, :3, :])
-    q = np.random.default_rng(3).normal(scale=1e-3, size=k)
-
-    def fs(qq, i):
-        return us[i] @ np.array([qq[a] * qq[b] for a, b in p.pairs])
-
-    for i in (0, n // 2, n - 1):
-        tan = np.zeros((3, k))
-        _foreshortening_tangent(i, q, p.pairs, us, tan)
-        h = 1e-6
-        fd = np.column_stack([(fs(q + h * e, i) - fs(q - h * e, i)) / (2 * h) for e in np.eye(k)])
-        assert np.abs(fd).max() > 0
-        np.testing.assert_allclose(tan, fd, atol=1e-9 * np.abs(fd).max())
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("mode", [1, 12, 17])
 def test_condensed_stiffening_matches_the_exact_static_minimum(mode):

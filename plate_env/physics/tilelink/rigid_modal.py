@@ -61,9 +61,6 @@ class ModalDiscConfig:
         n_nonlinear: the lowest this many flexible out-of-plane modes carry the second-order joint terms
             (0: the linear floating frame).
         foreshortening: the static displacement ``U s`` moves the tile centres (kinematic).
-        foreshortening_velocity: with ``foreshortening``, the contact also sees its velocity ``U ds/dt`` (the tile
-            centres' translation shapes get the tangent ``d(U s)/dq``, through which the contact pushes the modes
-            too); its inertia is still neglected.
         fd_rad: finite-difference step of the second-order expansion, as the largest tile rotation (rad).
         joints: the rigid-tile joint values the modes are computed from (the rigid limit's).
     """
@@ -72,7 +69,6 @@ class ModalDiscConfig:
     max_modes: int = 0
     n_nonlinear: int = 10
     foreshortening: bool = True
-    foreshortening_velocity: bool = False
     fd_rad: float = 1e-3
     joints: RigidTileConfig = RIGID_LIMIT_CONFIG
 

@@ -44,8 +44,8 @@ from plate_env.physics.tilelink.kernels import (
 from plate_env.physics.tilelink.params import DEFAULT_RECORD_INTERVAL_S, N_PARAMS, allocate_outputs, common_vector
 from plate_env.physics.tilelink.rigid_modal import DEFAULT_MODAL, ModalDiscConfig, build_modal_params
 
-(M_H, M_IB0, M_IB1, M_IB2, M_NITER, M_FOLDW, M_FS, M_FSV) = range(N_PARAMS, N_PARAMS + 8)
-N_MODAL_PARAMS = N_PARAMS + 8
+(M_H, M_IB0, M_IB1, M_IB2, M_NITER, M_FOLDW, M_FS) = range(N_PARAMS, N_PARAMS + 7)
+N_MODAL_PARAMS = N_PARAMS + 7
 
 
 @numba.njit(cache=CACHE, inline="always")
@@ -279,28 +279,10 @@ def _frame_forces(vf, wf, rm, iw, dt, grav, ib0, ib1, ib2):
 
 
 @numba.njit(cache=CACHE, inline="always")
-def _foreshortening_tangent(i, q, pairs, us, out):
-    """Adds the tangent of tile ``i``'s static foreshortening ``U_i s(q)`` (``s_p = q_a q_b``) to ``out`` (3, K):
-    ``U_ip q_b`` on mode ``a`` and ``U_ip q_a`` on mode ``b`` of each product ``p``."""
-    for p in range(pairs.shape[0]):
-        a = pairs[p, 0]
-        b = pairs[p, 1]
-        for d in range(3):
-            out[d, a] += us[i, d, p] * q[b]
-            out[d, b] += us[i, d, p] * q[a]
-
-
-@numba.njit(cache=CACHE)
 def _active_tiles(hh, trot, rm, x, xf, s_th, c_th, th_dot, xp_dot, kc, cdat, cimp, tfirst, tlast, ttile,
-                  inv_mt, iw, amob, wmob, sc3a, sc3b, sc6, q, pairs, us, pt, pr, sk, fsv, pte, abuf):
-    """Stage 3a: the corners below the plate grouped by tile, each tile's 6x6 mobility. Returns how many tiles.
-
-    ``pte[t]`` (3, K): the translation shapes of the t-th tile in contact, with ``fsv`` the tangent of the
-    foreshortening added (``d(U s)/dq``: ``U_p q_b`` on mode ``a`` and ``U_p q_a`` on mode ``b`` of each product
-    ``s_p = q_a q_b``), so that the contact sees the foreshortening's velocity ``U ds/dt`` and pushes the modes
-    through it; its modal self-mobility is then rebuilt from them (``abuf`` scratch)."""
+                  inv_mt, iw, amob, wmob, sc3a, sc3b, sc6):
+    """Stage 3a: the corners below the plate grouped by tile, each tile's 6x6 mobility. Returns how many tiles."""
     n = x.shape[0]
-    nk = q.shape[0]
     n_act = 0
     n_tact = 0
     for i in range(n):
@@ -335,34 +317,14 @@ def _active_tiles(hh, trot, rm, x, xf, s_th, c_th, th_dot, xp_dot, kc, cdat, cim
         tfirst[n_tact] = first
         tlast[n_tact] = n_act
         ttile[n_tact] = i
-        for d in range(3):
-            for k in range(nk):
-                pte[n_tact, d, k] = pt[i, d, k]
-        if fsv:
-            _foreshortening_tangent(i, q, pairs, us, pte[n_tact])
-            for r_ in range(6):
-                for c_ in range(6):
-                    abuf[r_, c_] = 0.0
-            for k in range(nk):
-                for r_ in range(6):
-                    vr_ = pte[n_tact, r_, k] if r_ < 3 else pr[i, r_ - 3, k]
-                    for c_ in range(r_, 6):
-                        vc_ = pte[n_tact, c_, k] if c_ < 3 else pr[i, c_ - 3, k]
-                        abuf[r_, c_] += sk[k] * vr_ * vc_
-            for r_ in range(6):
-                for c_ in range(r_):
-                    abuf[r_, c_] = abuf[c_, r_]
-            _tile_mobility(x[i, 0] - xf[0], x[i, 1] - xf[1], x[i, 2] - xf[2], inv_mt, iw, rm, abuf, wmob[n_tact],
-                           sc3a, sc3b, sc6)
-        else:
-            _tile_mobility(x[i, 0] - xf[0], x[i, 1] - xf[1], x[i, 2] - xf[2], inv_mt, iw, rm, amob[i], wmob[n_tact],
-                           sc3a, sc3b, sc6)
+        _tile_mobility(x[i, 0] - xf[0], x[i, 1] - xf[1], x[i, 2] - xf[2], inv_mt, iw, rm, amob[i], wmob[n_tact],
+                       sc3a, sc3b, sc6)
         n_tact += 1
     return n_tact
 
 
 @numba.njit(cache=CACHE, inline="always")
-def _contact_sweeps(step, n_iter, n_tact, ttile, tfirst, tlast, wmob, x, xf, vf, wf, rm, iw, pte, pr, qd, sk,
+def _contact_sweeps(step, n_iter, n_tact, ttile, tfirst, tlast, wmob, x, xf, vf, wf, rm, iw, pt, pr, qd, sk,
                     cdat, cimp, lv, dwr, pnx, pny, pnz, cc, dt, mus, muk, vt, inv_mt):
     """Stage 3b: ``n_iter`` block Gauss-Seidel sweeps over the tiles in contact (module docstring)."""
     nk = qd.shape[0]
@@ -386,9 +348,9 @@ def _contact_sweeps(step, n_iter, n_tact, ttile, tfirst, tlast, wmob, x, xf, vf,
             obz = 0.0
             for k in range(nk):
                 qk = qd[k]
-                ubx += pte[t, 0, k] * qk
-                uby += pte[t, 1, k] * qk
-                ubz += pte[t, 2, k] * qk
+                ubx += pt[i, 0, k] * qk
+                uby += pt[i, 1, k] * qk
+                ubz += pt[i, 2, k] * qk
                 obx += pr[i, 0, k] * qk
                 oby += pr[i, 1, k] * qk
                 obz += pr[i, 2, k] * qk
@@ -456,7 +418,7 @@ def _contact_sweeps(step, n_iter, n_tact, ttile, tfirst, tlast, wmob, x, xf, vf,
             lby = rm[0, 1] * lx + rm[1, 1] * ly + rm[2, 1] * lz
             lbz = rm[0, 2] * lx + rm[1, 2] * ly + rm[2, 2] * lz
             for k in range(nk):
-                qd[k] += sk[k] * (pte[t, 0, k] * fbx + pte[t, 1, k] * fby + pte[t, 2, k] * fbz
+                qd[k] += sk[k] * (pt[i, 0, k] * fbx + pt[i, 1, k] * fby + pt[i, 2, k] * fbz
                                   + pr[i, 0, k] * lbx + pr[i, 1, k] * lby + pr[i, 2, k] * lbz)
 
 
@@ -531,9 +493,6 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_ou
     sc6 = np.empty((6, 6))
     dwr = np.empty(6)
     amob = np.zeros((n, 6, 6))
-    pte = np.empty((n, 3, nk))  # translation shapes of the tiles in contact (with the foreshortening's tangent)
-    abuf = np.empty((6, 6))
-    fsv = fs and prm[M_FSV] > 0.5
     _self_mobility(pt, pr, sk, amob)
     yaw0 = prm[params.P_YAW0]
     xf[0] = prm[params.P_U0]
@@ -564,8 +523,8 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_ou
         _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt)
         _frame_forces(vf, wf, rm, iw, dt, grav, ib0, ib1, ib2)
         n_tact = _active_tiles(hh, trot, rm, x, xf, s_th, c_th, th_dot, xp_dot, kc, cdat, cimp, tfirst, tlast, ttile,
-                               inv_mt, iw, amob, wmob, sc3a, sc3b, sc6, q, pairs, us, pt, pr, sk, fsv, pte, abuf)
-        _contact_sweeps(step, n_iter, n_tact, ttile, tfirst, tlast, wmob, x, xf, vf, wf, rm, iw, pte, pr, qd, sk, cdat,
+                               inv_mt, iw, amob, wmob, sc3a, sc3b, sc6)
+        _contact_sweeps(step, n_iter, n_tact, ttile, tfirst, tlast, wmob, x, xf, vf, wf, rm, iw, pt, pr, qd, sk, cdat,
                         cimp, lv, dwr, pnx, pny, pnz, cc, dt, mus, muk, vt, inv_mt)
         qw, qx, qy, qz = _advance(xf, vf, wf, q, qd, dt, qw, qx, qy, qz)
     return status, n_rec
@@ -626,7 +585,6 @@ def run_modal_arrays(probes: Sequence[ProbeSpec], dt: float = 1e-4, slip_limit: 
         prm[b, M_NITER] = iterations
         prm[b, M_FOLDW] = fold_tile_w
         prm[b, M_FS] = 1.0 if config.foreshortening else 0.0
-        prm[b, M_FSV] = 1.0 if config.foreshortening_velocity else 0.0
     arrs = [_arrays(s, config, kmax) for s in probes]
     pt, pr, us, omega, damp, bc, hq = (np.stack([a[i] for a in arrs]) for i in range(7))
     rest = np.stack([p.geom.rest for p in built])
