@@ -67,6 +67,11 @@ ROUTES = {
     "modal_nl30_4e-4_it2": (4e-4, ModalDiscConfig(n_nonlinear=30), 2,
                             "the same with 30 (converged: 50 and all 71 give the same 10pi sweep within ~1 %)"),
     "modal_nl30_1e-4_it2": (1e-4, ModalDiscConfig(n_nonlinear=30), 2, "modal_nl30_4e-4_it2 at dt 1e-4"),
+    "modal_nl30_2000hz_2e-4_it2": (2e-4, ModalDiscConfig(cutoff_hz=2000.0, n_nonlinear=30), 2,
+                                   "30 nonlinear modes, every mode below 2 kHz dynamic (the held rows' in-plane "
+                                   "modes from ~400 Hz up resolved in time, not condensed), dt 2e-4"),
+    "modal_nl30_2000hz_1e-4_it2": (1e-4, ModalDiscConfig(cutoff_hz=2000.0, n_nonlinear=30), 2,
+                                   "modal_nl30_2000hz_2e-4_it2 at dt 1e-4"),
     "rigid_fast": (None, None, None, "the shipped model=\"rigid_fast\" (maximal coordinates, dt 2.5e-5): the "
                    "spread of its calls over the initial yaw, beside the modal routes' (no speed here: "
                    "rigid_fast.md)"),
