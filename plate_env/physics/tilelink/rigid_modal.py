@@ -77,8 +77,8 @@ class ModalDiscConfig:
             raise ValueError(f"cutoff_hz = {self.cutoff_hz!r} must be in [1, 2000] Hz")
         if not (0 <= int(self.max_modes) <= 306):
             raise ValueError(f"max_modes = {self.max_modes!r} must be in [0, 306]")
-        if not (0 <= int(self.n_nonlinear) <= 30):
-            raise ValueError(f"n_nonlinear = {self.n_nonlinear!r} must be in [0, 30]")
+        if not (0 <= int(self.n_nonlinear) <= 80):
+            raise ValueError(f"n_nonlinear = {self.n_nonlinear!r} must be in [0, 80]")
         if not (math.isfinite(self.fd_rad) and 1e-6 <= self.fd_rad <= 1e-1):
             raise ValueError(f"fd_rad = {self.fd_rad!r} rad must be in [1e-6, 0.1]")
 
