@@ -134,6 +134,21 @@ STRENGTHENED = (" (strengthened here: the file imported plate_env.identify.estim
 
 #: What each result at 5860216 shows, read from its log (results/old/FUNC.log; "own:" for OWN's rows).
 SHOWS = {
+    "test_item1_the_lab_pool_on_rigid_discs_beyond_the_range_answers_only_with_the_truth_inside":
+        "fails on the study's sweep cache, which 5860216 lacks; at a060cb7 (before the pool went through the "
+        "unknown-origin rule) it fails on the defect: the pool read 20 of the 24 out-of-range rigid sweeps (> 9)",
+    "test_item1_point_mass_discs_of_other_joint_values_in_range_keep_their_reading":
+        "fails on the import of plate_env.identify.unknown_origin after its first part passed: 5860216 had no "
+        "unknown-origin rule and read the five (the test guards that rule's in-range cost); at a060cb7 it fails on "
+        "the defect the rule brought: the paper's calibration refused all five in-range discs",
+    "test_item1_an_estimate_says_beyond_which_end_it_places_the_object":
+        "fails on the study's sweep cache, which 5860216 lacks (Estimate.beyond is today's field)",
+    "test_item1_what_the_unknown_origin_rule_cannot_resolve":
+        "fails on the import of plate_env.identify.unknown_origin; it pins the premise of the open gap (a sweep two "
+        "physics explain on opposite sides of the range), not a defect",
+    "test_item1_the_lab_pools_episode_estimates_go_through_the_rule_as_its_fits_do":
+        "fails on the study's sweep cache, which 5860216 lacks; at a060cb7 the pool's estimates had no rule (the "
+        "study, estimate_contract.md section 4, records this 200 pi sweep read as 27.7 pi)",
     "test_build_calibration_paper_equals_the_shipped_file_but_for_the_commit_it_records":
         "passes: the defect was the test's bit equality and the fix this test's tolerance; 5860216's own bit-equal "
         "version passes on this machine too (below): the cross-CPU difference was not reproduced here",
