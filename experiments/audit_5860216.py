@@ -147,8 +147,8 @@ SHOWS = {
         "fails on the import of plate_env.identify.unknown_origin; it pins the premise of the open gap (a sweep two "
         "physics explain on opposite sides of the range), not a defect",
     "test_item1_the_lab_pools_episode_estimates_go_through_the_rule_as_its_fits_do":
-        "fails on the study's sweep cache, which 5860216 lacks; at a060cb7 the pool's estimates had no rule (the "
-        "study, estimate_contract.md section 4, records this 200 pi sweep read as 27.7 pi)",
+        "fails on the import of estimator_prefixes, a name issue 35 introduced; at a060cb7 the pool's estimates had "
+        "no rule (the study, estimate_contract.md section 4, records this 200 pi sweep read as 27.7 pi)",
     "test_build_calibration_paper_equals_the_shipped_file_but_for_the_commit_it_records":
         "passes: the defect was the test's bit equality and the fix this test's tolerance; 5860216's own bit-equal "
         "version passes on this machine too (below): the cross-CPU difference was not reproduced here",
