@@ -42,10 +42,17 @@ from plate_env.physics.tilelink.kernels import (
     spring_force,
 )
 from plate_env.physics.tilelink.params import DEFAULT_RECORD_INTERVAL_S, N_PARAMS, allocate_outputs, common_vector
-from plate_env.physics.tilelink.rigid_modal import DEFAULT_MODAL, ModalDiscConfig, build_modal_params
+from plate_env.physics.tilelink.rigid_modal import (
+    DEFAULT_MODAL,
+    ModalDiscConfig,
+    build_modal_params,
+    modal_propagator,
+)
 
-(M_H, M_IB0, M_IB1, M_IB2, M_NITER, M_FOLDW, M_FS) = range(N_PARAMS, N_PARAMS + 7)
-N_MODAL_PARAMS = N_PARAMS + 7
+(M_H, M_IB0, M_IB1, M_IB2, M_NITER, M_FOLDW, M_FS, M_EXACT) = range(N_PARAMS, N_PARAMS + 8)
+N_MODAL_PARAMS = N_PARAMS + 8
+#: The modal integrators: ``M_EXACT`` 0 or 1 (:func:`rigid_modal.modal_propagator`).
+INTEGRATORS = ("backward_euler", "exact")
 
 
 @numba.njit(cache=CACHE, inline="always")
@@ -230,8 +237,10 @@ def _max_speed(x, xf, vf, wf, rm, pt, qd):
 
 
 @numba.njit(cache=CACHE, inline="always")
-def _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt):
-    """Stage 1: the modes' elastic forces and their backward-Euler spring-damper velocity update."""
+def _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt, ex, prop, qfree, vfree):
+    """Stage 1: the modes' elastic forces and their spring-damper velocity update: backward Euler, or (``ex``) the
+    exact propagator ``prop`` (K, 6) with the stiffening held constant over the step, which also leaves the free
+    end-of-step state ``qfree``/``vfree`` for stage 4."""
     nk = q.shape[0]
     npair = pairs.shape[0]
     for k in range(nk):
@@ -252,6 +261,15 @@ def _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt):
         b = pairs[p, 1]
         force[a] -= tmp_p[p] * q[b]
         force[b] -= tmp_p[p] * q[a]
+    if ex:
+        for k in range(nk):
+            q0 = q[k]
+            v0 = qd[k]
+            fk = force[k]
+            qfree[k] = prop[k, 0] * q0 + prop[k, 1] * v0 + prop[k, 4] * fk
+            vfree[k] = prop[k, 2] * q0 + prop[k, 3] * v0 + prop[k, 5] * fk
+            qd[k] = vfree[k]
+        return
     for k in range(nk):
         qd[k] = sk[k] * (qd[k] + dt * (force[k] - omega[k] * omega[k] * q[k]))
 
@@ -423,8 +441,10 @@ def _contact_sweeps(step, n_iter, n_tact, ttile, tfirst, tlast, wmob, x, xf, vf,
 
 
 @numba.njit(cache=CACHE, inline="always")
-def _advance(xf, vf, wf, q, qd, dt, qw, qx, qy, qz):
-    """Stage 4: frame position and quaternion, modal coordinates. Returns the new quaternion."""
+def _advance(xf, vf, wf, q, qd, dt, qw, qx, qy, qz, ex, qfree, vfree, rq):
+    """Stage 4: frame position and quaternion, modal coordinates (``ex``: the exact propagator's free state plus
+    the contact's response, the contact impulse a force held constant over the step, ``rq = P_GQ / P_GV``).
+    Returns the new quaternion."""
     nk = q.shape[0]
     for d in range(3):
         xf[d] += dt * vf[d]
@@ -435,18 +455,23 @@ def _advance(xf, vf, wf, q, qd, dt, qw, qx, qy, qz):
     nz_ = qz + hz * qw + hx * qy - hy * qx
     ln = 1.0 / math.sqrt(nw_ * nw_ + nx_ * nx_ + ny_ * ny_ + nz_ * nz_)
     qw, qx, qy, qz = nw_ * ln, nx_ * ln, ny_ * ln, nz_ * ln
+    if ex:
+        for k in range(nk):
+            q[k] = qfree[k] + rq[k] * (qd[k] - vfree[k])
+        return qw, qx, qy, qz
     for k in range(nk):
         q[k] += dt * qd[k]
     return qw, qx, qy, qz
 
 
 @numba.njit(cache=CACHE, fastmath=FAST)
-def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_out, cu_out, cv_out):
+def modal_probe(prm, rest, pt, pr, us, omega, damp, prop, pairs, bc, hq, cells, yaw_out, cu_out, cv_out):
     """Simulate one probe of the modal disc; fills the traces and returns (status, records written).
 
     ``pt``/``pr``: (N, 3, K) each tile's modal translation and rotation per mode (body frame); ``us``: (N, 3, P)
     the static foreshortening per product ``s_p = q_a q_b`` of ``pairs`` (P, 2); ``bc`` (K, P), ``hq`` (P, P) the
-    cubic and quartic stiffening; ``omega``/``damp`` (K,) modal frequency and damping.
+    cubic and quartic stiffening; ``omega``/``damp`` (K,) modal frequency and damping; ``prop`` (K, 6) the exact
+    propagator (:func:`rigid_modal.modal_propagator`), used when ``prm[M_EXACT]`` is set.
     """
     n = rest.shape[0]
     nk = omega.shape[0]
@@ -474,8 +499,17 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_ou
     s = np.zeros(npair)
     force = np.empty(nk)
     sk = np.empty(nk)
+    ex = prm[M_EXACT] > 0.5
+    qfree = np.zeros(nk)
+    vfree = np.zeros(nk)
+    rq = np.zeros(nk)
     for k in range(nk):
-        sk[k] = 1.0 / (1.0 + dt * damp[k] + dt * dt * omega[k] * omega[k])
+        if ex:
+            # the modal velocity per unit impulse (a force held over the step), and the displacement per velocity
+            sk[k] = prop[k, 5] / dt
+            rq[k] = prop[k, 4] / prop[k, 5]
+        else:
+            sk[k] = 1.0 / (1.0 + dt * damp[k] + dt * dt * omega[k] * omega[k])
     tmp_p = np.empty(npair)
     rm = np.empty((3, 3))
     iw = np.empty((3, 3))  # world inverse inertia
@@ -520,34 +554,34 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_ou
                 break
         if step == n_steps:
             break
-        _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt)
+        _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt, ex, prop, qfree, vfree)
         _frame_forces(vf, wf, rm, iw, dt, grav, ib0, ib1, ib2)
         n_tact = _active_tiles(hh, trot, rm, x, xf, s_th, c_th, th_dot, xp_dot, kc, cdat, cimp, tfirst, tlast, ttile,
                                inv_mt, iw, amob, wmob, sc3a, sc3b, sc6)
         _contact_sweeps(step, n_iter, n_tact, ttile, tfirst, tlast, wmob, x, xf, vf, wf, rm, iw, pt, pr, qd, sk, cdat,
                         cimp, lv, dwr, pnx, pny, pnz, cc, dt, mus, muk, vt, inv_mt)
-        qw, qx, qy, qz = _advance(xf, vf, wf, q, qd, dt, qw, qx, qy, qz)
+        qw, qx, qy, qz = _advance(xf, vf, wf, q, qd, dt, qw, qx, qy, qz, ex, qfree, vfree, rq)
     return status, n_rec
 
 
 @numba.njit(cache=CACHE, parallel=True)
-def modal_batch_parallel(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_out, cu_out, cv_out,
-                         status_out, nrec_out):
+def modal_batch_parallel(prm, rest, pt, pr, us, omega, damp, prop, pairs, bc, hq, cells, yaw_out, cu_out,
+                         cv_out, status_out, nrec_out):
     """A batch over threads (one probe per iteration)."""
     for b in numba.prange(prm.shape[0]):
-        st, r = modal_probe(prm[b], rest[b], pt[b], pr[b], us[b], omega[b], damp[b], pairs, bc[b], hq[b], cells,
-                            yaw_out[b], cu_out[b], cv_out[b])
+        st, r = modal_probe(prm[b], rest[b], pt[b], pr[b], us[b], omega[b], damp[b], prop[b], pairs, bc[b], hq[b],
+                            cells, yaw_out[b], cu_out[b], cv_out[b])
         status_out[b] = st
         nrec_out[b] = r
 
 
 @numba.njit(cache=CACHE)
-def modal_batch_serial(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_out, cu_out, cv_out,
-                       status_out, nrec_out):
+def modal_batch_serial(prm, rest, pt, pr, us, omega, damp, prop, pairs, bc, hq, cells, yaw_out, cu_out,
+                       cv_out, status_out, nrec_out):
     """The same batch on the calling thread."""
     for b in range(prm.shape[0]):
-        st, r = modal_probe(prm[b], rest[b], pt[b], pr[b], us[b], omega[b], damp[b], pairs, bc[b], hq[b], cells,
-                            yaw_out[b], cu_out[b], cv_out[b])
+        st, r = modal_probe(prm[b], rest[b], pt[b], pr[b], us[b], omega[b], damp[b], prop[b], pairs, bc[b], hq[b],
+                            cells, yaw_out[b], cu_out[b], cv_out[b])
         status_out[b] = st
         nrec_out[b] = r
 
@@ -572,8 +606,11 @@ def _arrays(spec: ProbeSpec, config: ModalDiscConfig, kmax: int):
 def run_modal_arrays(probes: Sequence[ProbeSpec], dt: float = 1e-4, slip_limit: float = SLIP_LIMIT_M,
                      config: ModalDiscConfig = DEFAULT_MODAL, iterations: int = 1, parallel: bool | None = None,
                      law: ContactLaw = PAPER_CONTACT, record_interval_s: float = DEFAULT_RECORD_INTERVAL_S,
-                     fold_tile_w: float = -0.2) -> dict[str, np.ndarray]:
-    """Run a batch with the modal disc; the keys of ``TileLinkPhysics.run_param_arrays`` plus "wall_s"."""
+                     fold_tile_w: float = -0.2, integrator: str = "backward_euler") -> dict[str, np.ndarray]:
+    """Run a batch with the modal disc; the keys of ``TileLinkPhysics.run_param_arrays`` plus "wall_s".
+    ``integrator``: one of :data:`INTEGRATORS`, how each mode's spring-damper advances a step."""
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"integrator = {integrator!r} must be one of {INTEGRATORS}")
     probes = list(probes)
     built = [build_modal_params(s.obj, config) for s in probes]
     kmax = max(p.phi.shape[1] for p in built)
@@ -585,8 +622,10 @@ def run_modal_arrays(probes: Sequence[ProbeSpec], dt: float = 1e-4, slip_limit: 
         prm[b, M_NITER] = iterations
         prm[b, M_FOLDW] = fold_tile_w
         prm[b, M_FS] = 1.0 if config.foreshortening else 0.0
+        prm[b, M_EXACT] = float(INTEGRATORS.index(integrator))
     arrs = [_arrays(s, config, kmax) for s in probes]
     pt, pr, us, omega, damp, bc, hq = (np.stack([a[i] for a in arrs]) for i in range(7))
+    prop = np.stack([modal_propagator(omega[b], damp[b], dt) for b in range(len(probes))])
     rest = np.stack([p.geom.rest for p in built])
     pairs = built[0].pairs
     cells = built[0].geom.cells
@@ -595,9 +634,10 @@ def run_modal_arrays(probes: Sequence[ProbeSpec], dt: float = 1e-4, slip_limit: 
         parallel = len(prm) > 1
     kernel = modal_batch_parallel if parallel else modal_batch_serial
     t0 = time.perf_counter()
-    load_first(modal_probe, prm[0], rest[0], pt[0], pr[0], us[0], omega[0], damp[0], pairs, bc[0], hq[0], cells,
+    load_first(modal_probe, prm[0], rest[0], pt[0], pr[0], us[0], omega[0], damp[0], prop[0], pairs, bc[0], hq[0],
+               cells,
                out["yaw"][0], out["cu"][0], out["cv"][0])
-    kernel(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, out["yaw"], out["cu"], out["cv"],
+    kernel(prm, rest, pt, pr, us, omega, damp, prop, pairs, bc, hq, cells, out["yaw"], out["cu"], out["cv"],
            out["status"], out["nrec"])
     out["wall_s"] = np.array(time.perf_counter() - t0)
     return out
@@ -607,11 +647,13 @@ class RigidModalPhysics:
     """The modal disc behind the backend's ``run`` interface (experimental: not one of the tile-link ``MODELS``).
 
     Args: ``dt`` s; ``config`` the reduction (:class:`rigid_modal.ModalDiscConfig`); ``iterations`` contact
-    Gauss-Seidel sweeps a step; ``slip_limit`` m.
+    Gauss-Seidel sweeps a step; ``slip_limit`` m; ``integrator`` one of :data:`INTEGRATORS` (the modes' step).
     """
 
     def __init__(self, dt: float = 1e-4, config: ModalDiscConfig = DEFAULT_MODAL, iterations: int = 1,
-                 slip_limit: float = SLIP_LIMIT_M) -> None:
+                 slip_limit: float = SLIP_LIMIT_M, integrator: str = "backward_euler") -> None:
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"integrator = {integrator!r} must be one of {INTEGRATORS}")
         if not (math.isfinite(dt) and 0.0 < dt <= 1e-3):
             raise ValueError(f"dt = {dt!r} s must be in (0, 1e-3]")
         if not (1 <= int(iterations) <= 20):
@@ -620,6 +662,7 @@ class RigidModalPhysics:
         self.config = config
         self.iterations = int(iterations)
         self.slip_limit = float(slip_limit)
+        self.integrator = integrator
         self.name = "tilelink"
         self.model = "rigid_modal"
 
@@ -635,7 +678,8 @@ class RigidModalPhysics:
         return [result_from_arrays(s, raw, b, self.dt, wall) for b, s in enumerate(probes)]
 
     def run_arrays(self, probes: Sequence[ProbeSpec]) -> dict[str, np.ndarray]:
-        return run_modal_arrays(probes, self.dt, self.slip_limit, self.config, self.iterations)
+        return run_modal_arrays(probes, self.dt, self.slip_limit, self.config, self.iterations,
+                                integrator=self.integrator)
 
     def close(self) -> None:
         """Nothing to release."""
