@@ -51,8 +51,12 @@ from plate_env.physics.tilelink.rigid_modal import (
 
 (M_H, M_IB0, M_IB1, M_IB2, M_NITER, M_FOLDW, M_FS, M_EXACT) = range(N_PARAMS, N_PARAMS + 8)
 N_MODAL_PARAMS = N_PARAMS + 8
-#: The modal integrators: ``M_EXACT`` 0 or 1 (:func:`rigid_modal.modal_propagator`).
-INTEGRATORS = ("backward_euler", "exact")
+#: The modal integrators (``M_EXACT`` = bit flags): backward Euler (0), or the exact propagator
+#: (:func:`rigid_modal.modal_propagator`, bit 1) with the stiffening held at its start value or (bit 2) at the mean of
+#: its start value and its value at the predicted end state (a predictor-corrector: twice the stiffening's cost),
+#: and the contact impulse moving the modes' displacement as a force held over the step or (bit 4) as the frame's
+#: symplectic-Euler kick does (``dq = dt dv``).
+INTEGRATORS = {"backward_euler": 0, "exact": 1, "exact_pc": 3, "exact_kick": 5, "exact_kick_pc": 7}
 
 
 @numba.njit(cache=CACHE, inline="always")
@@ -237,10 +241,9 @@ def _max_speed(x, xf, vf, wf, rm, pt, qd):
 
 
 @numba.njit(cache=CACHE, inline="always")
-def _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt, ex, prop, qfree, vfree):
-    """Stage 1: the modes' elastic forces and their spring-damper velocity update: backward Euler, or (``ex``) the
-    exact propagator ``prop`` (K, 6) with the stiffening held constant over the step, which also leaves the free
-    end-of-step state ``qfree``/``vfree`` for stage 4."""
+def _stiffening(q, s, pairs, bc, hq, force, tmp_p):
+    """The condensed joint stiffening's modal forces ``-d/dq (q^T B s + s^T H s / 2)`` at ``q`` (``s`` its
+    products) into ``force``."""
     nk = q.shape[0]
     npair = pairs.shape[0]
     for k in range(nk):
@@ -261,6 +264,25 @@ def _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt, ex, prop
         b = pairs[p, 1]
         force[a] -= tmp_p[p] * q[b]
         force[b] -= tmp_p[p] * q[a]
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt, ex, prop, qfree, vfree, pc, s2, f2):
+    """Stage 1: the modes' elastic forces and their spring-damper velocity update: backward Euler, or (``ex``) the
+    exact propagator ``prop`` (K, 6) with the stiffening held constant over the step (``pc``: the mean of its
+    values at the start and at the free end state predicted with it), which also leaves the free end-of-step state
+    ``qfree``/``vfree`` for stage 4. ``s2``/``f2`` scratch."""
+    nk = q.shape[0]
+    npair = pairs.shape[0]
+    _stiffening(q, s, pairs, bc, hq, force, tmp_p)
+    if ex and pc:
+        for k in range(nk):
+            qfree[k] = prop[k, 0] * q[k] + prop[k, 1] * qd[k] + prop[k, 4] * force[k]
+        for p in range(npair):
+            s2[p] = qfree[pairs[p, 0]] * qfree[pairs[p, 1]]
+        _stiffening(qfree, s2, pairs, bc, hq, f2, tmp_p)
+        for k in range(nk):
+            force[k] = 0.5 * (force[k] + f2[k])
     if ex:
         for k in range(nk):
             q0 = q[k]
@@ -499,7 +521,12 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, prop, pairs, bc, hq, cells, 
     s = np.zeros(npair)
     force = np.empty(nk)
     sk = np.empty(nk)
-    ex = prm[M_EXACT] > 0.5
+    flags = int(prm[M_EXACT])
+    ex = (flags & 1) != 0
+    pc = (flags & 2) != 0
+    kick = (flags & 4) != 0
+    s2 = np.zeros(npair)
+    f2 = np.zeros(nk)
     qfree = np.zeros(nk)
     vfree = np.zeros(nk)
     rq = np.zeros(nk)
@@ -507,7 +534,7 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, prop, pairs, bc, hq, cells, 
         if ex:
             # the modal velocity per unit impulse (a force held over the step), and the displacement per velocity
             sk[k] = prop[k, 5] / dt
-            rq[k] = prop[k, 4] / prop[k, 5]
+            rq[k] = dt if kick else prop[k, 4] / prop[k, 5]
         else:
             sk[k] = 1.0 / (1.0 + dt * damp[k] + dt * dt * omega[k] * omega[k])
     tmp_p = np.empty(npair)
@@ -554,7 +581,7 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, prop, pairs, bc, hq, cells, 
                 break
         if step == n_steps:
             break
-        _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt, ex, prop, qfree, vfree)
+        _modal_forces(q, qd, s, pairs, bc, hq, omega, sk, force, tmp_p, dt, ex, prop, qfree, vfree, pc, s2, f2)
         _frame_forces(vf, wf, rm, iw, dt, grav, ib0, ib1, ib2)
         n_tact = _active_tiles(hh, trot, rm, x, xf, s_th, c_th, th_dot, xp_dot, kc, cdat, cimp, tfirst, tlast, ttile,
                                inv_mt, iw, amob, wmob, sc3a, sc3b, sc6)
@@ -622,7 +649,7 @@ def run_modal_arrays(probes: Sequence[ProbeSpec], dt: float = 1e-4, slip_limit: 
         prm[b, M_NITER] = iterations
         prm[b, M_FOLDW] = fold_tile_w
         prm[b, M_FS] = 1.0 if config.foreshortening else 0.0
-        prm[b, M_EXACT] = float(INTEGRATORS.index(integrator))
+        prm[b, M_EXACT] = float(INTEGRATORS[integrator])
     arrs = [_arrays(s, config, kmax) for s in probes]
     pt, pr, us, omega, damp, bc, hq = (np.stack([a[i] for a in arrs]) for i in range(7))
     prop = np.stack([modal_propagator(omega[b], damp[b], dt) for b in range(len(probes))])
