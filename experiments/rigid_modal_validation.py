@@ -72,6 +72,26 @@ ROUTES = {
                                    "modes from ~400 Hz up resolved in time, not condensed), dt 2e-4"),
     "modal_nl30_2000hz_1e-4_it2": (1e-4, ModalDiscConfig(cutoff_hz=2000.0, n_nonlinear=30), 2,
                                    "modal_nl30_2000hz_2e-4_it2 at dt 1e-4"),
+    # session h34e: the exact modal propagator (integrator="exact": each mode's 2x2 state-transition matrix and
+    # constant-force response, stiffening and contact held constant over the step) instead of backward Euler
+    "modal_nl30_2000hz_2e-4_it2_exp": (2e-4, ModalDiscConfig(cutoff_hz=2000.0, n_nonlinear=30), 2,
+                                       "modal_nl30_2000hz_2e-4_it2 with the exact modal propagator"),
+    "modal_nl30_2000hz_4e-4_it2_exp": (4e-4, ModalDiscConfig(cutoff_hz=2000.0, n_nonlinear=30), 2,
+                                       "modal_nl30_2000hz_2e-4_it2_exp at dt 4e-4 (modes above 1250 Hz: w dt > pi)"),
+    "modal_nl30_1000hz_4e-4_it2_exp": (4e-4, ModalDiscConfig(cutoff_hz=1000.0, n_nonlinear=30), 2,
+                                       "every mode below 1 kHz dynamic, 30 nonlinear, exact propagator, dt 4e-4"),
+    "modal_nl10_2000hz_4e-4_it2_exp": (4e-4, ModalDiscConfig(cutoff_hz=2000.0), 2,
+                                       "every mode below 2 kHz dynamic, 10 nonlinear, exact propagator, dt 4e-4"),
+    "modal_nl10_4e-4_it2_exp": (4e-4, ModalDiscConfig(), 2,
+                                "the default reduction (modes < 200 Hz, 10 nonlinear) with the exact propagator"),
+    "modal_nl30_2000hz_2e-4_it2_kick": (2e-4, ModalDiscConfig(cutoff_hz=2000.0, n_nonlinear=30), 2,
+                                        "modal_nl30_2000hz_2e-4_it2_exp with the contact impulse moving the modes as "
+                                        "the frame's symplectic-Euler kick (dq = dt dv; integrator exact_kick)"),
+    "modal_nl30_2000hz_4e-4_it2_kick": (4e-4, ModalDiscConfig(cutoff_hz=2000.0, n_nonlinear=30), 2,
+                                        "modal_nl30_2000hz_2e-4_it2_kick at dt 4e-4"),
+    "modal_nl30_2000hz_4e-4_it2": (4e-4, ModalDiscConfig(cutoff_hz=2000.0, n_nonlinear=30), 2,
+                                   "modal_nl30_2000hz_2e-4_it2 (backward Euler) at dt 4e-4: the same step as the "
+                                   "exact propagator's"),
     "rigid_fast": (None, None, None, "the shipped model=\"rigid_fast\" (maximal coordinates, dt 2.5e-5): the "
                    "spread of its calls over the initial yaw, beside the modal routes' (no speed here: "
                    "rigid_fast.md)"),
@@ -83,7 +103,8 @@ def physics_of(name: str):
     dt, cfg, iters, _ = ROUTES[name]
     if cfg is None:
         return pe.make_physics("tilelink", model="rigid_fast")
-    return RigidModalPhysics(dt, cfg, iters)
+    integrator = {"_exp": "exact", "_kick": "exact_kick"}.get(name[name.rfind("_"):], "backward_euler")
+    return RigidModalPhysics(dt, cfg, iters, integrator=integrator)
 
 
 def spread(rows: list[dict], physics, offsets_mrad: list[float]) -> list[dict]:

@@ -245,3 +245,46 @@ def _build(obj: ObjectSpec, config: ModalDiscConfig) -> ModalDiscParams:
     return ModalDiscParams(geom=geom, tile_mass=m, tile_size=geom.spacing, k_bending=k_b, phi=phi_d, omega=w_d,
                            damp=damp, nl_index=nl_index, pairs=pairs, b_cubic=b_cubic, h_quartic=h_quartic,
                            u_static=u_static, inertia_body=inertia_body, omegas_all=omegas)
+
+
+#: Columns of :func:`modal_propagator`'s (K, 6) array.
+PROP_QQ, PROP_QV, PROP_VQ, PROP_VV, PROP_GQ, PROP_GV = range(6)
+
+
+def modal_propagator(omega: np.ndarray, damp: np.ndarray, dt: float, method: str = "exact") -> np.ndarray:
+    """One step of ``dt`` s of each modal oscillator ``q'' + c q' + w^2 q = f`` (``omega`` = w rad/s, ``damp`` = c
+    1/s, arrays (K,)) as a (K, 6) array: ``q1 = P_QQ q0 + P_QV v0 + P_GQ f``, ``v1 = P_VQ q0 + P_VV v0 + P_GV f``
+    with ``f`` held constant over the step (columns ``PROP_*``).
+
+    ``method="exact"``: the exact state-transition matrix and constant-force response (the exponential of the
+    augmented 3x3 system), so the linear frequency and damping of every mode are exact at any step.
+    ``method="backward_euler"``: the kernel's semi-implicit scheme written the same way (``v1 = (v0 + dt (f - w^2
+    q0)) / (1 + dt c + dt^2 w^2)``, ``q1 = q0 + dt v1``), for comparison.
+    """
+    omega = np.asarray(omega, dtype=float)
+    damp = np.asarray(damp, dtype=float)
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f"dt = {dt!r} s must be positive and finite")
+    if omega.shape != damp.shape or omega.ndim != 1:
+        raise ValueError(f"omega {omega.shape} and damp {damp.shape} must be equal 1-d shapes")
+    out = np.empty((len(omega), 6))
+    if method == "backward_euler":
+        sk = 1.0 / (1.0 + dt * damp + dt * dt * omega**2)
+        out[:, PROP_VQ] = -dt * omega**2 * sk
+        out[:, PROP_VV] = sk
+        out[:, PROP_GV] = dt * sk
+        out[:, PROP_QQ] = 1.0 + dt * out[:, PROP_VQ]
+        out[:, PROP_QV] = dt * sk
+        out[:, PROP_GQ] = dt * dt * sk
+        return out
+    if method != "exact":
+        raise ValueError(f"method = {method!r} must be 'exact' or 'backward_euler'")
+    aug = np.zeros((len(omega), 3, 3))
+    aug[:, 0, 1] = dt
+    aug[:, 1, 0] = -dt * omega**2
+    aug[:, 1, 1] = -dt * damp
+    aug[:, 1, 2] = dt
+    e = scipy.linalg.expm(aug)
+    out[:, PROP_QQ], out[:, PROP_QV], out[:, PROP_GQ] = e[:, 0, 0], e[:, 0, 1], e[:, 0, 2]
+    out[:, PROP_VQ], out[:, PROP_VV], out[:, PROP_GV] = e[:, 1, 0], e[:, 1, 1], e[:, 1, 2]
+    return out

@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numba
 import numpy as np
@@ -42,10 +43,22 @@ from plate_env.physics.tilelink.kernels import (
     spring_force,
 )
 from plate_env.physics.tilelink.params import DEFAULT_RECORD_INTERVAL_S, N_PARAMS, allocate_outputs, common_vector
-from plate_env.physics.tilelink.rigid_modal import DEFAULT_MODAL, ModalDiscConfig, build_modal_params
+from plate_env.physics.tilelink.rigid_modal import (
+    DEFAULT_MODAL,
+    ModalDiscConfig,
+    build_modal_params,
+    modal_propagator,
+)
 
-(M_H, M_IB0, M_IB1, M_IB2, M_NITER, M_FOLDW, M_FS) = range(N_PARAMS, N_PARAMS + 7)
-N_MODAL_PARAMS = N_PARAMS + 7
+(M_H, M_IB0, M_IB1, M_IB2, M_NITER, M_FOLDW, M_FS, M_EXACT) = range(N_PARAMS, N_PARAMS + 8)
+N_MODAL_PARAMS = N_PARAMS + 8
+#: The modal integrators (``M_EXACT`` = bit flags): backward Euler (0, :func:`modal_probe`), or the exact propagator
+#: (:func:`rigid_modal.modal_propagator`, bit 1, :func:`modal_probe_exact`) with the stiffening held at its start
+#: value over the step and the contact impulse moving the modes' displacement as a force held over the step, or (bit
+#: 4) as the frame's symplectic-Euler kick does (``dq = dt dv``). (A predictor-corrector of the stiffening, bit 2,
+#: was measured at 7790646 and removed: rigid_modal_notes.md.) The exact integrator is a separate probe function:
+#: a runtime switch inside the backward-Euler loop cost that loop ~30 % (numba/LLVM), measured.
+INTEGRATORS = {"backward_euler": 0, "exact": 1, "exact_kick": 5}
 
 
 @numba.njit(cache=CACHE, inline="always")
@@ -440,6 +453,57 @@ def _advance(xf, vf, wf, q, qd, dt, qw, qx, qy, qz):
     return qw, qx, qy, qz
 
 
+@numba.njit(cache=CACHE, inline="always")
+def _modal_forces_exact(q, qd, s, pairs, bc, hq, force, tmp_p, prop, qfree, vfree):
+    """Stage 1 with the exact propagator ``prop`` (K, 6): the stiffening (as :func:`_modal_forces`) held constant
+    over the step; leaves the free end-of-step state ``qfree``/``vfree`` for :func:`_advance_exact`."""
+    nk = q.shape[0]
+    npair = pairs.shape[0]
+    for k in range(nk):
+        acc = 0.0
+        for p in range(npair):
+            acc += bc[k, p] * s[p]
+        force[k] = -acc
+    for p in range(npair):
+        acc = 0.0
+        for k in range(nk):
+            acc += bc[k, p] * q[k]
+        for p2 in range(npair):
+            acc += hq[p, p2] * s[p2]
+        tmp_p[p] = acc
+    for p in range(npair):
+        a = pairs[p, 0]
+        b = pairs[p, 1]
+        force[a] -= tmp_p[p] * q[b]
+        force[b] -= tmp_p[p] * q[a]
+    for k in range(nk):
+        q0 = q[k]
+        v0 = qd[k]
+        fk = force[k]
+        qfree[k] = prop[k, 0] * q0 + prop[k, 1] * v0 + prop[k, 4] * fk
+        vfree[k] = prop[k, 2] * q0 + prop[k, 3] * v0 + prop[k, 5] * fk
+        qd[k] = vfree[k]
+
+
+@numba.njit(cache=CACHE, inline="always")
+def _advance_exact(xf, vf, wf, q, qd, dt, qw, qx, qy, qz, qfree, vfree, rq):
+    """Stage 4 with the exact propagator: the frame as :func:`_advance`; the modes at their free end state plus the
+    contact's response ``rq (v - vfree)``. Returns the new quaternion."""
+    nk = q.shape[0]
+    for d in range(3):
+        xf[d] += dt * vf[d]
+    hx, hy, hz = 0.5 * dt * wf[0], 0.5 * dt * wf[1], 0.5 * dt * wf[2]
+    nw_ = qw - hx * qx - hy * qy - hz * qz
+    nx_ = qx + hx * qw + hy * qz - hz * qy
+    ny_ = qy + hy * qw + hz * qx - hx * qz
+    nz_ = qz + hz * qw + hx * qy - hy * qx
+    ln = 1.0 / math.sqrt(nw_ * nw_ + nx_ * nx_ + ny_ * ny_ + nz_ * nz_)
+    qw, qx, qy, qz = nw_ * ln, nx_ * ln, ny_ * ln, nz_ * ln
+    for k in range(nk):
+        q[k] = qfree[k] + rq[k] * (qd[k] - vfree[k])
+    return qw, qx, qy, qz
+
+
 @numba.njit(cache=CACHE, fastmath=FAST)
 def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_out, cu_out, cv_out):
     """Simulate one probe of the modal disc; fills the traces and returns (status, records written).
@@ -530,24 +594,123 @@ def modal_probe(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_ou
     return status, n_rec
 
 
+@numba.njit(cache=CACHE, fastmath=FAST)
+def modal_probe_exact(prm, rest, pt, pr, us, omega, damp, prop, pairs, bc, hq, cells, yaw_out, cu_out, cv_out):
+    """:func:`modal_probe` with the exact modal propagator ``prop`` (K, 6) (:data:`INTEGRATORS`)."""
+    n = rest.shape[0]
+    nk = omega.shape[0]
+    npair = pairs.shape[0]
+    dt = prm[params.P_DT]
+    m = prm[params.P_MASS]
+    mtot = m * n
+    inv_mt = 1.0 / mtot
+    ib0, ib1, ib2 = prm[M_IB0], prm[M_IB1], prm[M_IB2]
+    n_iter = int(prm[M_NITER])
+    n_steps = int(prm[params.P_NSTEPS])
+    rec_every = int(prm[params.P_RECEVERY])
+    kc = 0.25 * prm[params.P_KC]
+    cc = 0.25 * prm[params.P_CC]
+    hh = 0.5 * prm[M_H]
+    grav = prm[params.P_G]
+    fs = prm[M_FS] > 0.5
+    mus, muk, vt = prm[params.P_MUS], prm[params.P_MUK], prm[params.P_VT]
+    # state
+    xf = np.empty(3)
+    vf = np.zeros(3)
+    wf = np.zeros(3)
+    q = np.zeros(nk)
+    qd = np.zeros(nk)
+    s = np.zeros(npair)
+    force = np.empty(nk)
+    sk = np.empty(nk)
+    kick = (int(prm[M_EXACT]) & 4) != 0
+    qfree = np.zeros(nk)
+    vfree = np.zeros(nk)
+    rq = np.zeros(nk)
+    for k in range(nk):
+        # the modal velocity per unit impulse (a force held over the step), the displacement per velocity change
+        sk[k] = prop[k, 5] / dt
+        rq[k] = dt if kick else prop[k, 4] / prop[k, 5]
+    tmp_p = np.empty(npair)
+    rm = np.empty((3, 3))
+    iw = np.empty((3, 3))  # world inverse inertia
+    trot = np.empty((n, 3, 3))  # tile rotation in the body frame
+    x = np.empty((n, 3))  # tile centres, world
+    cdat = np.empty((4 * n, 7))  # corner offset from its tile centre c (3, world), f_spring, plate velocity (3)
+    cimp = np.empty((4 * n, 3))
+    tfirst = np.empty(n, dtype=np.int64)  # tiles in contact: their corners' range, the tile, its mobility
+    tlast = np.empty(n, dtype=np.int64)
+    ttile = np.empty(n, dtype=np.int64)
+    wmob = np.empty((n, 6, 6))
+    lv = np.empty(6)
+    sc3a = np.empty((3, 3))
+    sc3b = np.empty((3, 3))
+    sc6 = np.empty((6, 6))
+    dwr = np.empty(6)
+    amob = np.zeros((n, 6, 6))
+    _self_mobility(pt, pr, sk, amob)
+    yaw0 = prm[params.P_YAW0]
+    xf[0] = prm[params.P_U0]
+    xf[1] = prm[params.P_V0]
+    xf[2] = -prm[params.P_DEPTH0]
+    qw, qx, qy, qz = math.cos(0.5 * yaw0), 0.0, 0.0, math.sin(0.5 * yaw0)
+    yaw = yaw0
+    n_rec = 0
+    status = Status.OK
+    for step in range(n_steps + 1):
+        th, th_dot, xp, xp_dot = plate_at(prm, step * dt)
+        s_th = math.sin(th)
+        c_th = math.cos(th)
+        pnx, pny, pnz = 0.0, -s_th, c_th
+        _quat_matrix(qw, qx, qy, qz, rm)
+        tile_w_min = _tile_geometry(q, s, pairs, rest, pt, pr, us, fs, xf, rm, trot, x, s_th, c_th)
+        if step % rec_every == 0:
+            vmax2 = _max_speed(x, xf, vf, wf, rm, pt, qd)
+            extra = Status.OK
+            if tile_w_min < prm[M_FOLDW]:
+                extra = Status.FOLDED
+            status, yaw, n_rec = record(x, rest, cells, xp, s_th, c_th, yaw, vmax2, extra, prm, yaw_out, cu_out,
+                                        cv_out, n_rec)
+            if status != Status.OK:
+                break
+        if step == n_steps:
+            break
+        _modal_forces_exact(q, qd, s, pairs, bc, hq, force, tmp_p, prop, qfree, vfree)
+        _frame_forces(vf, wf, rm, iw, dt, grav, ib0, ib1, ib2)
+        n_tact = _active_tiles(hh, trot, rm, x, xf, s_th, c_th, th_dot, xp_dot, kc, cdat, cimp, tfirst, tlast, ttile,
+                               inv_mt, iw, amob, wmob, sc3a, sc3b, sc6)
+        _contact_sweeps(step, n_iter, n_tact, ttile, tfirst, tlast, wmob, x, xf, vf, wf, rm, iw, pt, pr, qd, sk, cdat,
+                        cimp, lv, dwr, pnx, pny, pnz, cc, dt, mus, muk, vt, inv_mt)
+        qw, qx, qy, qz = _advance_exact(xf, vf, wf, q, qd, dt, qw, qx, qy, qz, qfree, vfree, rq)
+    return status, n_rec
+
+
 @numba.njit(cache=CACHE, parallel=True)
-def modal_batch_parallel(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_out, cu_out, cv_out,
-                         status_out, nrec_out):
+def modal_batch_parallel(prm, rest, pt, pr, us, omega, damp, prop, pairs, bc, hq, cells, yaw_out, cu_out,
+                         cv_out, status_out, nrec_out):
     """A batch over threads (one probe per iteration)."""
     for b in numba.prange(prm.shape[0]):
-        st, r = modal_probe(prm[b], rest[b], pt[b], pr[b], us[b], omega[b], damp[b], pairs, bc[b], hq[b], cells,
-                            yaw_out[b], cu_out[b], cv_out[b])
+        if prm[b, M_EXACT] > 0.5:
+            st, r = modal_probe_exact(prm[b], rest[b], pt[b], pr[b], us[b], omega[b], damp[b], prop[b], pairs, bc[b],
+                                      hq[b], cells, yaw_out[b], cu_out[b], cv_out[b])
+        else:
+            st, r = modal_probe(prm[b], rest[b], pt[b], pr[b], us[b], omega[b], damp[b], pairs, bc[b], hq[b], cells,
+                                yaw_out[b], cu_out[b], cv_out[b])
         status_out[b] = st
         nrec_out[b] = r
 
 
 @numba.njit(cache=CACHE)
-def modal_batch_serial(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, yaw_out, cu_out, cv_out,
-                       status_out, nrec_out):
+def modal_batch_serial(prm, rest, pt, pr, us, omega, damp, prop, pairs, bc, hq, cells, yaw_out, cu_out,
+                       cv_out, status_out, nrec_out):
     """The same batch on the calling thread."""
     for b in range(prm.shape[0]):
-        st, r = modal_probe(prm[b], rest[b], pt[b], pr[b], us[b], omega[b], damp[b], pairs, bc[b], hq[b], cells,
-                            yaw_out[b], cu_out[b], cv_out[b])
+        if prm[b, M_EXACT] > 0.5:
+            st, r = modal_probe_exact(prm[b], rest[b], pt[b], pr[b], us[b], omega[b], damp[b], prop[b], pairs, bc[b],
+                                      hq[b], cells, yaw_out[b], cu_out[b], cv_out[b])
+        else:
+            st, r = modal_probe(prm[b], rest[b], pt[b], pr[b], us[b], omega[b], damp[b], pairs, bc[b], hq[b], cells,
+                                yaw_out[b], cu_out[b], cv_out[b])
         status_out[b] = st
         nrec_out[b] = r
 
@@ -569,11 +732,28 @@ def _arrays(spec: ProbeSpec, config: ModalDiscConfig, kmax: int):
             omega, damp, bc, p.h_quartic)
 
 
+@lru_cache(maxsize=256)
+def _propagator(obj, config: ModalDiscConfig, dt: float, kmax: int) -> np.ndarray:
+    """(kmax, 6) the exact propagator of one object's modes (zero-padded modes: a free unit mass), cached: scipy's
+    batched expm costs ~0.1 s a call, as much as a 1.7 s probe's whole kernel."""
+    p = build_modal_params(obj, config)
+    omega = np.zeros(kmax)
+    damp = np.zeros(kmax)
+    omega[:len(p.omega)] = p.omega
+    damp[:len(p.damp)] = p.damp
+    out = modal_propagator(omega, damp, dt)
+    out.flags.writeable = False
+    return out
+
+
 def run_modal_arrays(probes: Sequence[ProbeSpec], dt: float = 1e-4, slip_limit: float = SLIP_LIMIT_M,
                      config: ModalDiscConfig = DEFAULT_MODAL, iterations: int = 1, parallel: bool | None = None,
                      law: ContactLaw = PAPER_CONTACT, record_interval_s: float = DEFAULT_RECORD_INTERVAL_S,
-                     fold_tile_w: float = -0.2) -> dict[str, np.ndarray]:
-    """Run a batch with the modal disc; the keys of ``TileLinkPhysics.run_param_arrays`` plus "wall_s"."""
+                     fold_tile_w: float = -0.2, integrator: str = "backward_euler") -> dict[str, np.ndarray]:
+    """Run a batch with the modal disc; the keys of ``TileLinkPhysics.run_param_arrays`` plus "wall_s".
+    ``integrator``: one of :data:`INTEGRATORS`, how each mode's spring-damper advances a step."""
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"integrator = {integrator!r} must be one of {INTEGRATORS}")
     probes = list(probes)
     built = [build_modal_params(s.obj, config) for s in probes]
     kmax = max(p.phi.shape[1] for p in built)
@@ -585,8 +765,12 @@ def run_modal_arrays(probes: Sequence[ProbeSpec], dt: float = 1e-4, slip_limit: 
         prm[b, M_NITER] = iterations
         prm[b, M_FOLDW] = fold_tile_w
         prm[b, M_FS] = 1.0 if config.foreshortening else 0.0
+        prm[b, M_EXACT] = float(INTEGRATORS[integrator])
     arrs = [_arrays(s, config, kmax) for s in probes]
     pt, pr, us, omega, damp, bc, hq = (np.stack([a[i] for a in arrs]) for i in range(7))
+    prop = np.zeros((len(probes), kmax, 6))
+    if integrator != "backward_euler":
+        prop = np.stack([_propagator(s.obj, config, dt, kmax) for s in probes])
     rest = np.stack([p.geom.rest for p in built])
     pairs = built[0].pairs
     cells = built[0].geom.cells
@@ -595,9 +779,13 @@ def run_modal_arrays(probes: Sequence[ProbeSpec], dt: float = 1e-4, slip_limit: 
         parallel = len(prm) > 1
     kernel = modal_batch_parallel if parallel else modal_batch_serial
     t0 = time.perf_counter()
-    load_first(modal_probe, prm[0], rest[0], pt[0], pr[0], us[0], omega[0], damp[0], pairs, bc[0], hq[0], cells,
-               out["yaw"][0], out["cu"][0], out["cv"][0])
-    kernel(prm, rest, pt, pr, us, omega, damp, pairs, bc, hq, cells, out["yaw"], out["cu"], out["cv"],
+    if integrator == "backward_euler":
+        load_first(modal_probe, prm[0], rest[0], pt[0], pr[0], us[0], omega[0], damp[0], pairs, bc[0], hq[0], cells,
+                   out["yaw"][0], out["cu"][0], out["cv"][0])
+    else:
+        load_first(modal_probe_exact, prm[0], rest[0], pt[0], pr[0], us[0], omega[0], damp[0], prop[0], pairs, bc[0],
+                   hq[0], cells, out["yaw"][0], out["cu"][0], out["cv"][0])
+    kernel(prm, rest, pt, pr, us, omega, damp, prop, pairs, bc, hq, cells, out["yaw"], out["cu"], out["cv"],
            out["status"], out["nrec"])
     out["wall_s"] = np.array(time.perf_counter() - t0)
     return out
@@ -607,11 +795,13 @@ class RigidModalPhysics:
     """The modal disc behind the backend's ``run`` interface (experimental: not one of the tile-link ``MODELS``).
 
     Args: ``dt`` s; ``config`` the reduction (:class:`rigid_modal.ModalDiscConfig`); ``iterations`` contact
-    Gauss-Seidel sweeps a step; ``slip_limit`` m.
+    Gauss-Seidel sweeps a step; ``slip_limit`` m; ``integrator`` one of :data:`INTEGRATORS` (the modes' step).
     """
 
     def __init__(self, dt: float = 1e-4, config: ModalDiscConfig = DEFAULT_MODAL, iterations: int = 1,
-                 slip_limit: float = SLIP_LIMIT_M) -> None:
+                 slip_limit: float = SLIP_LIMIT_M, integrator: str = "backward_euler") -> None:
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"integrator = {integrator!r} must be one of {INTEGRATORS}")
         if not (math.isfinite(dt) and 0.0 < dt <= 1e-3):
             raise ValueError(f"dt = {dt!r} s must be in (0, 1e-3]")
         if not (1 <= int(iterations) <= 20):
@@ -620,6 +810,7 @@ class RigidModalPhysics:
         self.config = config
         self.iterations = int(iterations)
         self.slip_limit = float(slip_limit)
+        self.integrator = integrator
         self.name = "tilelink"
         self.model = "rigid_modal"
 
@@ -635,7 +826,8 @@ class RigidModalPhysics:
         return [result_from_arrays(s, raw, b, self.dt, wall) for b, s in enumerate(probes)]
 
     def run_arrays(self, probes: Sequence[ProbeSpec]) -> dict[str, np.ndarray]:
-        return run_modal_arrays(probes, self.dt, self.slip_limit, self.config, self.iterations)
+        return run_modal_arrays(probes, self.dt, self.slip_limit, self.config, self.iterations,
+                                integrator=self.integrator)
 
     def close(self) -> None:
         """Nothing to release."""
