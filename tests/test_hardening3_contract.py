@@ -478,8 +478,9 @@ def test_item1_what_the_unknown_origin_rule_cannot_resolve():
     assert rigid.ci95 is not None and rigid.ci95[1] < 45 * math.pi
 
 
-@pytest.mark.xfail(strict=True, reason="issue 37 open: a disc beyond the range that another shipped physics explains "
-                   "inside its range is read by every reading of unknown origin (the live 100 pi point-mass sweep: "
+@pytest.mark.xfail(strict=True, reason="issue 37, its blocked part (not identifiable from the data): a disc beyond "
+                   "the range that another shipped physics explains inside its range is read by every reading of "
+                   "unknown origin (the live 100 pi point-mass sweep: "
                    "the rigid tiles read it as 7.6 pi, p 0.85); the rule that refuses as soon as some physics places "
                    "a disc beyond keeps 27 of 104 in-range point-mass discs, 8 of them with a false bound "
                    "(experiments/results/estimate_contract.md, section 5)")
