@@ -665,18 +665,22 @@ class FeatPrior:
     log_sd: float
 
 
-def _lab_lines(pseudo: list[Lab]) -> tuple[list[np.ndarray], list[float]]:
-    """Each pseudo-lab's least-squares feature line over its fitted sweeps (at least 5) and its residual sd."""
-    betas, sds = [], []
+def _lab_fits(pseudo: list[Lab]):
+    """Each pseudo-lab with at least 5 fitted sweeps: ``(lab, x, y, beta)``, its features' design rows, log truths
+    and least-squares feature line."""
     for lab in pseudo:
         ok = lab.features[:, 0] == 1
         if ok.sum() < 5:
             continue
         x, y = feat_x(lab.features[ok]), np.log(lab.truth[ok])
         beta, *_ = np.linalg.lstsq(x, y, rcond=None)
-        betas.append(beta)
-        sds.append(float(np.sqrt(np.mean((y - x @ beta) ** 2))))
-    return betas, sds
+        yield lab, x, y, beta
+
+
+def _lab_lines(pseudo: list[Lab]) -> tuple[list[np.ndarray], list[float]]:
+    """Each pseudo-lab's least-squares feature line over its fitted sweeps (at least 5) and its residual sd."""
+    fits = list(_lab_fits(pseudo))
+    return [beta for *_, beta in fits], [float(np.sqrt(np.mean((y - x @ beta) ** 2))) for _, x, y, beta in fits]
 
 
 def learn_feat_prior(pseudo: list[Lab], log_sd: float) -> tuple[FeatPrior, dict]:
@@ -947,13 +951,8 @@ def learn_feat_mixture(pseudo: list[Lab], log_sd: float, broad_weight: float = 0
                           float(broad.sigma_median), float(broad.log_sd))]
     labels = ["broad"]
     kern = np.diag([offset_sd ** 2, slope_sd[0] ** 2, slope_sd[1] ** 2])
-    for lab in pseudo:
-        ok = lab.features[:, 0] == 1
-        if ok.sum() < 5:
-            continue
-        x, y = feat_x(lab.features[ok]), np.log(lab.truth[ok])
-        beta, *_ = np.linalg.lstsq(x, y, rcond=None)
-        sd = float(np.sqrt(np.sum((y - x @ beta) ** 2) / (ok.sum() - 3)))
+    for lab, x, y, beta in _lab_fits(pseudo):
+        sd = float(np.sqrt(np.sum((y - x @ beta) ** 2) / (len(y) - 3)))
         c = sd ** 2 * np.linalg.inv(x.T @ x) + kern
         c = 0.5 * (c + c.T)
         comps.append(FeaturePrior(tuple(float(v) for v in beta), tuple(tuple(float(v) for v in r) for r in c),

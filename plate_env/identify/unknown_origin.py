@@ -128,26 +128,17 @@ def _reading(name: str, fm: ForwardModel, est: Estimate) -> PhysicsReading:
     return PhysicsReading(name, "unplaced", reason=est.reason, p_value=p)
 
 
-def read_as(name: str, table: ProbeTable, known: KnownInputs) -> PhysicsReading:
-    """:class:`PhysicsReading` of ``table`` by the physics ``name`` (:func:`family_model`)."""
-    from plate_env.identify.inference import identify_atlas
-
-    try:
-        fm = family_model(name, known)
-    except ValueError as e:  # no member for these known inputs: that physics cannot be asked
-        return PhysicsReading(name, "silent", reason=str(e))
-    return _reading(name, fm, identify_atlas(table, fm))
-
-
 def physics_readings(table: ProbeTable, known: KnownInputs,
                      names: Sequence[str] | None = None) -> tuple[PhysicsReading, ...]:
-    """Every shipped physics' statement on ``table`` (:data:`PHYSICS_MODELS` unless ``names``)."""
-    return tuple(read_as(n, table, known) for n in (PHYSICS_MODELS if names is None else names))
+    """Every shipped physics' statement on ``table`` (:data:`PHYSICS_MODELS` unless ``names``): a fresh
+    :class:`ReadingsState` fed the whole table."""
+    return ReadingsState(known, names).readings(table)
 
 
 class ReadingsState:
-    """:func:`physics_readings` of a probe table that grows by appended probes (an episode's estimate after each
-    probe): each physics keeps its incremental posterior
+    """Every shipped physics' statement (:class:`PhysicsReading`, by the atlas method on its :func:`family_model`)
+    of a probe table that grows by appended probes (an episode's estimate after each probe): each physics keeps its
+    incremental posterior
     (:class:`~plate_env.identify.posterior_state.PosteriorState`, whose estimate equals ``identify_atlas``'s) and
     is fed only the probes added since it last answered; a table that is not an extension of the last one starts
     them over."""
