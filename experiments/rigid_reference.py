@@ -9,7 +9,15 @@ where the centred disc ran the whole window, which leaves too few stable probes 
 file at once, so an interrupted run keeps what finished and a rerun resumes; ``--collect`` writes
 ``experiments/results/rigid_reference.json`` from the lines.
 
-Usage: ``nice -n 5 python experiments/rigid_reference.py [--dt 6.25e-6] [--limit N]`` then ``--collect``.
+``--yaw-offset-mrad Y`` runs the same centred probes with the initial yaw moved by Y mrad into their own files
+(``rigid_reference_yaw{Y}mrad.jsonl`` / ``.json``): the reference's own spread of stability calls over a placement
+difference no lab controls, against which a model's agreement with the reference is read (issue 34).
+
+Another ``--dt`` also gets its own files (``..._dt{dt}``): the reference's convergence in its step, call by call;
+``--keys`` runs only the named probes; ``--model`` another tile-link model (own files, ``..._{model}``).
+
+Usage: ``nice -n 5 python experiments/rigid_reference.py [--dt 6.25e-6] [--limit N] [--yaw-offset-mrad Y]
+[--keys K1,K2]`` then ``--collect`` (with the same ``--yaw-offset-mrad`` and ``--dt``).
 """
 
 from __future__ import annotations
@@ -18,6 +26,7 @@ import argparse
 import json
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -37,9 +46,9 @@ B_P_MM = 3.0
 PRIORITY = ((10, 36.9), (33, 36.9), (23, 50.0), (10, 50.0), (33, 50.0), (23, 36.9))
 
 
-def probe_set(seed0: int | None = None) -> list[tuple[str, int | None, ProbeSpec]]:
+def probe_set(seed0: int | None = None, yaw_offset_rad: float = 0.0) -> list[tuple[str, int | None, ProbeSpec]]:
     """(key, placement seed or None for centred, probe) of every reference probe, in a fixed order (object by
-    object)."""
+    object); ``yaw_offset_rad`` is added to every probe's initial yaw."""
     out = []
     for wn in OMEGA_N_PI:
         for alpha in ALPHA_DEG:
@@ -49,6 +58,8 @@ def probe_set(seed0: int | None = None) -> list[tuple[str, int | None, ProbeSpec
                 spec = ProbeSpec(obj=obj, motion=pe.PlateMotion.from_paper(f, A_P_DEG, B_P_MM))
                 if seed is not None:
                     spec = spec.perturbed(np.random.default_rng(seed))
+                if yaw_offset_rad:
+                    spec = replace(spec, initial_yaw=spec.initial_yaw + yaw_offset_rad)
                 out.append((f"{wn:g}pi_{alpha:g}deg_{f:g}Hz", seed, spec))
     return out
 
@@ -71,11 +82,28 @@ def done_keys(path: Path) -> set[str]:
     return {json.loads(line)["key"] for line in path.read_text().splitlines() if line.strip()}
 
 
-def run(dt: float, limit: int | None, seed0: int | None, pairs: int) -> None:
-    physics = pe.make_physics("tilelink", model="rigid_limit", dt=dt)
-    done = done_keys(LINES)
+REFERENCE_DT = 6.25e-6
+
+
+def paths(yaw_offset_mrad: float, dt: float = REFERENCE_DT, model: str = "rigid_limit") -> tuple[Path, Path]:
+    """(lines, collected json) of the run at this initial-yaw offset, step and tile-link model; (0, 6.25e-6 s,
+    rigid_limit) is the reference itself."""
+    tags = ([f"yaw{yaw_offset_mrad:g}mrad"] if yaw_offset_mrad else []) + ([f"dt{dt:g}"] if dt != REFERENCE_DT else [])
+    tags += [model] if model != "rigid_limit" else []
+    if not tags:
+        return LINES, OUT
+    tag = "_".join(tags)
+    return RESULTS / f"rigid_reference_{tag}.jsonl", RESULTS / f"rigid_reference_{tag}.json"
+
+
+def run(dt: float, limit: int | None, seed0: int | None, pairs: int, yaw_offset_mrad: float = 0.0,
+        keys: set[str] | None = None, model: str = "rigid_limit") -> None:
+    physics = pe.make_physics("tilelink", model=model, dt=dt)
+    lines, _ = paths(yaw_offset_mrad, dt, model)
+    done = done_keys(lines)
     rank = {obj: i for i, obj in enumerate(PRIORITY)}
-    todo = sorted((p for p in probe_set(seed0) if p[0] not in done),
+    todo = sorted((p for p in probe_set(seed0, 1e-3 * yaw_offset_mrad)
+                   if p[0] not in done and (keys is None or p[0] in keys)),
                   key=lambda p: rank[(round(p[2].obj.omega_n / math.pi), round(math.degrees(p[2].obj.alpha), 1))])
     todo = todo[:limit]
     print(f"{len(done)} done, {len(todo)} to run at dt {dt:g} s, {pairs} at a time", flush=True)
@@ -84,33 +112,43 @@ def run(dt: float, limit: int | None, seed0: int | None, pairs: int) -> None:
         t0 = time.perf_counter()
         results = physics.run([spec for _, _, spec in part])
         for (key, seed, _), res in zip(part, results, strict=True):
-            row = record(key, seed, res, dt, "rigid_limit")
-            with LINES.open("a") as fh:
+            row = record(key, seed, res, dt, model)
+            with lines.open("a") as fh:
                 fh.write(json.dumps(row) + "\n")
             print(f"{key}: {res.omega_b_deg_s:.1f} +- {res.stderr_deg_s:.1f} deg/s {res.reason or 'stable'} "
                   f"({time.perf_counter() - t0:.1f} s wall for {len(part)})", flush=True)
 
 
-def collect() -> None:
-    rows = {json.loads(line)["key"]: json.loads(line) for line in LINES.read_text().splitlines() if line.strip()}
+def collect(yaw_offset_mrad: float = 0.0, dt: float = REFERENCE_DT, model: str = "rigid_limit") -> None:
+    lines, out = paths(yaw_offset_mrad, dt, model)
+    rows = {json.loads(line)["key"]: json.loads(line) for line in lines.read_text().splitlines() if line.strip()}
     order = [k for k, _, _ in probe_set() if k in rows]
-    OUT.write_text(json.dumps({"description": __doc__.split("\n")[0], "n_probes": len(order),
+    desc = __doc__.split("\n")[0] + (f" Initial yaw moved by {yaw_offset_mrad:g} mrad." if yaw_offset_mrad else "")
+    desc += f" Run at dt {dt:g} s, not the reference's step." if dt != REFERENCE_DT else ""
+    desc += f" Model {model}, not the reference's." if model != "rigid_limit" else ""
+    out.write_text(json.dumps({"description": desc, "n_probes": len(order),
                                "probes": [rows[k] for k in order]}, indent=1) + "\n")
-    print(f"wrote {OUT} ({len(order)} probes)")
+    print(f"wrote {out} ({len(order)} probes)")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--dt", type=float, default=6.25e-6)
+    ap.add_argument("--dt", type=float, default=REFERENCE_DT, help="step (s); another than 6.25e-6 gets its own files")
+    ap.add_argument("--model", default="rigid_limit",
+                    help="another tile-link model (e.g. pointmass: the contact law's own step sensitivity), own files")
+    ap.add_argument("--keys", default="", help="run only these probes (comma-separated keys, e.g. 10pi_50deg_22Hz)")
     ap.add_argument("--limit", type=int, default=None, help="run at most this many of the missing probes")
     ap.add_argument("--placement-seed", type=int, default=None, help="perturbed placements from this seed")
     ap.add_argument("--parallel", type=int, default=2, help="probes per kernel call (one thread each)")
+    ap.add_argument("--yaw-offset-mrad", type=float, default=0.0,
+                    help="move every probe's initial yaw by this much (mrad), into its own files")
     ap.add_argument("--collect", action="store_true", help="write rigid_reference.json from the finished lines")
     args = ap.parse_args()
     if args.collect:
-        collect()
+        collect(args.yaw_offset_mrad, args.dt, args.model)
     else:
-        run(args.dt, args.limit, args.placement_seed, args.parallel)
+        keys = {k for k in args.keys.split(",") if k.strip()} or None
+        run(args.dt, args.limit, args.placement_seed, args.parallel, args.yaw_offset_mrad, keys, args.model)
 
 
 if __name__ == "__main__":
