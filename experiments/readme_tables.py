@@ -252,8 +252,8 @@ def misspec_matrix() -> str:
 
 
 #: The routes of experiments/results/rigid_fast.json shown in docs/rigid_fast.md, with the model each one is.
-RIGID_ROUTES = {"small_steps_690d019": "`rigid_fast` (shipped)",
-                "small_steps": "`rigid_fast` on the faster kernel (15a37a8, not merged)",
+RIGID_ROUTES = {"small_steps": "`rigid_fast` (shipped; measured at 79d4669, load 1.7)",
+                "small_steps_690d019": "`rigid_fast` on the kernel of 690d019 (load 14)",
                 "rigid_2e-4": "`rigid` (shipped)",
                 "small_steps_5e-5": "small steps at twice the step", "exact_joint_solve_1e-4": "joints solved exactly"}
 

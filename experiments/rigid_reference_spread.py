@@ -29,6 +29,8 @@ OUT = RESULTS / "rigid_reference_spread"
 PATTERN = re.compile(r"rigid_reference_(?:yaw(?P<yaw>-?[0-9.]+)mrad)?_?(?:dt(?P<dt>[0-9.e-]+?))?_?(?P<model>[a-z_]+)?"
                      r"\.json$")
 REFERENCE = "yaw 0 mrad (the reference)"
+#: Models that are forms of the rigid limit (scored against the reference); others against themselves.
+RIGID_LIMIT_FORMS = ("rigid_limit", "rigid_fast")
 
 
 def variants() -> dict[str, dict]:
@@ -49,10 +51,10 @@ def variants() -> dict[str, dict]:
 
 
 def base_of(name: str, var: dict[str, dict]) -> str | None:
-    """What a variant is scored against: the reference, or for another model that model at the reference's
-    placement and step (None if not run)."""
+    """What a variant is scored against: the reference for a form of the rigid limit, or for another model (the
+    point mass) that model at the reference's placement and step (None if not run)."""
     model = var[name]["model"]
-    if model == "rigid_limit":
+    if model in RIGID_LIMIT_FORMS:
         return REFERENCE
     return next((n for n, v in var.items() if v["model"] == model and v["dt_s"] == 6.25e-6 and not v["yaw_mrad"]
                  and n != name), None)
