@@ -18,12 +18,14 @@ from importlib import resources
 from pathlib import Path
 
 from plate_env.core.files import read_json, write_text_atomic
+from plate_env.identify.forward import POINTMASS_JOINT_MEMBERS, pointmass_member_label
 from plate_env.identify.inference import fit_discrepancy
 from plate_env.surrogate.atlas import load_atlas_file
 
-#: The unknown joint values of the point-mass members (zeta_bending x k_inplane N/m); the nominal one is the
-#: shipped dense atlas, the others grid plate_env/data/grids/pointmass_member.json (``--nuisance``).
-NUISANCE_MEMBERS = [(zb, ki) for zb in (0.05, 0.1, 0.2) for ki in (100, 300, 1000) if (zb, ki) != (0.1, 300)]
+#: The unknown joint values of the point-mass members (zeta_bending x k_inplane N/m; defined once in
+#: :data:`plate_env.identify.forward.POINTMASS_JOINT_MEMBERS`); the nominal one is the shipped dense atlas, the others
+#: grid plate_env/data/grids/pointmass_member.json (``--nuisance``).
+NUISANCE_MEMBERS = list(POINTMASS_JOINT_MEMBERS)
 #: The faithful forward model's atlas: rigid_fast tiles at 1 Hz, 3 and 6 deg (experiments/results/
 #: atlas_tilelink_rigid_fast.md); its discrepancy is fitted by experiments/faithful_forward.py.
 FAITHFUL = "atlas_tilelink_rigid_fast.npz"
@@ -31,7 +33,7 @@ FAITHFUL = "atlas_tilelink_rigid_fast.npz"
 #: rigid_fast, within 0.6 % median of the converged rigid_limit it stands for; issue 33), which replaced the 2 Hz
 #: rigid_limit atlas (atlas_tilelink_rigid_limit_f2.npz, still shipped) in ``lab`` and ``tilelink/rigid_limit``.
 FAMILIES = {
-    "pointmass": ["atlas_tilelink_pointmass.npz"] + [f"atlas_tilelink_pointmass_zb{zb:g}_ki{ki:g}.npz"
+    "pointmass": ["atlas_tilelink_pointmass.npz"] + [f"atlas_tilelink_pointmass_{pointmass_member_label(zb, ki)}.npz"
                                                      for zb, ki in NUISANCE_MEMBERS],
     "rigid": [FAITHFUL],
     "pybullet": ["atlas_pybullet_pybullet.npz"],

@@ -25,6 +25,17 @@ from plate_env.surrogate.catalog import read_catalog
 from plate_env.surrogate.conditioning import BUILD_HINT, KnownInputs, condition
 
 POOLINGS = ("evidence", "fixed")
+#: The unknown joint values of the point-mass family's other members (zeta_bending, k_inplane N/m): one encoding of
+#: the fact, read by the registry's builder (:mod:`plate_env.build.forward_models`) and by the out-of-range readings
+#: (:mod:`plate_env.identify.identifiability`); the nominal member (0.1, 300) is the shipped dense atlas.
+POINTMASS_JOINT_MEMBERS: tuple[tuple[float, float], ...] = tuple(
+    (zb, ki) for zb in (0.05, 0.1, 0.2) for ki in (100.0, 300.0, 1000.0) if (zb, ki) != (0.1, 300.0))
+
+
+def pointmass_member_label(zeta_bending: float, k_inplane: float) -> str:
+    """The label of a point-mass member's joint values in its atlas file names, e.g. ``"zb0.05_ki100"``
+    (``atlas_tilelink_pointmass_zb0.05_ki100.npz`` and its ``_below`` / ``_above`` extensions)."""
+    return f"zb{zeta_bending:g}_ki{k_inplane:g}"
 #: The posterior grid reaches this many discrepancies (sigma_eps, log omega) beyond the members' omega_n range
 #: (normal discrepancy; a Student-t one reaches its 99.5 % quantile, :func:`pad_sigmas`).
 PAD_SIGMAS = 3.0

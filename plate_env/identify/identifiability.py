@@ -38,13 +38,12 @@ import math
 import numpy as np
 
 from plate_env.identify.estimate import EDGE_MASS, Posterior
-from plate_env.identify.forward import ForwardModel, Member
+from plate_env.identify.forward import POINTMASS_JOINT_MEMBERS, ForwardModel, Member, pointmass_member_label
 from plate_env.surrogate.atlas import Atlas
 
 #: The point mass's other joint/contact values (the ``lab`` pool's members): zeta_bending and k_inplane, as its atlas
 #: files name them.
-_JOINTS = tuple(f"zb{zb}_ki{ki}" for zb in ("0.05", "0.1", "0.2") for ki in ("100", "300", "1000")
-                if (zb, ki) != ("0.1", "300"))
+_JOINTS = tuple(pointmass_member_label(zb, ki) for zb, ki in POINTMASS_JOINT_MEMBERS)
 #: Extension atlases per member label (``"physics/model"``; a member takes those whose set-up matches its atlas's,
 #: :func:`_matches`): the same physics at omega_n outside the member's range (package data, ``plate-env build atlas
 #: --grid pointmass_below_m13.6`` / ``pointmass_above_m13.6``; the other joint values ``--grid pointmass_member_below``
