@@ -36,6 +36,8 @@ def pointmass_member_label(zeta_bending: float, k_inplane: float) -> str:
     """The label of a point-mass member's joint values in its atlas file names, e.g. ``"zb0.05_ki100"``
     (``atlas_tilelink_pointmass_zb0.05_ki100.npz`` and its ``_below`` / ``_above`` extensions)."""
     return f"zb{zeta_bending:g}_ki{k_inplane:g}"
+
+
 #: The posterior grid reaches this many discrepancies (sigma_eps, log omega) beyond the members' omega_n range
 #: (normal discrepancy; a Student-t one reaches its 99.5 % quantile, :func:`pad_sigmas`).
 PAD_SIGMAS = 3.0
