@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 from common import load_reference, spec_of
+from rigid_reference import REFERENCE_DT
 
 import plate_env as pe
 from plate_env.core.probe import SLIP_LIMIT_M
@@ -34,7 +35,7 @@ RESULTS = HERE / "results"
 
 def physics_of(name: str, limit_m: float):
     if name == "reference":
-        return pe.make_physics("tilelink", model="rigid_limit", dt=6.25e-6, slip_limit=limit_m)
+        return pe.make_physics("tilelink", model="rigid_limit", dt=REFERENCE_DT, slip_limit=limit_m)
     import rigid_modal_validation
 
     return rigid_modal_validation.physics_of(name, slip_limit=limit_m)

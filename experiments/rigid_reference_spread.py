@@ -17,35 +17,34 @@ from __future__ import annotations
 
 import itertools
 import json
-import re
 import types
 from pathlib import Path
 
 from common import compare, load_reference
+from rigid_reference import REFERENCE_DT
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
 OUT = RESULTS / "rigid_reference_spread"
-PATTERN = re.compile(r"rigid_reference_(?:yaw(?P<yaw>-?[0-9.]+)mrad)?_?(?:dt(?P<dt>[0-9.e-]+?))?_?(?P<model>[a-z_]+)?"
-                     r"\.json$")
 REFERENCE = "yaw 0 mrad (the reference)"
 #: Models that are forms of the rigid limit (scored against the reference); others against themselves.
 RIGID_LIMIT_FORMS = ("rigid_limit", "rigid_fast")
 
 
 def variants() -> dict[str, dict]:
-    """Every collected variant: name -> {yaw_mrad, dt_s, model, rows} (the reference itself as ``yaw 0``)."""
-    out = {REFERENCE: {"yaw_mrad": 0.0, "dt_s": 6.25e-6, "model": "rigid_limit", "rows": load_reference()}}
+    """Every collected variant: name -> {yaw_mrad, dt_s, model, rows} (the reference itself as ``yaw 0``). Model,
+    step and yaw offset are read from the rows (as ``rigid_reference.record`` wrote them), not from file names."""
+    ref = load_reference()
+    ref_yaw = {r["key"]: r["initial_yaw_rad"] for r in ref}
+    out = {REFERENCE: {"yaw_mrad": 0.0, "dt_s": ref[0]["dt_s"], "model": ref[0]["model"], "rows": ref}}
     for path in sorted(RESULTS.glob("rigid_reference_*.json")):
-        m = PATTERN.search(path.name)
-        if m is None or path.name.startswith("rigid_reference_spread"):
+        if path.name.startswith("rigid_reference_spread"):
             continue
-        yaw = float(m["yaw"]) if m["yaw"] else 0.0
-        dt = float(m["dt"]) if m["dt"] else 6.25e-6
-        model = m["model"] or "rigid_limit"
         rows = json.loads(path.read_text())["probes"]
-        name = " ".join(([model] if model != "rigid_limit" else []) + ([f"yaw {yaw:g} mrad"] if m["yaw"] else [])
-                        + ([f"dt {dt:g} s"] if m["dt"] else [])) or model
+        model, dt = rows[0]["model"], rows[0]["dt_s"]
+        yaw = round(1e3 * (rows[0]["initial_yaw_rad"] - ref_yaw[rows[0]["key"]]), 6)
+        name = " ".join(([model] if model != "rigid_limit" else []) + ([f"yaw {yaw:g} mrad"] if yaw else [])
+                        + ([f"dt {dt:g} s"] if dt != REFERENCE_DT else [])) or model
         out[name] = {"yaw_mrad": yaw, "dt_s": dt, "model": model, "rows": rows}
     return out
 
@@ -56,7 +55,7 @@ def base_of(name: str, var: dict[str, dict]) -> str | None:
     model = var[name]["model"]
     if model in RIGID_LIMIT_FORMS:
         return REFERENCE
-    return next((n for n, v in var.items() if v["model"] == model and v["dt_s"] == 6.25e-6 and not v["yaw_mrad"]
+    return next((n for n, v in var.items() if v["model"] == model and v["dt_s"] == REFERENCE_DT and not v["yaw_mrad"]
                  and n != name), None)
 
 
@@ -84,12 +83,12 @@ def report() -> dict:
     var = variants()
     ref = var[REFERENCE]["rows"]
     order = sorted((n for n in var if n != REFERENCE and base_of(n, var) is not None),
-                   key=lambda n: (var[n]["model"] != "rigid_limit", var[n]["model"], var[n]["dt_s"] != 6.25e-6,
+                   key=lambda n: (var[n]["model"] != "rigid_limit", var[n]["model"], var[n]["dt_s"] != REFERENCE_DT,
                                   var[n]["dt_s"], var[n]["yaw_mrad"]))
     against_ref = {f"{name}, against {base_of(name, var)}": score(var[base_of(name, var)]["rows"], var[name]["rows"])
                    for name in order}
     yaws = {name: v for name, v in var.items()
-            if v["dt_s"] == 6.25e-6 and v["model"] == "rigid_limit" and len(v["rows"]) == len(ref)}
+            if v["dt_s"] == REFERENCE_DT and v["model"] == "rigid_limit" and len(v["rows"]) == len(ref)}
     pairs = {f"{a} vs {b}": score(yaws[a]["rows"], yaws[b]["rows"]) for a, b in itertools.combinations(yaws, 2)}
     unstable = {r["key"]: [] for r in ref}
     for v in yaws.values():
